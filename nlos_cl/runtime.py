@@ -1,0 +1,206 @@
+"""The host module: owns the OpenCL context, queue, compiled programs, kernels and buffers.
+
+`Runtime` has the same stage methods, with the same signatures, as `reference.NumpyBackend`;
+handles are pyopencl arrays that stay on the device between stages. Programs are built once per
+(source file, build options) and kernels fetched once; buffers come from a memory pool, so a
+stream of frames reuses device memory instead of allocating anew.
+"""
+from __future__ import annotations
+
+import math
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from . import devices  # sets the PoCL cache folder before pyopencl loads
+from .errors import DeviceError
+from .histograms import Grid
+from .reference import REACH_SIGMAS
+from .scene import Facets
+
+cl = devices.cl
+import pyopencl.array as cla  # noqa: E402
+import pyopencl.clrandom as clrandom  # noqa: E402
+import pyopencl.tools as cltools  # noqa: E402
+
+FACET_CHUNK = 64  # facets per culling chunk in the forward kernel
+ARGMAX_ITEMS = 1024  # work items in the first argmax stage
+LOG_FLOOR = 1e-6  # per-detector floor (relative to its peak) in sum-of-logs scoring
+
+
+def kernel_source(name: str) -> str:
+    """Text of kernels/<name>.cl, from the installed package or, failing that, the checkout."""
+    try:
+        return resources.files("nlos_cl.kernels").joinpath(f"{name}.cl").read_text()
+    except (ModuleNotFoundError, FileNotFoundError):
+        return (Path(__file__).resolve().parent.parent / "kernels" / f"{name}.cl").read_text()
+
+
+def _float4(point) -> np.ndarray:
+    p = np.asarray(point, dtype=np.float64).reshape(3)
+    return cl.cltypes.make_float4(float(p[0]), float(p[1]), float(p[2]), 0.0)
+
+
+def _as_float4_rows(points) -> np.ndarray:
+    pts = np.asarray(points, dtype=np.float32).reshape(-1, 3)
+    out = np.zeros((len(pts), 4), dtype=np.float32)
+    out[:, :3] = pts
+    return out
+
+
+class Runtime:
+    """One OpenCL device with everything built for it. Use `get_runtime()` for a shared one."""
+
+    def __init__(self, device=None):
+        self.device = devices.choose_device(device)
+        self.context = cl.Context([self.device])
+        self.queue = cl.CommandQueue(self.context)
+        self.allocator = cltools.MemoryPool(cltools.ImmediateAllocator(self.queue))
+        self._programs: dict = {}
+        self._kernels: dict = {}
+        self._rng: dict = {}
+        self.name = devices.describe(self.device)
+
+    # ------------------------------------------------------------ programs and buffers
+    def kernel(self, source: str, name: str, **defines) -> "cl.Kernel":
+        """Kernel `name` of kernels/<source>.cl built with -D defines; built and fetched once."""
+        options = tuple(f"-D{k}={v}" for k, v in sorted(defines.items()))
+        key = (source, options, name)
+        kern = self._kernels.get(key)
+        if kern is None:
+            program = self._programs.get((source, options))
+            if program is None:
+                program = cl.Program(self.context, kernel_source(source))
+                try:
+                    program.build(options=list(options))
+                except cl.RuntimeError as exc:
+                    raise DeviceError(f"kernels/{source}.cl failed to build on {self.name} "
+                                      f"with {list(options)}:\n{exc}") from exc
+                self._programs[(source, options)] = program
+            kern = self._kernels[key] = getattr(program, name)
+        return kern
+
+    def empty(self, shape, dtype=np.float32):
+        return cla.empty(self.queue, shape, dtype, allocator=self.allocator)
+
+    def from_numpy(self, array):
+        return cla.to_device(self.queue, np.ascontiguousarray(array, dtype=np.float32),
+                             allocator=self.allocator)
+
+    def to_numpy(self, handle):
+        return handle.get(self.queue).astype(np.float64)
+
+    def finish(self):
+        """Wait for everything queued (for timing a stage)."""
+        self.queue.finish()
+
+    def _small(self, array, dtype=np.float32):
+        return cla.to_device(self.queue, np.ascontiguousarray(array, dtype=dtype),
+                             allocator=self.allocator)
+
+    def run(self, kernel, global_size, *args):
+        """Enqueue with the local size left to the runtime (best on CPU devices)."""
+        kernel.set_args(*[a.data if isinstance(a, cla.Array) else a for a in args])
+        return cl.enqueue_nd_range_kernel(self.queue, kernel, global_size, None)
+
+    # ------------------------------------------------------------ stages
+    def simulate(self, facets: Facets, spots, laser, edge0, dpath, sigma_path, n_bins):
+        n_det, n_facets = len(spots), facets.count
+        n_chunks = -(-n_facets // FACET_CHUNK)
+        centres = _as_float4_rows(facets.centres)
+        normals = _as_float4_rows(facets.normals)
+        normals[:, 3] = facets.areas
+        path = self.empty((n_det, n_chunks * FACET_CHUNK))
+        weight = self.empty((n_det, n_chunks * FACET_CHUNK))
+        ranges = self.empty((n_det, n_chunks, 2))
+        self.run(self.kernel("forward", "facet_paths", CHUNK=FACET_CHUNK), (n_chunks, n_det),
+                 self._small(centres), self._small(normals), np.int32(n_facets),
+                 self._small(_as_float4_rows(spots)), _float4(laser), path, weight, ranges)
+        hist = self.empty((n_det, n_bins))
+        axis = self._small(np.stack([edge0, dpath], axis=1))
+        self.run(self.kernel("forward", "pulse_bins", CHUNK=FACET_CHUNK),
+                 (-(-n_bins // 8), n_det), path, weight, ranges, np.int32(n_chunks), axis,
+                 np.float32(1.0 / (math.sqrt(2.0) * sigma_path)),
+                 np.float32(REACH_SIGMAS * sigma_path), np.int32(n_bins), hist)
+        r = ranges.get(self.queue).astype(np.float64)  # tiny: (D, chunks, 2), for validation
+        return hist, np.stack([r[..., 0].min(axis=1), r[..., 1].max(axis=1)], axis=1)
+
+    def standard_normal(self, shape, seed):
+        """Seeded N(0, 1) draws from Philox (counter-based: the same on every device). The
+        generator is stateful, so its key and counter are reset: a seed always means the same
+        noise."""
+        entry = self._rng.get(seed)
+        if entry is None:
+            gen = clrandom.PhiloxGenerator(self.context, seed=seed)
+            entry = self._rng[seed] = (gen, list(gen.key), list(gen.counter))
+        gen, key, counter = entry
+        gen.key, gen.counter = list(key), list(counter)
+        return gen.normal(self.queue, shape, np.float32, allocator=self.allocator)
+
+    def add_awgn(self, signal, normal, snr_db):
+        n_rows, n_bins = signal.shape
+        stats = self.row_stats(signal)
+        out = self.empty(signal.shape)
+        self.run(self.kernel("signal", "add_awgn"), (n_bins, n_rows), signal, normal, stats,
+                 np.float32(10.0 ** (-snr_db / 10.0)), np.int32(n_bins), out)
+        return out
+
+    def gauss_filter(self, signal, taps):
+        n_rows, n_bins = signal.shape
+        half = (len(taps) - 1) // 2
+        space = "__constant" if 4 * len(taps) <= self.device.max_constant_buffer_size else "__global"
+        padded = self.empty((n_rows, n_bins + 2 * half))
+        self.run(self.kernel("gauss_filter", "pad_rows", HALF=half, TAPS_SPACE=space),
+                 (n_bins + 2 * half, n_rows), signal, np.int32(n_bins), padded)
+        out = self.empty(signal.shape)
+        self.run(self.kernel("gauss_filter", "gauss_filter", HALF=half, TAPS_SPACE=space),
+                 (n_bins, n_rows), padded, self._small(taps), np.int32(n_bins), out)
+        return out
+
+    def row_stats(self, signal):
+        stats = self.empty((signal.shape[0], 2))
+        self.run(self.kernel("signal", "row_stats"), (signal.shape[0],), signal,
+                 np.int32(signal.shape[1]), stats)
+        return stats
+
+    def ellipse_score(self, signal, stats, spots, laser, path0, inv_dpath, grid: Grid, log_mode,
+                      log_floor):
+        nx, ny, nz = grid.shape
+        n_det, n_bins = signal.shape
+        score = self.empty((nz, ny, nx))
+        kern = self.kernel("ellipse_score", "ellipse_score", N_DET=n_det,
+                           LOG_MODE=int(bool(log_mode)), LOG_FLOOR=f"{log_floor:.9e}f")
+        # float32 path lengths of ~10 m round to ~1e-6 m: ~0.003 of a 1 ps (0.3 mm) bin.
+        axis = self._small(np.stack([path0, inv_dpath], axis=1))
+        self.run(kern, (nx, ny, nz), signal, stats, self._small(_as_float4_rows(spots)),
+                 _float4(laser), axis, np.int32(n_bins), _float4(grid.origin),
+                 _float4(grid.step), np.int32(nx), np.int32(ny), score)
+        return score
+
+    def argmax(self, score):
+        n_cells = score.size
+        items = min(ARGMAX_ITEMS, n_cells)
+        per_item = -(-n_cells // items)
+        best_value = self.empty((items,))
+        best_index = self.empty((items,), np.int32)
+        self.run(self.kernel("signal", "argmax_partial"),
+                 (items,), score, np.int32(n_cells), np.int32(per_item), best_value, best_index)
+        values, indices = best_value.get(self.queue), best_index.get(self.queue)
+        w = int(np.argmax(values))  # first maximum: the lowest cell index wins ties
+        return int(indices[w]), float(values[w])
+
+    def read_rows(self, score, iz, iy0, iy1):
+        return score[iz, iy0:iy1].get(self.queue).astype(np.float64)
+
+
+_shared: dict = {}
+
+
+def get_runtime(device=None) -> Runtime:
+    """A Runtime per device spec, created once and reused (programs stay built)."""
+    key = device if device is None or isinstance(device, str) else id(device)
+    runtime = _shared.get(key)
+    if runtime is None:
+        runtime = _shared[key] = Runtime(device)
+    return runtime

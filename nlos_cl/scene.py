@@ -1,0 +1,335 @@
+"""The visible setup (wall, laser spot O, detector spots, pulse) and the hidden target mesh.
+
+Coordinates (DESIGN.md): the relay wall is the plane y = 0 with normal +y pointing into the
+hidden area (y > 0); z is up. SI units everywhere: metres, seconds, watts, joules.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import trimesh
+
+from .errors import InputError, require
+
+SPEED_OF_LIGHT = 299_792_458.0  # m/s
+FWHM_PER_SIGMA = 2.0 * math.sqrt(2.0 * math.log(2.0))
+
+
+def _point(value, field_name: str) -> np.ndarray:
+    arr = np.array(value, dtype=np.float64)  # a copy: the caller's array is never aliased
+    require(arr.shape == (3,), field_name, f"expected a point [x, y, z], got shape {arr.shape}",
+            "pass three coordinates in metres")
+    require(bool(np.all(np.isfinite(arr))), field_name, f"non-finite coordinate {arr.tolist()}",
+            "pass finite coordinates in metres")
+    return arr
+
+
+@dataclass(frozen=True)
+class Pulse:
+    """A Gaussian laser pulse P0(t) = energy * N(t; peak_delay, sigma) (paper Eq. 9, 22, 23)."""
+
+    energy_j: float = 0.75 / 80e6  # 750 mW at 80 MHz = 9.375e-9 J per pulse
+    fwhm_s: float = 70e-12
+
+    def __post_init__(self):
+        require(math.isfinite(self.energy_j) and self.energy_j > 0, "pulse.energy_j",
+                f"must be a positive number of joules, got {self.energy_j}",
+                "pass the pulse energy, e.g. Pulse.from_laser(power_w=0.75, rep_rate_hz=80e6)")
+        require(math.isfinite(self.fwhm_s) and self.fwhm_s > 0, "pulse.fwhm_s",
+                f"must be a positive duration in seconds, got {self.fwhm_s}",
+                "pass the pulse FWHM in seconds, e.g. 70e-12")
+
+    @classmethod
+    def from_laser(cls, power_w: float = 0.75, rep_rate_hz: float = 80e6,
+                   fwhm_s: float = 70e-12) -> "Pulse":
+        return cls(energy_j=power_w / rep_rate_hz, fwhm_s=fwhm_s)
+
+    @property
+    def sigma_s(self) -> float:
+        return self.fwhm_s / FWHM_PER_SIGMA
+
+    @property
+    def peak_delay_s(self) -> float:
+        """The paper puts the pulse peak at mu = 3 sigma after emission (Section 3.1)."""
+        return 3.0 * self.sigma_s
+
+
+def _disc_area(diameter_m: float) -> float:
+    return math.pi * (0.5 * diameter_m) ** 2
+
+
+@dataclass(frozen=True)
+class Setup:
+    """Everything visible: laser spot O and detector spots on the wall, device distance, BRDF.
+
+    The device (laser and detectors) sits ``device_distance_m`` from the wall; the two legs to
+    and from the wall add 2 d / c to every arrival time. ``aperture_area_m2`` is the detector's
+    collecting area S_d of paper Eq. 21, which the paper does not state: the default is a
+    1-inch lens. Amplitudes scale with it; positions do not.
+    """
+
+    laser_spot: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    detector_spots: np.ndarray = field(
+        default_factory=lambda: np.array([[-0.5, 0.0, 0.0], [-1.0, 0.0, 0.0], [-1.5, 0.0, 0.0]]))
+    device_distance_m: float = 20.0
+    laser_spot_diameter_m: float = 0.07
+    detected_spot_diameter_m: float = 0.1
+    aperture_area_m2: float = _disc_area(0.0254)
+    wall_brdf: float = 0.2579
+    pulse: Pulse = field(default_factory=Pulse)
+
+    def __post_init__(self):
+        laser = _point(self.laser_spot, "setup.laser_spot")
+        spots = np.array(self.detector_spots, dtype=np.float64)
+        if spots.ndim == 1 and spots.shape == (3,):
+            spots = spots[None, :]
+        require(spots.ndim == 2 and spots.shape[1] == 3 and spots.shape[0] >= 1,
+                "setup.detector_spots", f"expected shape (n_detectors, 3), got {spots.shape}",
+                "pass one [x, y, z] row per detector spot")
+        require(bool(np.all(np.isfinite(spots))), "setup.detector_spots",
+                "contains NaN or inf", "pass finite coordinates in metres")
+        for name, pts in (("setup.laser_spot", laser[None, :]), ("setup.detector_spots", spots)):
+            require(bool(np.all(np.abs(pts[:, 1]) < 1e-9)), name,
+                    f"points must lie on the wall plane y = 0, got y = {pts[:, 1].tolist()}",
+                    "set the y coordinate of every wall spot to 0")
+        gaps = np.linalg.norm(spots[:, None, :] - spots[None, :, :], axis=-1)
+        np.fill_diagonal(gaps, np.inf)
+        require(bool(np.all(gaps > 1e-6)), "setup.detector_spots",
+                "two detector spots coincide, so their ellipses carry the same information",
+                "give every detector its own spot on the wall")
+        require(bool(np.all(np.linalg.norm(spots - laser, axis=1) > 1e-6)), "setup.detector_spots",
+                "a detector spot coincides with the laser spot O (the direct wall return "
+                "would swamp it)", "move the detector spot away from the laser spot")
+        for name in ("device_distance_m", "laser_spot_diameter_m", "detected_spot_diameter_m",
+                     "aperture_area_m2", "wall_brdf"):
+            value = getattr(self, name)
+            require(isinstance(value, (int, float)) and math.isfinite(value) and value > 0,
+                    f"setup.{name}", f"must be a positive finite number, got {value!r}",
+                    "pass a positive value in SI units")
+        laser.flags.writeable = False
+        spots.flags.writeable = False
+        object.__setattr__(self, "laser_spot", laser)
+        object.__setattr__(self, "detector_spots", spots)
+
+    @property
+    def n_detectors(self) -> int:
+        return self.detector_spots.shape[0]
+
+    @property
+    def detected_spot_area_m2(self) -> float:
+        return _disc_area(self.detected_spot_diameter_m)
+
+    def power_scale(self, target_brdf: float) -> float:
+        """W per (J * geometric weight): f_c f_w^2 S_A S_d / d^2 (paper Eq. 19-21).
+
+        The laser spot area S_0 of Eq. 10 and 12 cancels.
+        """
+        return (target_brdf * self.wall_brdf ** 2 * self.detected_spot_area_m2
+                * self.aperture_area_m2 / self.device_distance_m ** 2)
+
+    def with_detectors(self, detector_spots) -> "Setup":
+        return Setup(self.laser_spot, detector_spots, self.device_distance_m,
+                     self.laser_spot_diameter_m, self.detected_spot_diameter_m,
+                     self.aperture_area_m2, self.wall_brdf, self.pulse)
+
+
+@dataclass(frozen=True)
+class Facets:
+    """A target cut into small flat pieces: centre, outward unit normal, area (m^2)."""
+
+    centres: np.ndarray
+    normals: np.ndarray
+    areas: np.ndarray
+
+    @property
+    def count(self) -> int:
+        return self.areas.shape[0]
+
+
+@dataclass(frozen=True)
+class Target:
+    """A hidden object: any triangle mesh with a Lambertian BRDF f_c (paper: clothes 0.1284)."""
+
+    mesh: trimesh.Trimesh
+    brdf: float = 0.1284
+
+    def __post_init__(self):
+        mesh = self.mesh
+        require(isinstance(mesh, trimesh.Trimesh), "target.mesh",
+                f"expected a trimesh.Trimesh, got {type(mesh).__name__}",
+                "load it with nlos_cl.load_mesh(path) or build one with nlos_cl.rectangle/box/sphere")
+        require(len(mesh.faces) > 0, "target.mesh", "the mesh has no faces",
+                "pass a mesh with at least one triangle")
+        require(bool(np.all(np.isfinite(mesh.vertices))), "target.mesh",
+                "vertices contain NaN or inf", "clean the mesh before passing it")
+        require(float(mesh.area) > 0, "target.mesh",
+                "every face is degenerate (total area 0)", "pass a mesh with non-zero area")
+        require(math.isfinite(self.brdf) and self.brdf > 0, "target.brdf",
+                f"must be a positive number, got {self.brdf}", "pass e.g. 0.1284")
+        ymin = float(mesh.vertices[:, 1].min())
+        require(ymin > 0, "target.mesh",
+                f"reaches y = {ymin:.4g} m, on or behind the relay wall (the hidden area is y > 0)",
+                "move the target into y > 0, e.g. mesh.apply_translation([0, d, 0])")
+        # Keep our own copy: later edits to the caller's mesh must not change this target.
+        object.__setattr__(self, "mesh", mesh.copy())
+
+    def facets(self, facet_size_m: float = 0.01) -> Facets:
+        """Subdivide until every triangle edge is at most facet_size_m; drop zero-area faces.
+
+        Facets are put in Morton (Z-curve) order of their centres so that neighbours in memory
+        are neighbours in space: the forward kernel culls whole chunks of facets at once.
+        """
+        require(math.isfinite(facet_size_m) and facet_size_m > 0, "facet_size_m",
+                f"must be a positive length in metres, got {facet_size_m}", "pass e.g. 0.01")
+        mesh = self.mesh
+        longest = float(mesh.edges_unique_length.max())
+        vertices, faces = mesh.vertices, mesh.faces
+        if longest > facet_size_m:
+            iterations = int(math.ceil(math.log2(longest / facet_size_m))) + 2
+            vertices, faces = trimesh.remesh.subdivide_to_size(
+                vertices, faces, max_edge=facet_size_m, max_iter=iterations)
+        tri = vertices[faces]
+        cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        doubled = np.linalg.norm(cross, axis=1)
+        keep = doubled > 1e-12 * max(longest, 1e-9) ** 2
+        require(bool(keep.any()), "target.mesh", "all faces are degenerate after subdivision",
+                "pass a mesh with non-zero area")
+        centres = tri[keep].mean(axis=1)
+        normals = cross[keep] / doubled[keep, None]
+        areas = 0.5 * doubled[keep]
+        order = _morton_order(centres)
+        return Facets(centres[order], normals[order], areas[order])
+
+
+def _morton_order(points: np.ndarray) -> np.ndarray:
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    q = ((points - lo) / np.maximum(hi - lo, 1e-12) * 1023).astype(np.uint64)
+    code = np.zeros(len(points), dtype=np.uint64)
+    for bit in range(10):
+        for axis in range(3):
+            code |= ((q[:, axis] >> np.uint64(bit)) & np.uint64(1)) << np.uint64(3 * bit + axis)
+    return np.argsort(code, kind="stable")
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A setup, a target, and how finely the target is cut into facets."""
+
+    setup: Setup
+    target: Target
+    facet_size_m: float = 0.01
+    truth: np.ndarray | None = None  # where the target "is" (its centre), for error reports
+
+    def __post_init__(self):
+        require(isinstance(self.setup, Setup), "scene.setup", "expected a nlos_cl.Setup",
+                "build one with nlos_cl.Setup(...)")
+        require(isinstance(self.target, Target), "scene.target", "expected a nlos_cl.Target",
+                "wrap your mesh: nlos_cl.Target(mesh)")
+        truth = self.truth
+        if truth is None:
+            truth = self.target.mesh.bounds.mean(axis=0)
+        truth = _point(truth, "scene.truth")
+        truth.flags.writeable = False
+        object.__setattr__(self, "truth", truth)
+
+    def facets(self) -> Facets:
+        return self.target.facets(self.facet_size_m)
+
+
+# ---------------------------------------------------------------- target meshes
+
+def _grid_quad(u_len: float, v_len: float, cell: float) -> tuple[np.ndarray, np.ndarray]:
+    """A u_len x v_len rectangle in the (u, v) plane as a grid of right triangles whose
+    longest edge (the cell diagonal) is at most `cell`."""
+    side = cell / math.sqrt(2.0)
+    nu, nv = max(1, math.ceil(u_len / side - 1e-9)), max(1, math.ceil(v_len / side - 1e-9))
+    u = np.linspace(-u_len / 2, u_len / 2, nu + 1)
+    v = np.linspace(-v_len / 2, v_len / 2, nv + 1)
+    uu, vv = np.meshgrid(u, v, indexing="ij")
+    verts = np.stack([uu.ravel(), vv.ravel()], axis=1)
+    idx = np.arange((nu + 1) * (nv + 1)).reshape(nu + 1, nv + 1)
+    a, b = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel()
+    c, d = idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    faces = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+    return verts, faces
+
+
+def rectangle(width_m: float = 0.3, height_m: float = 1.6, centre=(4.0, 2.0, 0.0),
+              normal=(-1.0, 0.0, 0.0), cell_m: float = 0.01) -> trimesh.Trimesh:
+    """An upright one-sided rectangle: `height_m` along z, `width_m` across, facing `normal`.
+
+    The paper's target (Section 3.1) is the default: 0.3 m along y by 1.6 m along z, centred at
+    (4, 2, 0) in the plane x = 4, facing the wall side (-x). Pre-gridded at `cell_m` so that no
+    further subdivision is needed at that facet size.
+    """
+    require(width_m > 0 and height_m > 0, "rectangle", "width_m and height_m must be positive",
+            "pass sizes in metres")
+    n = np.asarray(normal, dtype=np.float64)
+    require(n.shape == (3,) and np.linalg.norm(n) > 0 and abs(n[2]) < 1e-9, "rectangle.normal",
+            f"must be a horizontal non-zero vector, got {n.tolist()}",
+            "pass e.g. (-1, 0, 0); for tilted rectangles rotate the mesh with trimesh")
+    n = n / np.linalg.norm(n)
+    across = np.cross([0.0, 0.0, 1.0], n)  # horizontal in-plane direction
+    up = np.array([0.0, 0.0, 1.0])
+    verts2d, faces = _grid_quad(width_m, height_m, cell_m)
+    verts = np.asarray(centre, float) + verts2d[:, :1] * across + verts2d[:, 1:] * up
+    mesh = trimesh.Trimesh(verts, faces, process=False)
+    if np.dot(mesh.face_normals[0], n) < 0:
+        mesh.invert()
+    return mesh
+
+
+def box(extents=(0.3, 0.3, 1.6), centre=(4.0, 2.0, 0.0), cell_m: float = 0.01) -> trimesh.Trimesh:
+    """A closed box, each side pre-gridded at `cell_m`, outward normals."""
+    ext = np.asarray(extents, dtype=np.float64)
+    require(ext.shape == (3,) and bool(np.all(ext > 0)), "box.extents",
+            f"must be three positive lengths, got {ext.tolist()}", "pass e.g. (0.3, 0.3, 1.6)")
+    parts = []
+    for axis in range(3):
+        u_ax, v_ax = [a for a in range(3) if a != axis]
+        verts2d, faces = _grid_quad(ext[u_ax], ext[v_ax], cell_m)
+        for sign in (-1.0, 1.0):
+            verts = np.zeros((len(verts2d), 3))
+            verts[:, u_ax], verts[:, v_ax] = verts2d[:, 0], verts2d[:, 1]
+            verts[:, axis] = sign * ext[axis] / 2
+            m = trimesh.Trimesh(verts + np.asarray(centre, float), faces, process=False)
+            if m.face_normals[0][axis] * sign < 0:
+                m.invert()
+            parts.append(m)
+    return trimesh.util.concatenate(parts)
+
+
+def sphere(radius_m: float = 0.2, centre=(4.0, 2.0, 0.0), subdivisions: int = 4) -> trimesh.Trimesh:
+    require(radius_m > 0, "sphere.radius_m", f"must be positive, got {radius_m}", "pass metres")
+    mesh = trimesh.creation.icosphere(subdivisions=subdivisions, radius=radius_m)
+    mesh.apply_translation(np.asarray(centre, float))
+    return mesh
+
+
+def load_mesh(path, *, position=None) -> trimesh.Trimesh:
+    """Load any mesh file trimesh reads (OBJ, STL, PLY, GLB, ...), optionally re-centred at
+    `position` (its bounding-box centre moves there)."""
+    try:
+        loaded = trimesh.load(path, force="mesh")
+    except Exception as exc:  # trimesh raises many types for bad files
+        raise InputError(f"mesh file {path!s}: could not be read ({exc}). "
+                         "Fix: pass a mesh file trimesh can load (OBJ, STL, PLY, GLB, OFF)") from exc
+    require(isinstance(loaded, trimesh.Trimesh) and len(loaded.faces) > 0, f"mesh file {path!s}",
+            "holds no triangles", "pass a file with a surface mesh")
+    if position is not None:
+        loaded.apply_translation(_point(position, "position") - loaded.bounds.mean(axis=0))
+    return loaded
+
+
+def paper_setup(**overrides) -> Setup:
+    """The paper's Section 3.1 configuration: O at the origin, A, B, C at x = -0.5, -1, -1.5."""
+    return Setup(**overrides)
+
+
+def paper_scene(position=(4.0, 2.0, 0.0), facet_size_m: float = 0.01, **setup_overrides) -> Scene:
+    """The paper's whole simulation setup in one call: its 0.3 m x 1.6 m upright rectangle at
+    `position` (default (4, 2, 0)), facing the wall side, cut into `facet_size_m` facets."""
+    mesh = rectangle(centre=position, cell_m=facet_size_m)
+    return Scene(paper_setup(**setup_overrides), Target(mesh), facet_size_m, truth=position)
