@@ -5,7 +5,7 @@
 //   facet_paths: per (chunk of CHUNK facets, detector) the hidden path s = r1 + r2 and the
 //                geometric weight g = cos_a1 cos_b1 cos_a2 cos_b2 area / (r1^2 r2^2), plus the
 //                [min, max] path of the chunk's contributing facets (for culling).
-//   pulse_bins:  per (block of 8 bins, detector) the sum over facets of
+//   pulse_bins:  per (block of 15 bins, detector) the sum over facets of
 //                g * (erf(z_hi) - erf(z_lo)),  z = (bin edge - s) / (sqrt(2) sigma),
 //                i.e. twice the pulse energy fraction that falls inside each bin. The host
 //                applies 0.5 * energy * f_c f_w^2 S_A S_d / (d^2 dt) in float64.
@@ -58,6 +58,10 @@ __kernel void facet_paths(__global const float4 *centres,  // xyz of each facet
     chunk_range[det * n_chunks + chunk] = (float2)(lo, hi);
 }
 
+// 15 bins have 16 edges: one float16 erf per facet serves the whole block (measured on PoCL:
+// 1.8x faster than 8 bins from a float8 erf plus a scalar one for the last edge).
+#define BLOCK 15
+
 __kernel void pulse_bins(__global const float *path,
                          __global const float *weight,
                          __global const float2 *chunk_range,
@@ -70,17 +74,17 @@ __kernel void pulse_bins(__global const float *path,
 {
     const int block = get_global_id(0);
     const int det = get_global_id(1);
-    const int k0 = block * 8;
+    const int k0 = block * BLOCK;
     if (k0 >= n_bins) return;
     const float2 ax = edges[det];
     // The block's first edge, then offsets below it: every bin's two edges come from the same
     // base, so each bin width is exact to ~1e-9 m even though paths are ~10 m in float32.
     const float base = ax.x + ax.y * (float)k0;
-    const float8 offs = ax.y * (float8)(0.0f, 1.0f, 2.0f, 3.0f, 4.0f, 5.0f, 6.0f, 7.0f);
-    const float last = ax.y * 8.0f;
-    const float win_lo = base - reach, win_hi = base + last + reach;
+    const float16 offs = ax.y * (float16)(0.0f, 1.0f, 2.0f, 3.0f, 4.0f, 5.0f, 6.0f, 7.0f,
+                                          8.0f, 9.0f, 10.0f, 11.0f, 12.0f, 13.0f, 14.0f, 15.0f);
+    const float win_lo = base - reach, win_hi = base + ax.y * BLOCK + reach;
     const int row = det * n_chunks * CHUNK;
-    float8 acc = (float8)(0.0f);
+    float16 acc = (float16)(0.0f);  // lane 15 is unused
     for (int c = 0; c < n_chunks; ++c) {
         const float2 r = chunk_range[det * n_chunks + c];
         if (r.y < win_lo || r.x > win_hi) continue;  // the whole chunk is out of reach
@@ -90,17 +94,12 @@ __kernel void pulse_bins(__global const float *path,
             const float g = weight[f];
             if (g == 0.0f || s < win_lo || s > win_hi) continue;
             const float d = base - s;  // exact (Sterbenz): base and s are within `reach`
-            const float8 e_lo = erf((d + offs) * inv_sqrt2_sigma);
-            const float e_end = erf((d + last) * inv_sqrt2_sigma);
-            const float8 e_hi = (float8)(e_lo.s1234, e_lo.s567, e_end);
-            acc += g * (e_hi - e_lo);
+            const float16 e = erf((d + offs) * inv_sqrt2_sigma);  // the block's 16 edges
+            acc += g * ((float16)(e.s1234, e.s5678, e.s9abc, e.sdef, e.sf) - e);
         }
     }
+    float bins[16];
+    vstore16(acc, 0, bins);
     __global float *out = hist + det * n_bins + k0;
-    if (k0 + 8 <= n_bins) {
-        vstore8(acc, 0, out);
-    } else {
-        const float v[8] = {acc.s0, acc.s1, acc.s2, acc.s3, acc.s4, acc.s5, acc.s6, acc.s7};
-        for (int j = 0; j < n_bins - k0; ++j) out[j] = v[j];
-    }
+    for (int j = 0; j < BLOCK && k0 + j < n_bins; ++j) out[j] = bins[j];
 }

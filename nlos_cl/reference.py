@@ -16,8 +16,8 @@ from scipy.special import erf
 from .histograms import Grid
 from .scene import Facets
 
-# A facet's pulse is cut off this many sigma from its centre (exp(-49/2) ~ 2e-11 of the peak).
-REACH_SIGMAS = 7.0
+# A facet's pulse is cut off this many sigma from its centre: 2e-9 of its energy is dropped.
+REACH_SIGMAS = 6.0
 # Memory bound for the forward twin: it works on blocks of this many (facet, bin) pairs.
 _PAIRS_PER_BLOCK = 1 << 22
 

@@ -8,6 +8,7 @@ stream of frames reuses device memory instead of allocating anew.
 from __future__ import annotations
 
 import math
+import warnings
 from importlib import resources
 from pathlib import Path
 
@@ -25,6 +26,8 @@ import pyopencl.clrandom as clrandom  # noqa: E402
 import pyopencl.tools as cltools  # noqa: E402
 
 FACET_CHUNK = 64  # facets per culling chunk in the forward kernel
+FORWARD_BLOCK = 15  # bins per work item in pulse_bins (BLOCK in forward.cl)
+FILTER_BLOCK = 32  # outputs per work item in gauss_filter (two float16 accumulators)
 ARGMAX_ITEMS = 1024  # work items in the first argmax stage
 LOG_FLOOR = 1e-6  # per-detector floor (relative to its peak) in sum-of-logs scoring
 
@@ -35,6 +38,18 @@ def kernel_source(name: str) -> str:
         return resources.files("nlos_cl.kernels").joinpath(f"{name}.cl").read_text()
     except (ModuleNotFoundError, FileNotFoundError):
         return (Path(__file__).resolve().parent.parent / "kernels" / f"{name}.cl").read_text()
+
+
+def _build_quietly(program, options, device):
+    """Build; pass on compiler messages except PoCL's note that float16 arguments change the
+    ABI without AVX-512 (harmless: nothing in a kernel crosses an ABI boundary)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", cl.CompilerWarning)
+        program.build(options=options)
+    log = program.get_build_info(device, cl.program_build_info.LOG) or ""
+    notes = [ln for ln in log.splitlines() if "warning" in ln or "error" in ln]
+    if any("changes the ABI" not in ln for ln in notes):
+        warnings.warn(f"OpenCL compiler said:\n{log}", cl.CompilerWarning, stacklevel=3)
 
 
 def _float4(point) -> np.ndarray:
@@ -73,7 +88,7 @@ class Runtime:
             if program is None:
                 program = cl.Program(self.context, kernel_source(source))
                 try:
-                    program.build(options=list(options))
+                    _build_quietly(program, list(options), self.device)
                 except cl.RuntimeError as exc:
                     raise DeviceError(f"kernels/{source}.cl failed to build on {self.name} "
                                       f"with {list(options)}:\n{exc}") from exc
@@ -120,7 +135,7 @@ class Runtime:
         hist = self.empty((n_det, n_bins))
         axis = self._small(np.stack([edge0, dpath], axis=1))
         self.run(self.kernel("forward", "pulse_bins", CHUNK=FACET_CHUNK),
-                 (-(-n_bins // 8), n_det), path, weight, ranges, np.int32(n_chunks), axis,
+                 (-(-n_bins // FORWARD_BLOCK), n_det), path, weight, ranges, np.int32(n_chunks), axis,
                  np.float32(1.0 / (math.sqrt(2.0) * sigma_path)),
                  np.float32(REACH_SIGMAS * sigma_path), np.int32(n_bins), hist)
         r = ranges.get(self.queue).astype(np.float64)  # tiny: (D, chunks, 2), for validation
@@ -136,7 +151,9 @@ class Runtime:
             entry = self._rng[seed] = (gen, list(gen.key), list(gen.counter))
         gen, key, counter = entry
         gen.key, gen.counter = list(key), list(counter)
-        return gen.normal(self.queue, shape, np.float32, allocator=self.allocator)
+        with warnings.catch_warnings():  # pyopencl's own Random123 program: its build notes
+            warnings.simplefilter("ignore", cl.CompilerWarning)
+            return gen.normal(self.queue, shape, np.float32, allocator=self.allocator)
 
     def add_awgn(self, signal, normal, snr_db):
         n_rows, n_bins = signal.shape
@@ -150,12 +167,15 @@ class Runtime:
         n_rows, n_bins = signal.shape
         half = (len(taps) - 1) // 2
         space = "__constant" if 4 * len(taps) <= self.device.max_constant_buffer_size else "__global"
-        padded = self.empty((n_rows, n_bins + 2 * half))
-        self.run(self.kernel("gauss_filter", "pad_rows", HALF=half, TAPS_SPACE=space),
-                 (n_bins + 2 * half, n_rows), signal, np.int32(n_bins), padded)
+        defines = dict(HALF=half, TAPS_SPACE=space)
+        # Zero margins: HALF bins before, HALF + a block after (the last block reads past the end).
+        padded = self.empty((n_rows, n_bins + 2 * half + FILTER_BLOCK))
+        self.run(self.kernel("gauss_filter", "pad_rows", **defines),
+                 (padded.shape[1], n_rows), signal, np.int32(n_bins), padded)
         out = self.empty(signal.shape)
-        self.run(self.kernel("gauss_filter", "gauss_filter", HALF=half, TAPS_SPACE=space),
-                 (n_bins, n_rows), padded, self._small(taps), np.int32(n_bins), out)
+        self.run(self.kernel("gauss_filter", "gauss_filter", **defines),
+                 (-(-n_bins // FILTER_BLOCK), n_rows), padded, self._small(taps),
+                 np.int32(n_bins), out)
         return out
 
     def row_stats(self, signal):
