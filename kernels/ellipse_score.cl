@@ -5,7 +5,17 @@
 // The joint likelihood is the product over detectors, or (LOG_MODE) the sum of
 // log(max(v, LOG_FLOOR)), which stays finite for many detectors.
 //
+// A work item owns 8 consecutive cells along x, in float8 arithmetic with explicit gathers:
+// measured on PoCL 4.5x faster than one cell per work item, whose scalar gathers kept PoCL
+// from vectorizing across work items.
+//
 // Build options: -D N_DET=<detectors> -D LOG_MODE=0|1 -D LOG_FLOOR=<float>
+
+inline float8 gather8(__global const float *row, const int8 i)
+{
+    return (float8)(row[i.s0], row[i.s1], row[i.s2], row[i.s3],
+                    row[i.s4], row[i.s5], row[i.s6], row[i.s7]);
+}
 
 __kernel void ellipse_score(__global const float *signal,   // [N_DET][n_bins]
                             __global const float2 *stats,   // [N_DET] (row max, mean square)
@@ -17,32 +27,47 @@ __kernel void ellipse_score(__global const float *signal,   // [N_DET][n_bins]
                             const int nx, const int ny,
                             __global float *score)          // [nz][ny][nx]
 {
-    const int ix = get_global_id(0), iy = get_global_id(1), iz = get_global_id(2);
-    if (ix >= nx) return;
-    const float3 c = origin.xyz + step.xyz * (float3)((float)ix, (float)iy, (float)iz);
-    const float r1 = distance(c, laser.xyz);
+    const int ix0 = get_global_id(0) * 8, iy = get_global_id(1), iz = get_global_id(2);
+    const float8 x = origin.x + step.x * convert_float8((int8)(ix0) + (int8)(0, 1, 2, 3, 4, 5, 6, 7));
+    const float y = origin.y + step.y * (float)iy;
+    const float z = origin.z + step.z * (float)iz;
+    // sqrt of a dot product, not distance(): PoCL's overflow-safe distance() is much slower.
+    const float8 lx = x - laser.x;
+    const float lyz = (y - laser.y) * (y - laser.y) + (z - laser.z) * (z - laser.z);
+    const float8 r1 = sqrt(fma(lx, lx, (float8)(lyz)));
 #if LOG_MODE
-    float joint = 0.0f;
+    float8 joint = (float8)(0.0f);
 #else
-    float joint = 1.0f;
+    float8 joint = (float8)(1.0f);
 #endif
     for (int d = 0; d < N_DET; ++d) {
+        const float4 spot = spots[d];
         const float2 ax = axis[d];
-        const float u = (r1 + distance(c, spots[d].xyz) - ax.x) * ax.y;  // fractional bin
-        const float fu = floor(u);
-        const float t = u - fu;
-        const int i0 = (int)fu;
-        const int c0 = clamp(i0, 0, n_bins - 1), c1 = clamp(i0 + 1, 0, n_bins - 1);
+        const float8 sx = x - spot.x;
+        const float syz = (y - spot.y) * (y - spot.y) + (z - spot.z) * (z - spot.z);
+        const float8 u = (r1 + sqrt(fma(sx, sx, (float8)(syz))) - ax.x) * ax.y;  // fractional bin
+        const float8 fu = floor(u);
+        const float8 t = u - fu;
+        const int8 i0 = convert_int8(fu);
+        const int8 c0 = clamp(i0, 0, n_bins - 1), c1 = clamp(i0 + 1, 0, n_bins - 1);
         __global const float *row = signal + d * n_bins;
-        const float v0 = (c0 == i0) ? row[c0] : 0.0f;
-        const float v1 = (c1 == i0 + 1) ? row[c1] : 0.0f;
+        // A neighbour outside the record counts as 0 (select keeps the lane where the mask is set).
+        const float8 v0 = select((float8)(0.0f), gather8(row, c0), c0 == i0);
+        const float8 v1 = select((float8)(0.0f), gather8(row, c1), c1 == i0 + 1);
         const float peak = stats[d].x;
-        const float v = (peak > 0.0f) ? fmax(mix(v0, v1, t), 0.0f) / peak : 0.0f;
+        const float8 v = (peak > 0.0f) ? fmax(mix(v0, v1, t), 0.0f) * (1.0f / peak) : (float8)(0.0f);
 #if LOG_MODE
-        joint += log(fmax(v, LOG_FLOOR));
+        joint += log(fmax(v, (float8)(LOG_FLOOR)));
 #else
         joint *= v;
 #endif
     }
-    score[(iz * ny + iy) * nx + ix] = joint;
+    __global float *out = score + (iz * ny + iy) * nx + ix0;
+    if (ix0 + 8 <= nx) {
+        vstore8(joint, 0, out);
+    } else {  // the row's last, partial block
+        float cells[8];
+        vstore8(joint, 0, cells);
+        for (int j = 0; ix0 + j < nx; ++j) out[j] = cells[j];
+    }
 }

@@ -120,6 +120,16 @@ def cmd_demo(args) -> int:
     return 0
 
 
+def cmd_bench(args) -> int:
+    from pathlib import Path
+
+    from .bench import Bench
+    bench = Bench(args.device, smoke=args.smoke)
+    bench.run_all()
+    print(bench.report(Path(args.out) if args.out else None))
+    return 0
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="nlos-cl", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -136,10 +146,14 @@ def main(argv=None) -> int:
     p_demo.add_argument("--step", type=float, default=0.01, help="grid step (m)")
     p_demo.add_argument("--position", type=float, nargs=3, default=(4.0, 2.0, 0.0),
                         metavar=("X", "Y", "Z"), help="target centre (m)")
+    p_bench = sub.add_parser("bench", help="kernels vs NumPy twins vs the device's limits")
+    p_bench.add_argument("--device", help="'P:D' indices or part of a device/platform name")
+    p_bench.add_argument("--smoke", action="store_true", help="tiny sizes (for CI)")
+    p_bench.add_argument("--out", default="", help="write performance.md/.json/.png here")
     args = parser.parse_args(argv)
     from .errors import DeviceError, InputError
     try:
-        return {"info": cmd_info, "demo": cmd_demo}[args.command](args)
+        return {"info": cmd_info, "demo": cmd_demo, "bench": cmd_bench}[args.command](args)
     except (InputError, DeviceError) as exc:
         print(f"nlos-cl: {exc}", file=sys.stderr)
         return 2

@@ -119,7 +119,7 @@ def ellipse_score(signal, stats, spots, laser, path0, inv_dpath, grid: Grid,
         v0 = padded[np.clip(i0, -1, n_bins) + 1]
         v1 = padded[np.clip(i0 + 1, -1, n_bins) + 1]
         peak = stats[d, 0]
-        v = np.maximum(v0 + t * (v1 - v0), 0.0) / peak if peak > 0 else np.zeros_like(u)
+        v = np.maximum(v0 + t * (v1 - v0), 0.0) * (1.0 / peak) if peak > 0 else np.zeros_like(u)
         joint = joint + np.log(np.maximum(v, log_floor)) if log_mode else joint * v
     return joint.reshape(grid.shape[2], grid.shape[1], grid.shape[0])
 

@@ -8,6 +8,7 @@ stream of frames reuses device memory instead of allocating anew.
 from __future__ import annotations
 
 import math
+import random
 import warnings
 from importlib import resources
 from pathlib import Path
@@ -74,7 +75,8 @@ class Runtime:
         self.allocator = cltools.MemoryPool(cltools.ImmediateAllocator(self.queue))
         self._programs: dict = {}
         self._kernels: dict = {}
-        self._rng: dict = {}
+        self._philox = None
+        self._constants: dict = {}
         self.name = devices.describe(self.device)
 
     # ------------------------------------------------------------ programs and buffers
@@ -111,8 +113,17 @@ class Runtime:
         self.queue.finish()
 
     def _small(self, array, dtype=np.float32):
-        return cla.to_device(self.queue, np.ascontiguousarray(array, dtype=dtype),
-                             allocator=self.allocator)
+        """A small read-only input (taps, spots, axes) on the device, uploaded once per content:
+        a stream of frames with the same geometry re-uses it instead of copying each frame."""
+        host = np.ascontiguousarray(array, dtype=dtype)
+        key = (host.shape, host.dtype.str, host.tobytes())
+        buf = self._constants.pop(key, None)
+        if buf is None:
+            buf = cla.to_device(self.queue, host)
+        self._constants[key] = buf  # most recently used last
+        while len(self._constants) > 64:
+            self._constants.pop(next(iter(self._constants)))
+        return buf
 
     def run(self, kernel, global_size, *args):
         """Enqueue with the local size left to the runtime (best on CPU devices)."""
@@ -130,7 +141,7 @@ class Runtime:
         weight = self.empty((n_det, n_chunks * FACET_CHUNK))
         ranges = self.empty((n_det, n_chunks, 2))
         self.run(self.kernel("forward", "facet_paths", CHUNK=FACET_CHUNK), (n_chunks, n_det),
-                 self._small(centres), self._small(normals), np.int32(n_facets),
+                 self.from_numpy(centres), self.from_numpy(normals), np.int32(n_facets),
                  self._small(_as_float4_rows(spots)), _float4(laser), path, weight, ranges)
         hist = self.empty((n_det, n_bins))
         axis = self._small(np.stack([edge0, dpath], axis=1))
@@ -142,15 +153,19 @@ class Runtime:
         return hist, np.stack([r[..., 0].min(axis=1), r[..., 1].max(axis=1)], axis=1)
 
     def standard_normal(self, shape, seed):
-        """Seeded N(0, 1) draws from Philox (counter-based: the same on every device). The
-        generator is stateful, so its key and counter are reset: a seed always means the same
-        noise."""
-        entry = self._rng.get(seed)
-        if entry is None:
-            gen = clrandom.PhiloxGenerator(self.context, seed=seed)
-            entry = self._rng[seed] = (gen, list(gen.key), list(gen.counter))
-        gen, key, counter = entry
-        gen.key, gen.counter = list(key), list(counter)
+        """Seeded N(0, 1) draws from Philox (counter-based: the same stream on every device).
+
+        One generator per context (its programs build once); for each call it is re-keyed from
+        the seed exactly as pyopencl keys a fresh PhiloxGenerator(seed=seed), so a seed always
+        means the same noise, frame after frame.
+        """
+        if self._philox is None:
+            self._philox = clrandom.PhiloxGenerator(self.context, seed=0)
+        gen = self._philox
+        draw = random.Random(seed)
+        lo, hi = int(np.iinfo(np.int32).min), int(np.iinfo(np.int32).max)
+        gen.key = [draw.randrange(lo, hi + 1) for _ in range(gen.key_length - 1)]
+        gen.counter = [draw.randrange(lo, hi + 1) for _ in range(4)]
         with warnings.catch_warnings():  # pyopencl's own Random123 program: its build notes
             warnings.simplefilter("ignore", cl.CompilerWarning)
             return gen.normal(self.queue, shape, np.float32, allocator=self.allocator)
@@ -193,7 +208,7 @@ class Runtime:
                            LOG_MODE=int(bool(log_mode)), LOG_FLOOR=f"{log_floor:.9e}f")
         # float32 path lengths of ~10 m round to ~1e-6 m: ~0.003 of a 1 ps (0.3 mm) bin.
         axis = self._small(np.stack([path0, inv_dpath], axis=1))
-        self.run(kern, (nx, ny, nz), signal, stats, self._small(_as_float4_rows(spots)),
+        self.run(kern, (-(-nx // 8), ny, nz), signal, stats, self._small(_as_float4_rows(spots)),
                  _float4(laser), axis, np.int32(n_bins), _float4(grid.origin),
                  _float4(grid.step), np.int32(nx), np.int32(ny), score)
         return score
