@@ -58,6 +58,19 @@ __kernel void facet_paths(__global const float4 *centres,  // xyz of each facet
     chunk_range[det * n_chunks + chunk] = (float2)(lo, hi);
 }
 
+// erf by Abramowitz & Stegun 7.1.26 (|error| <= 1.5e-7; 4.7e-7 measured in float32): plain
+// arithmetic and exp, so it vectorizes. PoCL's builtin erf ran at 0.44 G lanes/s on the 2-core
+// CPU against 1.63 for this one; it also gives the same result on every device. The error is
+// smooth in x, so adjacent bin edges err alike and their difference errs far less.
+inline float16 erf16(const float16 x)
+{
+    const float16 ax = fabs(x);
+    const float16 t = 1.0f / fma(0.3275911f, ax, 1.0f);
+    const float16 poly = t * fma(t, fma(t, fma(t, fma(t, 1.061405429f, -1.453152027f),
+                                               1.421413741f), -0.284496736f), 0.254829592f);
+    return copysign(1.0f - poly * exp(-ax * ax), x);
+}
+
 // 15 bins have 16 edges: one float16 erf per facet serves the whole block (measured on PoCL:
 // 1.8x faster than 8 bins from a float8 erf plus a scalar one for the last edge).
 #define BLOCK 15
@@ -94,7 +107,7 @@ __kernel void pulse_bins(__global const float *path,
             const float g = weight[f];
             if (g == 0.0f || s < win_lo || s > win_hi) continue;
             const float d = base - s;  // exact (Sterbenz): base and s are within `reach`
-            const float16 e = erf((d + offs) * inv_sqrt2_sigma);  // the block's 16 edges
+            const float16 e = erf16((d + offs) * inv_sqrt2_sigma);  // the block's 16 edges
             acc += g * ((float16)(e.s1234, e.s5678, e.s9abc, e.sdef, e.sf) - e);
         }
     }
