@@ -9,6 +9,9 @@
 // measured on PoCL 4.5x faster than one cell per work item, whose scalar gathers kept PoCL
 // from vectorizing across work items.
 //
+// A grid whose score map would not fit in one device allocation is scored in slabs of planes
+// (or of rows, for a single plane); each cell is computed exactly as in one piece.
+//
 // Build options: -D N_DET=<detectors> -D LOG_MODE=0|1 -D LOG_FLOOR=<float>
 
 inline float8 gather8(__global const float *row, const int8 i)
@@ -24,10 +27,12 @@ __kernel void ellipse_score(__global const float *signal,   // [N_DET][n_bins]
                             __global const float2 *axis,    // [N_DET] (path at bin-0 centre, 1 / path per bin)
                             const int n_bins,
                             const float4 origin, const float4 step,
-                            const int nx, const int ny,
-                            __global float *score)          // [nz][ny][nx]
+                            const int nx, const int ny,     // ny: rows in this slab
+                            const int iy0, const int iz0,   // the slab's first row and plane
+                            __global float *score)          // [slab planes][ny][nx]
 {
-    const int ix0 = get_global_id(0) * 8, iy = get_global_id(1), iz = get_global_id(2);
+    const int ix0 = get_global_id(0) * 8;
+    const int iy = iy0 + get_global_id(1), iz = iz0 + get_global_id(2);  // in the whole grid
     const float8 x = origin.x + step.x * convert_float8((int8)(ix0) + (int8)(0, 1, 2, 3, 4, 5, 6, 7));
     const float y = origin.y + step.y * (float)iy;
     const float z = origin.z + step.z * (float)iz;
@@ -62,7 +67,7 @@ __kernel void ellipse_score(__global const float *signal,   // [N_DET][n_bins]
         joint *= v;
 #endif
     }
-    __global float *out = score + (iz * ny + iy) * nx + ix0;
+    __global float *out = score + (get_global_id(2) * ny + get_global_id(1)) * nx + ix0;
     if (ix0 + 8 <= nx) {
         vstore8(joint, 0, out);
     } else {  // the row's last, partial block

@@ -1,5 +1,8 @@
 // Forward model (paper Eq. 19-21): every facet adds a delayed, attenuated Gaussian pulse.
 //
+// Detectors are processed in groups (det0 = the group's first) when the path and weight rows
+// of all detectors would not fit in one device allocation.
+//
 // Two kernels, both gather-style (a work item owns every value it writes: no atomics,
 // deterministic sums):
 //   facet_paths: per (chunk of CHUNK facets, detector) the hidden path s = r1 + r2 and the
@@ -20,15 +23,16 @@ __kernel void facet_paths(__global const float4 *centres,  // xyz of each facet
                           const int n_facets,
                           __global const float4 *spots,    // detector spots on the wall
                           const float4 laser,              // laser spot O
-                          __global float *path,            // [n_det][n_chunks * CHUNK]
-                          __global float *weight,          // [n_det][n_chunks * CHUNK]
-                          __global float2 *chunk_range)    // [n_det][n_chunks]
+                          const int det0,                  // first detector of this group
+                          __global float *path,            // [group][n_chunks * CHUNK]
+                          __global float *weight,          // [group][n_chunks * CHUNK]
+                          __global float2 *chunk_range)    // [group][n_chunks]
 {
     const int chunk = get_global_id(0);
-    const int det = get_global_id(1);
+    const int det = get_global_id(1);  // within the group
     const int n_chunks = get_global_size(0);
     const int row = det * n_chunks * CHUNK;
-    const float3 spot = spots[det].xyz;
+    const float3 spot = spots[det0 + det].xyz;
     const float3 o = laser.xyz;
     float lo = INFINITY, hi = -INFINITY;
     for (int k = 0; k < CHUNK; ++k) {
@@ -83,13 +87,14 @@ __kernel void pulse_bins(__global const float *path,
                          const float inv_sqrt2_sigma,    // 1 / (sqrt(2) sigma_path)
                          const float reach,              // facets farther than this from a bin are culled
                          const int n_bins,
+                         const int det0,                 // first detector of this group
                          __global float *hist)           // [n_det][n_bins]
 {
     const int block = get_global_id(0);
-    const int det = get_global_id(1);
+    const int det = get_global_id(1);  // within the group: path, weight, chunk_range rows
     const int k0 = block * BLOCK;
     if (k0 >= n_bins) return;
-    const float2 ax = edges[det];
+    const float2 ax = edges[det0 + det];
     // The block's first edge, then offsets below it: every bin's two edges come from the same
     // base, so each bin width is exact to ~1e-9 m even though paths are ~10 m in float32.
     const float base = ax.x + ax.y * (float)k0;
@@ -113,6 +118,6 @@ __kernel void pulse_bins(__global const float *path,
     }
     float bins[16];
     vstore16(acc, 0, bins);
-    __global float *out = hist + det * n_bins + k0;
+    __global float *out = hist + (det0 + det) * n_bins + k0;
     for (int j = 0; j < BLOCK && k0 + j < n_bins; ++j) out[j] = bins[j];
 }

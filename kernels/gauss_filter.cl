@@ -9,20 +9,24 @@
 
 #define TAPS (2 * HALF + 1)
 
+// Rows are processed in groups (row0 = the group's first) when the padded copy of all rows
+// would not fit in one device allocation.
 __kernel void pad_rows(__global const float *src,  // [n_rows][n_bins]
                        const int n_bins,
-                       __global float *padded)     // [n_rows][n_bins + 2 HALF + 32]
+                       const int row0,
+                       __global float *padded)     // [group][n_bins + 2 HALF + 32]
 {
     const int j = get_global_id(0);
     const int row = get_global_id(1);
     const int width = get_global_size(0);
     const int k = j - HALF;
-    padded[row * width + j] = (k >= 0 && k < n_bins) ? src[row * n_bins + k] : 0.0f;
+    padded[row * width + j] = (k >= 0 && k < n_bins) ? src[(row0 + row) * n_bins + k] : 0.0f;
 }
 
-__kernel void gauss_filter(__global const float *padded,  // [n_rows][n_bins + 2 HALF + 32]
+__kernel void gauss_filter(__global const float *padded,  // [group][n_bins + 2 HALF + 32]
                            TAPS_SPACE const float *taps,   // [TAPS]
                            const int n_bins,
+                           const int row0,
                            __global float *out)            // [n_rows][n_bins]
 {
     const int k = get_global_id(0) * 32;
@@ -34,7 +38,7 @@ __kernel void gauss_filter(__global const float *padded,  // [n_rows][n_bins + 2
         lo = fma(vload16(0, src + j), w, lo);
         hi = fma(vload16(0, src + j + 16), w, hi);
     }
-    __global float *dst = out + row * n_bins + k;
+    __global float *dst = out + (row0 + row) * n_bins + k;
     if (k + 32 <= n_bins) {
         vstore16(lo, 0, dst);
         vstore16(hi, 0, dst + 16);
