@@ -130,6 +130,28 @@ def cmd_bench(args) -> int:
     return 0
 
 
+def cmd_reproduce(args) -> int:
+    from pathlib import Path
+
+    from . import reproduce as rp
+    settings = rp.Settings.make(quick=args.quick, seeds=args.seeds)
+    start = time.perf_counter()
+    results = rp.run(args.name, settings, Path(args.out))
+    wall = time.perf_counter() - start
+    if args.name == "all" or args.doc:
+        doc = Path(args.doc) if args.doc else Path(args.out) / "paper-results.md"
+        rp.write_report(results, settings, doc, Path(args.out), wall)
+    if args.json:
+        print(rp.summary_json(results))
+    else:
+        for r in results:
+            print(f"{r.name}: {r.title} ({r.seconds:.1f} s) -> {args.out}/{r.name}.csv "
+                  + " ".join(r.figures))
+            print("  " + json.dumps(r.summary)[:600])
+        print(f"wall time {wall:.1f} s")
+    return 0
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="nlos-cl", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -150,10 +172,20 @@ def main(argv=None) -> int:
     p_bench.add_argument("--device", help="'P:D' indices or part of a device/platform name")
     p_bench.add_argument("--smoke", action="store_true", help="tiny sizes (for CI)")
     p_bench.add_argument("--out", default="", help="write performance.md/.json/.png here")
+    p_rep = sub.add_parser("reproduce", help="re-run an experiment of the paper (or all)")
+    p_rep.add_argument("name", choices=["all", "fig5", "fig6", "fig7a", "fig7b", "table1",
+                                        "fig8", "fig9", "fig10"])
+    p_rep.add_argument("--out", default="out/reproduce", help="folder for figures and CSVs")
+    p_rep.add_argument("--seeds", type=int, default=None, help="noise seeds (default 3; 1 quick)")
+    p_rep.add_argument("--quick", action="store_true", help="coarse setting (CI)")
+    p_rep.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    p_rep.add_argument("--doc", default="", help="write the paper-vs-ours report here "
+                       "(default with 'all': OUT/paper-results.md)")
     args = parser.parse_args(argv)
     from .errors import DeviceError, InputError
     try:
-        return {"info": cmd_info, "demo": cmd_demo, "bench": cmd_bench}[args.command](args)
+        return {"info": cmd_info, "demo": cmd_demo, "bench": cmd_bench,
+                "reproduce": cmd_reproduce}[args.command](args)
     except (InputError, DeviceError) as exc:
         print(f"nlos-cl: {exc}", file=sys.stderr)
         return 2

@@ -130,6 +130,13 @@ class HistogramSet:
     def with_data(self, data) -> "HistogramSet":
         return replace(self, data=data)
 
+    def select(self, rows) -> "HistogramSet":
+        """The histograms of some detectors only (e.g. one detector's own probability map)."""
+        rows = np.atleast_1d(np.asarray(rows, dtype=int))
+        offsets = self.calibration.offsets(self.n_detectors)[rows]
+        return replace(self, data=self.data[rows], detector_spots=self.detector_spots[rows],
+                       calibration=PathCalibration(self.calibration.a_m_per_s, offsets))
+
     def hidden_path_axis(self) -> np.ndarray:
         """(n_detectors, n_bins) hidden path length r1 + r2 at each bin centre."""
         b = self.calibration.offsets(self.n_detectors)
