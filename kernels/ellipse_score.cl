@@ -54,7 +54,10 @@ __kernel void ellipse_score(__global const float *signal,   // [N_DET][n_bins]
         const float8 fu = floor(u);
         const float8 t = u - fu;
         const int8 i0 = convert_int8(fu);
-        const int8 c0 = clamp(i0, 0, n_bins - 1), c1 = clamp(i0 + 1, 0, n_bins - 1);
+        // Vector bounds (not scalar ones, which the spec also allows): oclgrind 21.10 evaluates
+        // integer clamp(int8, int, int) wrongly.
+        const int8 last = (int8)(n_bins - 1), zero = (int8)(0);
+        const int8 c0 = clamp(i0, zero, last), c1 = clamp(i0 + 1, zero, last);
         __global const float *row = signal + d * n_bins;
         // A neighbour outside the record counts as 0 (select keeps the lane where the mask is set).
         const float8 v0 = select((float8)(0.0f), gather8(row, c0), c0 == i0);

@@ -16,66 +16,23 @@ Runtime (each its own context) its own log: OCLGRIND_LOG + "." + a label (main, 
 Exit status: 0 if every comparison passed, 1 otherwise (oclgrind's findings are only in the
 logs), 2 if the device is not oclgrind.
 
-Usage: python scripts/oclgrind_check.py [--no-shim] [--canary] [--device SPEC]
-  default: the oclgrind device, with the integer min/max/clamp shim described below;
+Usage: python scripts/oclgrind_check.py [--canary] [--device SPEC]
+  default: the oclgrind device;
   --canary: only run a kernel with a known race and out-of-bounds write (in two contexts);
-  --device: any other device, e.g. --device 0:0 for a quick native run (no shim).
+  --device: any other device, e.g. --device 0:0 for a quick native run.
 """
 from __future__ import annotations
 
 import argparse
-import atexit
 import math
 import os
 import re
-import shutil
 import sys
-import tempfile
 import time
 import warnings
 from pathlib import Path
 
 import numpy as np
-
-# Oclgrind 21.10 evaluates the integer min, max and clamp builtins lane by lane from every
-# argument as if all were vectors. With the scalar bounds that OpenCL C allows for integer
-# vectors (gentype clamp(gentype, sgentype, sgentype); gentype min/max(gentype, sgentype)) the
-# result is wrong: clamp(int8 x, 0, 99) returned all zeros here, and inside ellipse_score the
-# "clamped" gather indices c0, c1 come out wrong, so its gathers read far out of bounds
-# and its scores are wrong. The float versions with scalar bounds are correct. This header,
-# included into every program through OCLGRIND_BUILD_OPTIONS, defines exactly those integer
-# overloads by splatting the scalars, i.e. with the semantics of the OpenCL specification, so
-# that oclgrind reports what a conforming device would do. --no-shim turns it off.
-SHIM_TYPES = ("char", "uchar", "short", "ushort", "int", "uint", "long", "ulong")
-SHIM_WIDTHS = (2, 3, 4, 8, 16)
-
-
-def shim_source() -> str:
-    lines = ["// written by scripts/oclgrind_check.py: scalar-bound integer min/max/clamp",
-             "#define OCLGRIND_SHIM_OVL __attribute__((overloadable))"]
-    for t in SHIM_TYPES:
-        for n in SHIM_WIDTHS:
-            v = f"{t}{n}"
-            lines += [
-                f"OCLGRIND_SHIM_OVL {v} clamp({v} x, {t} lo, {t} hi) "
-                f"{{ return clamp(x, ({v})(lo), ({v})(hi)); }}",
-                f"OCLGRIND_SHIM_OVL {v} min({v} x, {t} y) {{ return min(x, ({v})(y)); }}",
-                f"OCLGRIND_SHIM_OVL {v} max({v} x, {t} y) {{ return max(x, ({v})(y)); }}",
-            ]
-    return "\n".join(lines) + "\n"
-
-
-def install_shim() -> str:
-    """Write the header and add it to OCLGRIND_BUILD_OPTIONS (before pyopencl loads)."""
-    folder = tempfile.mkdtemp(prefix="oclgrind-shim-")
-    atexit.register(shutil.rmtree, folder, True)
-    path = os.path.join(folder, "oclgrind_shim.h")
-    with open(path, "w") as f:
-        f.write(shim_source())
-    opts = os.environ.get("OCLGRIND_BUILD_OPTIONS", "")
-    os.environ["OCLGRIND_BUILD_OPTIONS"] = f"{opts} -include {path}".strip()
-    return path
-
 
 def parse_args(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -83,19 +40,13 @@ def parse_args(argv=None):
                         help="device spec (default: the oclgrind device, required)")
     parser.add_argument("--canary", action="store_true",
                         help="only run a kernel with a known race and out-of-bounds write")
-    parser.add_argument("--no-shim", action="store_true",
-                        help="do not work around oclgrind's scalar-bound integer clamp/min/max")
     return parser.parse_args(argv)
 
 
 ARGS = parse_args() if __name__ == "__main__" else parse_args([])
-if not ARGS.no_shim and ARGS.device is None:
-    SHIM_PATH = install_shim()
-else:
-    SHIM_PATH = None
-# pyopencl caches built programs keyed on source and options, not on OCLGRIND_BUILD_OPTIONS:
-# build every program afresh so that the shim (or its absence) and oclgrind's compiler
-# messages are what this run sees.
+# Build every program afresh, so that oclgrind's compiler messages are what this run sees.
+# (oclgrind 21.10 evaluates integer clamp/min/max with scalar bounds wrongly; the kernels use
+# vector bounds, see ellipse_score.cl.)
 os.environ.setdefault("PYOPENCL_NO_CACHE", "1")
 
 import nlos_cl as nl  # noqa: E402  (after the environment above is set)
@@ -447,7 +398,6 @@ def main() -> int:
     start = time.perf_counter()
     rt = new_runtime("canary" if args.canary else "main", args.device or "oclgrind")
     print(f"device: {rt.name}")
-    print(f"integer min/max/clamp shim: {SHIM_PATH or 'off'}")
     if LOG_BASE:
         print(f"oclgrind logs: {LOG_BASE}.<context> (one per OpenCL context)")
     if args.device is None and "oclgrind" not in rt.name.lower():

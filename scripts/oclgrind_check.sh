@@ -8,7 +8,7 @@
 # scripts/oclgrind_check.py (every kernel of kernels/*.cl on tiny inputs, compared with the
 # NumPy twins) and requires an empty log and a zero exit status.
 #
-# Usage: scripts/oclgrind_check.sh [--no-shim]   (extra arguments go to oclgrind_check.py)
+# Usage: scripts/oclgrind_check.sh   (extra arguments go to oclgrind_check.py)
 # Environment: OCLGRIND_CHECK_DIR  folder for the logs (default: a new temporary folder)
 #              OCLGRIND_CHECK_TIMEOUT  seconds for the main run (default 900)
 # Needs ./.venv (scripts/setup.sh --test); installs the Debian package oclgrind if missing.

@@ -10,7 +10,29 @@ C = nl.SPEED_OF_LIGHT
 
 @pytest.fixture(scope="session")
 def runtime():
+    """The default device (PYOPENCL_CTX, else the best found)."""
     return get_runtime()
+
+
+def _device_specs():
+    from nlos_cl.devices import list_devices
+    entries = list_devices()
+    return [f"{e.platform_index}:{e.device_index}" for e in entries] or [None]
+
+
+def _device_label(spec):
+    from nlos_cl.devices import list_devices
+    for e in list_devices():
+        if spec == f"{e.platform_index}:{e.device_index}":
+            return f"{spec}-{e.platform.name.split()[0]}"
+    return str(spec)
+
+
+@pytest.fixture(scope="session", params=_device_specs(), ids=_device_label)
+def device_runtime(request):
+    """Every OpenCL device this machine has, in turn (as pyopencl's own suite does): CI makes
+    PoCL and Intel's CPU runtime visible together, so kernel tests run on both."""
+    return get_runtime(request.param)
 
 
 @pytest.fixture(scope="session")

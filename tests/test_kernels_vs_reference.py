@@ -34,11 +34,11 @@ SCENES = {
 
 
 @pytest.mark.parametrize("name", sorted(SCENES))
-def test_forward_matches_twin(name, runtime, reference):
+def test_forward_matches_twin(name, device_runtime, reference):
     make, dt = SCENES[name]
     scene = make()
     axis = window_around(scene.setup, scene.target.mesh, dt)
-    dev = nl.simulate(scene, axis, backend=runtime)
+    dev = nl.simulate(scene, axis, backend=device_runtime)
     twin = nl.simulate(scene, axis, backend=reference)
     assert dev.scale_w == twin.scale_w
     a, b = dev.histograms().data, twin.histograms().data
@@ -46,22 +46,22 @@ def test_forward_matches_twin(name, runtime, reference):
     assert rel_err(a, b) < 1e-3
 
 
-def test_facet_path_range_matches_twin(runtime, reference):
+def test_facet_path_range_matches_twin(device_runtime, reference):
     scene = nl.paper_scene(facet_size_m=0.02)
     facets = scene.facets()
     args = (facets, scene.setup.detector_spots, scene.setup.laser_spot,
             np.zeros(3), np.full(3, 3e-4), 0.0089, 100)
-    _, span_dev = runtime.simulate(*args)
+    _, span_dev = device_runtime.simulate(*args)
     _, span_ref = reference.simulate(*args)
     np.testing.assert_allclose(span_dev, span_ref, atol=1e-5)  # float32 paths of ~10 m
 
 
 @pytest.mark.parametrize("h_bins", [1, 7.5, 650, 1500])
-def test_gauss_filter_matches_twin(h_bins, runtime):
+def test_gauss_filter_matches_twin(h_bins, device_runtime):
     rng = np.random.default_rng(1)
     data = rng.standard_normal((3, 5000)) + 5 * np.exp(-0.5 * ((np.arange(5000) - 2500) / 80) ** 2)
     taps = ref.gauss_taps(h_bins * 1e-12, 1e-12)
-    out = runtime.to_numpy(runtime.gauss_filter(runtime.from_numpy(data), taps))
+    out = device_runtime.to_numpy(device_runtime.gauss_filter(device_runtime.from_numpy(data), taps))
     twin = ref.gauss_filter(data.astype(np.float32), taps)
     assert rel_err(out, twin) < 1e-5
 
@@ -75,31 +75,31 @@ def test_gauss_filter_taps_follow_eq24():
     assert taps.sum() == pytest.approx(0.9973, abs=2e-3)
 
 
-def test_row_stats_and_awgn_match_twin(runtime):
+def test_row_stats_and_awgn_match_twin(device_runtime):
     rng = np.random.default_rng(2)
     signal = np.abs(rng.standard_normal((4, 3000))).astype(np.float32)
-    dev_signal = runtime.from_numpy(signal)
-    normal = runtime.standard_normal(signal.shape, seed=5)
-    stats = runtime.to_numpy(runtime.row_stats(dev_signal))
+    dev_signal = device_runtime.from_numpy(signal)
+    normal = device_runtime.standard_normal(signal.shape, seed=5)
+    stats = device_runtime.to_numpy(device_runtime.row_stats(dev_signal))
     np.testing.assert_allclose(stats, ref.row_stats(signal.astype(np.float64)), rtol=1e-5)
-    noisy = runtime.to_numpy(runtime.add_awgn(dev_signal, normal, 10.0))
-    twin = ref.add_awgn(signal.astype(np.float64), runtime.to_numpy(normal), 10.0)
+    noisy = device_runtime.to_numpy(device_runtime.add_awgn(dev_signal, normal, 10.0))
+    twin = ref.add_awgn(signal.astype(np.float64), device_runtime.to_numpy(normal), 10.0)
     assert rel_err(noisy, twin) < 1e-5
 
 
-def test_device_noise_is_standard_normal_and_seeded(runtime):
-    a = runtime.to_numpy(runtime.standard_normal((3, 60000), seed=7))
-    b = runtime.to_numpy(runtime.standard_normal((3, 60000), seed=7))
-    c = runtime.to_numpy(runtime.standard_normal((3, 60000), seed=8))
+def test_device_noise_is_standard_normal_and_seeded(device_runtime):
+    a = device_runtime.to_numpy(device_runtime.standard_normal((3, 60000), seed=7))
+    b = device_runtime.to_numpy(device_runtime.standard_normal((3, 60000), seed=7))
+    c = device_runtime.to_numpy(device_runtime.standard_normal((3, 60000), seed=8))
     assert np.array_equal(a, b) and not np.array_equal(a, c)
     assert abs(a.mean()) < 0.01 and abs(a.std() - 1) < 0.01
 
 
 @pytest.fixture(scope="module")
-def filtered_paper(runtime):
+def filtered_paper(device_runtime):
     scene = nl.paper_scene(facet_size_m=0.02)
     axis = nl.TimeAxis(2 * 20 / nl.SPEED_OF_LIGHT, 10e-12, 6000)
-    return nl.gauss_filter(nl.simulate(scene, axis, backend=runtime)).histograms()
+    return nl.gauss_filter(nl.simulate(scene, axis, backend=device_runtime)).histograms()
 
 
 GRIDS = {
@@ -110,10 +110,11 @@ GRIDS = {
 
 @pytest.mark.parametrize("log_mode", [False, True])
 @pytest.mark.parametrize("grid_name", sorted(GRIDS))
-def test_ellipse_score_matches_twin(filtered_paper, grid_name, log_mode, runtime, reference):
+def test_ellipse_score_matches_twin(filtered_paper, grid_name, log_mode, device_runtime,
+                                    reference):
     grid = GRIDS[grid_name]
     maps = [nl.locate(filtered_paper, grid, log_mode=log_mode, return_map=True, backend=be)
-            for be in (runtime, reference)]
+            for be in (device_runtime, reference)]
     a, b = maps[0].score_map, maps[1].score_map
     assert a.shape == (grid.shape[2], grid.shape[1], grid.shape[0])
     if log_mode:  # log units: an absolute error, per detector 1e-3 relative -> 1e-3 in the log
@@ -124,9 +125,9 @@ def test_ellipse_score_matches_twin(filtered_paper, grid_name, log_mode, runtime
     assert np.linalg.norm(maps[0].position - maps[1].position) <= max(grid.step)
 
 
-def test_argmax_first_maximum_wins(runtime, reference):
+def test_argmax_first_maximum_wins(device_runtime, reference):
     score = np.zeros((1, 50, 70), np.float32)
     score[0, 10, 5] = score[0, 30, 60] = 3.0  # a tie: the lower flat index must win
     score[0, 40, 1] = 2.0
-    dev = runtime.from_numpy(score)
-    assert runtime.argmax(dev) == reference.argmax(score) == (10 * 70 + 5, 3.0)
+    dev = device_runtime.from_numpy(score)
+    assert device_runtime.argmax(dev) == reference.argmax(score) == (10 * 70 + 5, 3.0)
