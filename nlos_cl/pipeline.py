@@ -20,6 +20,7 @@ from .reference import NumpyBackend, gauss_taps
 from .scene import SPEED_OF_LIGHT, Scene
 
 PAPER_H_S = 0.65e-9  # the paper's filter window h (Section 4)
+PRODUCT_FLOOR = 1e-30  # a joint product (of peak-normalised signals) below this is no signal
 
 
 def resolve_backend(backend=None):
@@ -200,11 +201,14 @@ def locate(signals, grid: Grid | None = None, *, log_mode: bool = False,
                              1.0 / dpath, grid, log_mode, 1e-6)
     flat, best = be.argmax(score)
     nx, ny, nz = grid.shape
-    floor = lay.n_detectors * math.log(1e-6) if log_mode else 0.0
+    # Below these the joint likelihood is numerically zero: every detector at its log floor,
+    # or a product beyond float32's range (the float64 twin would otherwise "locate" on 1e-67).
+    floor = lay.n_detectors * math.log(1e-6) if log_mode else PRODUCT_FLOOR
     if flat < 0 or not best > floor:
         raise InputError("grid: no cell has a non-zero likelihood from every detector: the "
                          "signals do not reach the grid. Fix: check that the grid covers the "
-                         "hidden area the time axis sees, and the calibration")
+                         "hidden area the time axis sees, and the calibration; with many "
+                         "detectors use log_mode=True")
     iz, rem = divmod(flat, nx * ny)
     iy, ix = divmod(rem, nx)
     patch = _neighbourhood(be, score, grid.shape, ix, iy, iz)

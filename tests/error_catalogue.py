@@ -1,0 +1,159 @@
+"""The catalogue of bad inputs: each row is what a user might do and what they must get (an
+error naming the field and saying how to fix it). tests/test_bad_input.py runs every row;
+`python tests/error_catalogue.py docs/errors.md` writes the catalogue with the exact messages.
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+import nlos_cl as nl
+from nlos_cl import devices
+from nlos_cl.errors import DeviceError, InputError
+
+C = nl.SPEED_OF_LIGHT
+SPOTS = nl.paper_setup().detector_spots
+
+
+def histograms(data=None, **kw):
+    data = np.ones((3, 100)) if data is None else data
+    args = dict(time_axis=nl.TimeAxis(1e-7, 1e-11, data.shape[-1] if data.ndim else 1),
+                detector_spots=SPOTS, laser_spot=[0, 0, 0],
+                calibration=nl.PathCalibration(C, [-40.0]))
+    args.update(kw)
+    return nl.HistogramSet(data, **args)
+
+
+def with_bin(value):
+    data = np.ones((3, 100))
+    data[1, 7] = value
+    return data
+
+
+def no_device():
+    original = devices.list_devices
+    devices.list_devices = lambda: []
+    try:
+        devices.choose_device()
+    finally:
+        devices.list_devices = original
+
+
+def write_file(name, text):
+    import tempfile
+    path = Path(tempfile.mkdtemp()) / name
+    path.write_text(text)
+    return path
+
+
+def small_scene():
+    return nl.paper_scene(facet_size_m=0.05)
+
+
+# (what the user did, the field the message must name, the call)
+CASES = [
+    ("a histogram bin is NaN", "histograms.data", lambda: histograms(with_bin(np.nan))),
+    ("a histogram bin is inf", "histograms.data", lambda: histograms(with_bin(np.inf))),
+    ("negative photon counts where counts are declared", "histograms.data",
+     lambda: histograms(-np.ones((3, 100)), allow_negative=False)),
+    ("histograms given as a 1-D array", "histograms.data",
+     lambda: nl.HistogramSet(np.ones(100), nl.TimeAxis(0, 1e-11, 100), SPOTS, [0, 0, 0],
+                             nl.PathCalibration(C, [0.0]))),
+    ("histogram length differs from the time axis", "histograms.data",
+     lambda: histograms(np.ones((3, 90)), time_axis=nl.TimeAxis(0, 1e-11, 100))),
+    ("2 histograms for 3 detector spots", "histograms.detector_spots",
+     lambda: histograms(np.ones((2, 100)))),
+    ("4 calibration offsets for 3 detectors", "calibration.b_m",
+     lambda: histograms(calibration=nl.PathCalibration(C, [0.0, 1.0, 2.0, 3.0]))),
+    ("calibration slope of zero", "calibration.a_m_per_s", lambda: nl.PathCalibration(0.0, [0.0])),
+    ("a NaN start time", "time_axis.t0_s", lambda: nl.TimeAxis(float("nan"), 1e-12, 10)),
+    ("a negative bin width", "time_axis.dt_s", lambda: nl.TimeAxis(0.0, -1e-12, 10)),
+    ("an infinite bin width", "time_axis.dt_s", lambda: nl.TimeAxis(0.0, float("inf"), 10)),
+    ("a negative number of bins", "time_axis.n_bins", lambda: nl.TimeAxis(0.0, 1e-12, -5)),
+    ("an empty mesh", "target.mesh", lambda: nl.Target(trimesh.Trimesh())),
+    ("a mesh whose faces all have zero area", "target.mesh",
+     lambda: nl.Target(trimesh.Trimesh([[4, 1, 0], [4, 2, 0], [4, 3, 0]], [[0, 1, 2]],
+                                       process=False))),
+    ("a mesh with NaN vertices", "target.mesh",
+     lambda: nl.Target(trimesh.Trimesh([[4, 1, 0], [4, 2, np.nan], [4, 3, 1]], [[0, 1, 2]],
+                                       process=False))),
+    ("something that is not a mesh", "target.mesh", lambda: nl.Target("person.obj")),
+    ("a target behind the wall", "target.mesh", lambda: nl.Target(nl.box(centre=(1.0, -2.0, 0.0)))),
+    ("a target that cuts through the wall", "target.mesh",
+     lambda: nl.Target(nl.rectangle(centre=(4.0, 0.1, 0.0)))),
+    ("a target turned away from the wall", "scene.target",
+     lambda: nl.simulate(nl.Scene(nl.paper_setup(), nl.Target(nl.rectangle(normal=(1, 0, 0))),
+                                  0.05), backend="reference")),
+    ("a facet size of zero", "facet_size_m", lambda: nl.Target(nl.rectangle()).facets(0.0)),
+    ("two detectors on the same spot", "setup.detector_spots",
+     lambda: nl.Setup(detector_spots=[[-1, 0, 0], [-1, 0, 0]])),
+    ("a detector on the laser spot", "setup.detector_spots",
+     lambda: nl.Setup(detector_spots=[[0, 0, 0], [-1, 0, 0]])),
+    ("a detector spot off the wall plane", "setup.detector_spots",
+     lambda: nl.Setup(detector_spots=[[-1, 0.5, 0]])),
+    ("a NaN laser spot", "setup.laser_spot", lambda: nl.Setup(laser_spot=[0, 0, float("nan")])),
+    ("a negative device distance", "setup.device_distance_m",
+     lambda: nl.Setup(device_distance_m=-20.0)),
+    ("a pulse of zero width", "pulse.fwhm_s", lambda: nl.Pulse(fwhm_s=0.0)),
+    ("a filter window h of zero", "h_s", lambda: nl.gauss_filter(histograms(), 0.0,
+                                                                   backend="reference")),
+    ("a negative filter window h", "h_s", lambda: nl.gauss_filter(histograms(), -1e-9,
+                                                                    backend="reference")),
+    ("a filter window narrower than one bin", "h_s",
+     lambda: nl.gauss_filter(histograms(), 1e-13, backend="reference")),
+    ("a filter window longer than the record", "h_s",
+     lambda: nl.gauss_filter(histograms(), 1e-3, backend="reference")),
+    ("a time window that ends before the signal arrives", "time_axis",
+     lambda: nl.simulate(small_scene(), nl.TimeAxis(2 * 20 / C, 10e-12, 100),
+                         backend="reference")),
+    ("a grid with no cells", "grid.shape", lambda: nl.Grid((0, 0.01, 0), (0.01,) * 3, (0, 10, 1))),
+    ("an inverted grid range", "grid.x", lambda: nl.Grid.from_ranges(x=(6.0, 0.0))),
+    ("a grid step of zero", "grid.step", lambda: nl.Grid((0, 0.01, 0), (0.01, 0.0, 0.01), (5, 5, 1))),
+    ("a grid behind the wall", "grid.origin", lambda: nl.Grid((0, -1.0, 0), (0.01,) * 3, (5, 5, 1))),
+    ("a grid the signal never reaches", "grid",
+     lambda: nl.locate(nl.gauss_filter(nl.simulate(small_scene(), backend="reference")),
+                       nl.Grid.from_ranges(x=(40, 41), y=(40, 41), step_m=0.1))),
+    ("a noise level of NaN dB", "snr_db",
+     lambda: nl.add_noise(histograms(), float("nan"), backend="reference")),
+    ("a negative noise seed", "seed", lambda: nl.add_noise(histograms(), 10.0, -1,
+                                                            backend="reference")),
+    ("a corrupt mesh file", "mesh file",
+     lambda: nl.load_mesh(write_file("broken.stl", "solid x\nnot an stl at all\n"))),
+    ("a mesh file that does not exist", "mesh file", lambda: nl.load_mesh("/nonexistent/person.obj")),
+    ("no OpenCL device on the machine", "No OpenCL device found", no_device),
+    ("a device choice that matches no device", "matches no OpenCL device",
+     lambda: devices.choose_device("no-such-device-xyz")),
+]
+
+
+def message(call) -> tuple[str, str]:
+    try:
+        call()
+    except (InputError, DeviceError) as exc:
+        return type(exc).__name__, str(exc)
+    return "", "(no error)"
+
+
+def write_doc(path: Path) -> None:
+    lines = ["# Bad input: what you get", "",
+             "Generated by `python tests/error_catalogue.py docs/errors.md` from the cases that "
+             "tests/test_bad_input.py runs (do not edit by hand). Every error names the field "
+             "and says how to fix it; `InputError` is a `ValueError`, `DeviceError` a "
+             "`RuntimeError`. Nothing you pass is modified: arrays and meshes are copied and "
+             "stored read-only.", "",
+             "Not applicable today: *a device without float64 when asked for it* (no kernel "
+             "uses float64; the host applies float64 scale factors) and *a file that would need "
+             "pickle* (the only files read are meshes, through trimesh, which never unpickles; "
+             "HDF5 captures will be read with h5py).", "",
+             "| # | what you did | error | message |", "|---|---|---|---|"]
+    for i, (what, _, call) in enumerate(CASES, 1):
+        kind, text = message(call)
+        lines.append(f"| {i} | {what} | {kind} | {text.replace('|', '/')} |")
+    path.write_text("\n".join(lines) + "\n")
+
+
+if __name__ == "__main__":
+    write_doc(Path(sys.argv[1] if len(sys.argv) > 1 else "docs/errors.md"))
