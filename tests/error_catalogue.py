@@ -49,6 +49,32 @@ def write_file(name, text):
     return path
 
 
+def capture_file(edit=None):
+    """A valid y-tal capture, then `edit` applied to its HDF5 fields."""
+    import tempfile
+
+    import h5py
+    path = Path(tempfile.mkdtemp()) / "capture.h5"
+    nl.write_capture(path, histograms(np.ones((3, 100))))
+    if edit:
+        with h5py.File(path, "a") as f:
+            edit(f)
+    return path
+
+
+def truncated_capture():
+    path = capture_file()
+    path.write_bytes(path.read_bytes()[:1500])
+    return path
+
+
+def replace_field(name, value):
+    def edit(f):
+        del f[name]
+        f[name] = value
+    return edit
+
+
 def small_scene():
     return nl.paper_scene(facet_size_m=0.05)
 
@@ -123,6 +149,25 @@ CASES = [
     ("a corrupt mesh file", "mesh file",
      lambda: nl.load_mesh(write_file("broken.stl", "solid x\nnot an stl at all\n"))),
     ("a mesh file that does not exist", "mesh file", lambda: nl.load_mesh("/nonexistent/person.obj")),
+    ("a capture file missing a y-tal field", "missing field(s) ['t_start']",
+     lambda: nl.read_capture(capture_file(lambda f: f.__delitem__("t_start")))),
+    ("a capture whose delta_t is in seconds, not metres", "delta_t",
+     lambda: nl.read_capture(capture_file(replace_field("delta_t", np.float32(1e-11))))),
+    ("a capture whose H has the wrong shape", "H: has shape",
+     lambda: nl.read_capture(capture_file(replace_field("H", np.zeros((100, 5), np.float32))))),
+    ("a capture with a NaN in H", "H: 1 values are NaN",
+     lambda: nl.read_capture(capture_file(lambda f: f["H"].__setitem__((3, 1), np.nan)))),
+    ("a truncated capture file", "not a readable HDF5 file",
+     lambda: nl.read_capture(truncated_capture())),
+    ("a confocal capture", "confocal",
+     lambda: nl.read_capture(capture_file(replace_field("laser_grid_xyz",
+                                                        nl.capture.to_ytal(SPOTS).astype(np.float32))))),
+    ("too few calibration pairs", "calibration pairs",
+     lambda: nl.fit_calibration([1.0, 2.0], [1e-9, 2e-9])),
+    ("a background recorded on another time axis", "background",
+     lambda: nl.subtract_background(histograms(), histograms(np.ones((3, 80))))),
+    ("a TDC bin that is not a multiple of the data's bins", "photon_counter.tdc_bin_s",
+     lambda: nl.PhotonCounter(tdc_bin_s=15e-12).expected_counts(histograms())),
     ("no OpenCL device on the machine", "No OpenCL device found", no_device),
     ("a device choice that matches no device", "matches no OpenCL device",
      lambda: devices.choose_device("no-such-device-xyz")),
@@ -146,8 +191,8 @@ def write_doc(path: Path) -> None:
              "stored read-only.", "",
              "Not applicable today: *a device without float64 when asked for it* (no kernel "
              "uses float64; the host applies float64 scale factors) and *a file that would need "
-             "pickle* (the only files read are meshes, through trimesh, which never unpickles; "
-             "HDF5 captures will be read with h5py).", "",
+             "pickle* (meshes are read by trimesh and captures by h5py; neither ever unpickles, "
+             "and reading never modifies a file: captures are opened read-only).", "",
              "| # | what you did | error | message |", "|---|---|---|---|"]
     for i, (what, _, call) in enumerate(CASES, 1):
         kind, text = message(call)
