@@ -106,6 +106,8 @@ ANALYSIS = """## Where each kernel stands
 - **ellipse_score** is bound by its gathers: per cell and detector two 8-lane gathers made of
   scalar loads (PoCL emits no hardware gathers). The fraction column compares only its sqrt
   (and log) with the exp probe, which is not what limits it.
+- Timings on a shared 2-core machine move by +-30 % from run to run (the same kernel measured
+  2.6-5.0 ms in one session); compare ratios taken in one run.
 - **pipeline** and **stream** include the host: validation, the tiny argmax and neighbourhood
   reads, and Python. At 3 x 4,096 bins and 512 x 512 cells about two thirds of a frame is host
   overhead, one third kernels (ellipse_score ~1.3 ms).

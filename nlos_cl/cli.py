@@ -1,4 +1,4 @@
-"""`nlos-cl info` and `nlos-cl demo`."""
+"""The `nlos-cl` command: info, demo, bench, reproduce, simulate, locate, calibrate."""
 from __future__ import annotations
 
 import argparse
