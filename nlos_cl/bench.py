@@ -203,9 +203,9 @@ class Bench:
         stats = ref.row_stats(signal)
         sub = twin_detectors or n_det
         run_k = lambda: self.rt.ellipse_score(dev, stats_dev, spots, laser, path0, inv_dp, grid,  # noqa: E731
-                                              log_mode, 1e-6)
+                                              log_mode, ref.LOG_FLOOR)
         run_t = lambda: ref.ellipse_score(signal[:sub], stats[:sub], spots[:sub], laser,  # noqa: E731
-                                          path0[:sub], inv_dp[:sub], grid, log_mode, 1e-6)
+                                          path0[:sub], inv_dp[:sub], grid, log_mode, ref.LOG_FLOOR)
         k, t, b, mem = self._time(run_k, run_t, twin_repeats=1 if grid.n_cells * sub > 5e6 else 3,
                                   twin_scale=n_det / sub)
         evals = grid.n_cells * n_det

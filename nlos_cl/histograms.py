@@ -75,9 +75,6 @@ class PathCalibration:
                 "pass one offset, or one per detector")
         return self.b_m
 
-    def path_of_time(self, t_s, detector: int = 0):
-        return self.a_m_per_s * np.asarray(t_s) + self.offsets(detector + 1)[detector]
-
 
 @dataclass(frozen=True)
 class HistogramSet:

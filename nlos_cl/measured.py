@@ -11,9 +11,9 @@ from scipy.ndimage import gaussian_filter1d
 
 from .errors import require
 from .histograms import HistogramSet, PathCalibration, TimeAxis
+from .scene import SPEED_OF_LIGHT
 
 PLANCK = 6.62607015e-34
-SPEED_OF_LIGHT = 299_792_458.0
 
 
 # ---------------------------------------------------------------------------- calibration

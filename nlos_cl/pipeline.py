@@ -16,7 +16,7 @@ import numpy as np
 from .errors import InputError, require
 from .fit import GaussFit, fit_gaussians
 from .histograms import Grid, HistogramSet, PathCalibration, TimeAxis, default_time_axis
-from .reference import NumpyBackend, gauss_taps
+from .reference import LOG_FLOOR, NumpyBackend, gauss_taps
 from .scene import SPEED_OF_LIGHT, Scene
 
 PAPER_H_S = 0.65e-9  # the paper's filter window h (Section 4)
@@ -198,12 +198,12 @@ def locate(signals, grid: Grid | None = None, *, log_mode: bool = False,
     path0, dpath = lay.score_axis()
     stats = be.row_stats(sig.handle)
     score = be.ellipse_score(sig.handle, stats, lay.detector_spots, lay.laser_spot, path0,
-                             1.0 / dpath, grid, log_mode, 1e-6)
+                             1.0 / dpath, grid, log_mode, LOG_FLOOR)
     flat, best = be.argmax(score)
     nx, ny, nz = grid.shape
     # Below these the joint likelihood is numerically zero: every detector at its log floor,
     # or a product beyond float32's range (the float64 twin would otherwise "locate" on 1e-67).
-    floor = lay.n_detectors * math.log(1e-6) if log_mode else PRODUCT_FLOOR
+    floor = lay.n_detectors * math.log(LOG_FLOOR) if log_mode else PRODUCT_FLOOR
     if flat < 0 or not best > floor:
         raise InputError("grid: no cell has a non-zero likelihood from every detector: the "
                          "signals do not reach the grid. Fix: check that the grid covers the "

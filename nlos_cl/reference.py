@@ -18,6 +18,9 @@ from .scene import Facets
 
 # A facet's pulse is cut off this many sigma from its centre: 2e-9 of its energy is dropped.
 REACH_SIGMAS = 6.0
+# Sum-of-logs scoring floors each detector's peak-normalised value here, so one silent
+# detector does not make every cell -inf.
+LOG_FLOOR = 1e-6
 # Memory bound for the forward twin: it works on blocks of this many (facet, bin) pairs.
 _PAIRS_PER_BLOCK = 1 << 22
 
@@ -105,7 +108,7 @@ def add_awgn(signal, normal, snr_db):
 
 
 def ellipse_score(signal, stats, spots, laser, path0, inv_dpath, grid: Grid,
-                  log_mode=False, log_floor=1e-6):
+                  log_mode=False, log_floor=LOG_FLOOR):
     """Twin of ellipse_score: (nz, ny, nx) joint likelihood of every grid cell."""
     cells = grid.cell_centres().reshape(-1, 3)
     r1 = np.linalg.norm(cells - laser, axis=1)

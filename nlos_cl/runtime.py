@@ -30,7 +30,6 @@ FACET_CHUNK = 64  # facets per culling chunk in the forward kernel
 FORWARD_BLOCK = 15  # bins per work item in pulse_bins (BLOCK in forward.cl)
 FILTER_BLOCK = 32  # outputs per work item in gauss_filter (two float16 accumulators)
 ARGMAX_ITEMS = 1024  # work items in the first argmax stage
-LOG_FLOOR = 1e-6  # per-detector floor (relative to its peak) in sum-of-logs scoring
 
 
 def kernel_source(name: str) -> str:

@@ -129,11 +129,6 @@ class Setup:
         return (target_brdf * self.wall_brdf ** 2 * self.detected_spot_area_m2
                 * self.aperture_area_m2 / self.device_distance_m ** 2)
 
-    def with_detectors(self, detector_spots) -> "Setup":
-        return Setup(self.laser_spot, detector_spots, self.device_distance_m,
-                     self.laser_spot_diameter_m, self.detected_spot_diameter_m,
-                     self.aperture_area_m2, self.wall_brdf, self.pulse)
-
 
 @dataclass(frozen=True)
 class Facets:
