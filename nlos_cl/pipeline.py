@@ -13,14 +13,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .constants import LOG_FLOOR, PAPER_H_S, PRODUCT_FLOOR, SPEED_OF_LIGHT
 from .errors import InputError, require
 from .fit import GaussFit, fit_gaussians
 from .histograms import Grid, HistogramSet, PathCalibration, TimeAxis, default_time_axis
-from .reference import LOG_FLOOR, NumpyBackend, gauss_taps
-from .scene import SPEED_OF_LIGHT, Scene
+from .reference import NumpyBackend, gauss_taps
+from .scene import Scene
 
-PAPER_H_S = 0.65e-9  # the paper's filter window h (Section 4)
-PRODUCT_FLOOR = 1e-30  # a joint product (of peak-normalised signals) below this is no signal
 
 
 def resolve_backend(backend=None):

@@ -13,14 +13,12 @@ import numpy as np
 from scipy.ndimage import correlate1d
 from scipy.special import erf
 
+from .constants import LOG_FLOOR
 from .histograms import Grid
 from .scene import Facets
 
 # A facet's pulse is cut off this many sigma from its centre: 2e-9 of its energy is dropped.
 REACH_SIGMAS = 6.0
-# Sum-of-logs scoring floors each detector's peak-normalised value here, so one silent
-# detector does not make every cell -inf.
-LOG_FLOOR = 1e-6
 # Memory bound for the forward twin: it works on blocks of this many (facet, bin) pairs.
 _PAIRS_PER_BLOCK = 1 << 22
 

@@ -11,10 +11,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import trimesh
 
+from .constants import FWHM_PER_SIGMA, SPEED_OF_LIGHT  # noqa: F401 (re-exported)
 from .errors import InputError, require
 
-SPEED_OF_LIGHT = 299_792_458.0  # m/s
-FWHM_PER_SIGMA = 2.0 * math.sqrt(2.0 * math.log(2.0))
 
 
 def _point(value, field_name: str) -> np.ndarray:
