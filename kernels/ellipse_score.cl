@@ -14,11 +14,7 @@
 //
 // Build options: -D N_DET=<detectors> -D LOG_MODE=0|1 -D LOG_FLOOR=<float>
 
-inline float8 gather8(__global const float *row, const int8 i)
-{
-    return (float8)(row[i.s0], row[i.s1], row[i.s2], row[i.s3],
-                    row[i.s4], row[i.s5], row[i.s6], row[i.s7]);
-}
+#include "common.h"
 
 __kernel void ellipse_score(__global const float *signal,   // [N_DET][n_bins]
                             __global const float2 *stats,   // [N_DET] (row max, mean square)

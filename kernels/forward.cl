@@ -14,9 +14,15 @@
 //                applies 0.5 * energy * f_c f_w^2 S_A S_d / (d^2 dt) in float64.
 // Everything is in metres of hidden path; float32 throughout.
 //
-// Build options: -D CHUNK=<facets per chunk>
+// Build options: -D CHUNK=<facets per chunk> [-D REFLECTANCE_FACTOR(n, to_laser, to_detector)=...]
 
-#define WALL_NORMAL_Y 1.0f
+#include "common.h"
+
+// The target's direction-dependent reflectance (nlos_cl/reflectance.py); its constant part is
+// applied on the host. Lambertian: 1.
+#ifndef REFLECTANCE_FACTOR
+#define REFLECTANCE_FACTOR(n, to_laser, to_detector) 1.0f
+#endif
 
 __kernel void facet_paths(__global const float4 *centres,  // xyz of each facet
                           __global const float4 *normals,  // unit normal xyz, w = area (m^2)
@@ -48,10 +54,11 @@ __kernel void facet_paths(__global const float4 *centres,  // xyz of each facet
             // Facets facing away from O or from the detector spot receive / send nothing.
             const float cos_b1 = -dot(nw.xyz, v1) / r1;
             const float cos_a2 = dot(nw.xyz, v2) / r2;
-            const float cos_a1 = fabs(v1.y) * WALL_NORMAL_Y / r1;
-            const float cos_b2 = fabs(v2.y) * WALL_NORMAL_Y / r2;
+            const float cos_a1 = fabs(v1.y) / r1;  // the wall's normal is +y
+            const float cos_b2 = fabs(v2.y) / r2;
             if (cos_b1 > 0.0f && cos_a2 > 0.0f) {
-                g = cos_a1 * cos_b1 * cos_a2 * cos_b2 * nw.w / (r1 * r1 * r2 * r2);
+                g = cos_a1 * cos_b1 * cos_a2 * cos_b2 * nw.w / (r1 * r1 * r2 * r2)
+                    * REFLECTANCE_FACTOR(nw.xyz, -v1 / r1, v2 / r2);
                 lo = fmin(lo, s);
                 hi = fmax(hi, s);
             }
@@ -60,19 +67,6 @@ __kernel void facet_paths(__global const float4 *centres,  // xyz of each facet
         weight[row + f] = g;
     }
     chunk_range[det * n_chunks + chunk] = (float2)(lo, hi);
-}
-
-// erf by Abramowitz & Stegun 7.1.26 (|error| <= 1.5e-7; 4.7e-7 measured in float32): plain
-// arithmetic and exp, so it vectorizes. PoCL's builtin erf ran at 0.44 G lanes/s on the 2-core
-// CPU against 1.63 for this one; it also gives the same result on every device. The error is
-// smooth in x, so adjacent bin edges err alike and their difference errs far less.
-inline float16 erf16(const float16 x)
-{
-    const float16 ax = fabs(x);
-    const float16 t = 1.0f / fma(0.3275911f, ax, 1.0f);
-    const float16 poly = t * fma(t, fma(t, fma(t, fma(t, 1.061405429f, -1.453152027f),
-                                               1.421413741f), -0.284496736f), 0.254829592f);
-    return copysign(1.0f - poly * exp(-ax * ax), x);
 }
 
 // 15 bins have 16 edges: one float16 erf per facet serves the whole block (measured on PoCL:

@@ -1,21 +1,52 @@
 """nlos_cl: locate objects hidden around a corner from time-of-flight histograms, with
-OpenCL kernels for the photon-flight model, the Gauss filter and ellipse scoring."""
-from .capture import read_capture, write_capture
-from .errors import DeviceError, InputError
-from .histograms import Grid, HistogramSet, PathCalibration, TimeAxis, default_time_axis
-from .measured import (CalibrationFit, PhotonCounter, fit_calibration, peak_times,
-                       subtract_background, with_calibration)
-from .pipeline import (Location, Signals, add_noise, gauss_filter, gauss_fit, locate,
-                       resolve_backend, simulate, upload)
-from .scene import (SPEED_OF_LIGHT, Facets, Pulse, Scene, Setup, Target, box, load_mesh,
-                    paper_scene, paper_setup, rectangle, sphere)
+OpenCL kernels for the photon-flight model, the Gauss filter and ellipse scoring.
 
-__all__ = [
-    "DeviceError", "InputError", "Grid", "HistogramSet", "PathCalibration", "TimeAxis",
-    "default_time_axis", "Location", "Signals", "add_noise", "gauss_filter", "gauss_fit",
-    "locate", "resolve_backend", "simulate", "upload", "SPEED_OF_LIGHT", "Facets", "Pulse",
-    "Scene", "Setup", "Target", "box", "load_mesh", "paper_scene", "paper_setup", "rectangle",
-    "sphere", "read_capture", "write_capture", "CalibrationFit", "PhotonCounter",
-    "fit_calibration", "peak_times", "subtract_background", "with_calibration",
-]
+Names are imported on first use (PEP 562), so `import nlos_cl` stays cheap and code that only
+locates captures never loads trimesh, SciPy or matplotlib.
+"""
+from __future__ import annotations
+
+import importlib
+
+_EXPORTS = {
+    ".backend": ("NumpyBackend", "resolve_backend"),
+    ".capture": ("read_capture", "write_capture"),
+    ".constants": ("SPEED_OF_LIGHT", "PAPER_H_S"),
+    ".errors": ("DeviceError", "InputError"),
+    ".estimators": ("Location", "PaperArgmax"),
+    ".grid": ("Grid",),
+    ".histograms": ("HistogramSet", "Layout"),
+    ".measured": ("CalibrationFit", "PhotonCounter", "fit_calibration", "peak_times",
+                  "subtract_background", "with_calibration"),
+    ".meshes": ("box", "load_mesh", "rectangle", "sphere"),
+    ".noise": ("AWGN",),
+    ".ops": ("OPERATIONS",),
+    ".paths": ("PathAxis", "PathCalibration", "TimeAxis", "default_time_axis"),
+    ".pipeline": ("add_noise", "gauss_filter", "gauss_fit", "locate", "simulate"),
+    ".plans": ("GaussFilter", "Locator"),
+    ".reflectance": ("Lambertian",),
+    ".scene": ("Facets", "Pulse", "Scene", "Setup", "Target", "paper_scene", "paper_setup"),
+    ".signals": ("Signals", "upload"),
+}
+_WHERE = {name: module for module, names in _EXPORTS.items() for name in names}
+__all__ = sorted(_WHERE)
 __version__ = "0.1.0"
+
+
+def __getattr__(name):
+    module = _WHERE.get(name)
+    if module is not None:
+        value = getattr(importlib.import_module(module, __name__), name)
+    else:  # a submodule: nl.runtime, nl.capture, ...
+        try:
+            value = importlib.import_module(f".{name}", __name__)
+        except ModuleNotFoundError as exc:
+            if exc.name != f"{__name__}.{name}":
+                raise  # a dependency of that module is missing: say so
+            raise AttributeError(f"module 'nlos_cl' has no attribute {name!r}") from None
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return __all__

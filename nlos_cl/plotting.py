@@ -1,52 +1,198 @@
-"""The demo figure: raw and filtered signals per detector, and the joint probability map."""
+"""Every figure of nlos_cl: the demo figure, the paper's experiments (signals, probability
+maps, sweeps, the 5 x 5 grid) and the benchmark's performance figure.
+
+matplotlib is imported inside the functions (Agg backend), so importing this module costs
+nothing; nothing in the library imports it at import time."""
 from __future__ import annotations
+
+from pathlib import Path
 
 import numpy as np
 
+DETECTOR_NAMES = "ABCDEFGHIJKLMNOPQRSTUVWXYZ"
 
-def demo_figure(raw, filtered, location, path_png):
+
+def pyplot():
+    """matplotlib.pyplot on the Agg backend (no display needed)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    return plt
 
+
+def save(fig, out: Path, name: str, dpi: int = 80) -> str:
+    """Write `out/name.png`, close the figure, return the file's name."""
+    path = out / f"{name}.png"
+    fig.savefig(path, dpi=dpi)
+    pyplot().close(fig)
+    return path.name
+
+
+def signal_window(y, t, frac=0.02) -> slice:
+    """The bins where y exceeds `frac` of its peak, padded by half that span (>= 20 bins)."""
+    idx = np.nonzero(y > frac * y.max())[0]
+    pad = max((idx[-1] - idx[0]) // 2, 20)
+    return slice(max(idx[0] - pad, 0), min(idx[-1] + pad, len(t)))
+
+
+# ----------------------------------------------------------------------------- the demo
+
+def _demo_signal_panel(ax, raw, filtered, path, d):
+    support = np.nonzero(np.abs(filtered.data[d]) > 0.02 * np.abs(filtered.data[d]).max())[0]
+    lo, hi = (support[0], support[-1]) if support.size else (0, raw.data.shape[1] - 1)
+    pad = max((hi - lo) // 2, 10)
+    sl = slice(max(lo - pad, 0), min(hi + pad, raw.data.shape[1]))
+    ax.plot(path[d, sl], raw.data[d, sl] * 1e15, lw=0.6, color="0.6", label="raw + noise")
+    ax.plot(path[d, sl], filtered.data[d, sl] * 1e15, lw=1.5, color="C3", label="Gauss filtered")
+    ax.set_xlabel("hidden path r1 + r2 (m)")
+    ax.set_ylabel("power (fW)")
+    ax.set_title(f"detector {DETECTOR_NAMES[d % 26]} at x = {raw.detector_spots[d, 0]:.2f} m")
+    ax.legend(loc="upper right", fontsize=8)
+
+
+def _demo_map_panel(ax, location, score, limits, title):
+    grid = location.grid
+    x, y, _ = grid.axes()
+    image = ax.imshow(score, origin="lower", aspect="equal", cmap="magma",
+                      extent=(x[0] - grid.step[0] / 2, x[-1] + grid.step[0] / 2,
+                              y[0] - grid.step[1] / 2, y[-1] + grid.step[1] / 2))
+    ax.set_xlim(*limits[:2])
+    ax.set_ylim(*limits[2:])
+    if location.truth is not None:
+        ax.plot(*location.truth[:2], "o", mfc="none", mec="cyan", ms=12, mew=2, label="truth")
+    ax.plot(*location.position[:2], "x", color="lime", ms=12, mew=2.5, label="located")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m), distance from the wall")
+    ax.set_title(title)
+    ax.legend(loc="upper right", fontsize=8)
+    return image
+
+
+def demo_figure(raw, filtered, location, path_png):
+    """Raw and filtered signals per detector, and the joint probability map (whole and zoomed)."""
+    plt = pyplot()
     n_det = raw.n_detectors
     fig = plt.figure(figsize=(4 * max(n_det, 3), 8.5), layout="constrained")
     grid_spec = fig.add_gridspec(2, max(n_det, 3))
     path = raw.hidden_path_axis()
-    names = "ABCDEFGHIJKLMNOPQRSTUVWXYZ"
     for d in range(n_det):
-        ax = fig.add_subplot(grid_spec[0, d])
-        support = np.nonzero(np.abs(filtered.data[d]) > 0.02 * np.abs(filtered.data[d]).max())[0]
-        lo, hi = (support[0], support[-1]) if support.size else (0, raw.data.shape[1] - 1)
-        pad = max((hi - lo) // 2, 10)
-        sl = slice(max(lo - pad, 0), min(hi + pad, raw.data.shape[1]))
-        ax.plot(path[d, sl], raw.data[d, sl] * 1e15, lw=0.6, color="0.6", label="raw + noise")
-        ax.plot(path[d, sl], filtered.data[d, sl] * 1e15, lw=1.5, color="C3", label="Gauss filtered")
-        ax.set_xlabel("hidden path r1 + r2 (m)")
-        ax.set_ylabel("power (fW)")
-        ax.set_title(f"detector {names[d % 26]} at x = {raw.detector_spots[d, 0]:.2f} m")
-        ax.legend(loc="upper right", fontsize=8)
-    grid = location.grid
-    x, y, _ = grid.axes()
+        _demo_signal_panel(fig.add_subplot(grid_spec[0, d]), raw, filtered, path, d)
+    x, y, _ = location.grid.axes()
     score = location.score_map[0] / max(location.score_map.max(), 1e-300)
     centre = location.truth if location.truth is not None else location.position
     views = ((grid_spec[1, :-1], (x[0], x[-1], y[0], y[-1]), "joint probability, plane z = 0"),
              (grid_spec[1, -1], (centre[0] - 0.3, centre[0] + 0.3, centre[1] - 0.3,
                                  centre[1] + 0.3), "zoom: +-0.3 m around the truth"))
-    for spec, (x0, x1, y0, y1), title in views:
+    for spec, limits, title in views:
         ax = fig.add_subplot(spec)
-        image = ax.imshow(score, origin="lower", aspect="equal", cmap="magma",
-                          extent=(x[0] - grid.step[0] / 2, x[-1] + grid.step[0] / 2,
-                                  y[0] - grid.step[1] / 2, y[-1] + grid.step[1] / 2))
-        ax.set_xlim(x0, x1)
-        ax.set_ylim(y0, y1)
-        if location.truth is not None:
-            ax.plot(*location.truth[:2], "o", mfc="none", mec="cyan", ms=12, mew=2, label="truth")
-        ax.plot(*location.position[:2], "x", color="lime", ms=12, mew=2.5, label="located")
-        ax.set_xlabel("x (m)")
-        ax.set_ylabel("y (m), distance from the wall")
-        ax.set_title(title)
-        ax.legend(loc="upper right", fontsize=8)
+        image = _demo_map_panel(ax, location, score, limits, title)
     fig.colorbar(image, ax=ax, label="joint likelihood (normalised)")
     fig.savefig(path_png, dpi=110)
+    plt.close(fig)
+
+
+# ----------------------------------------------------------------------------- the paper
+
+def map_panel(ax, location, title, truth):
+    """One probability map (normalised to its peak) with the truth and the located point."""
+    x, y, _ = location.grid.axes()
+    m = location.score_map[0]
+    peak = m.max()
+    ax.imshow(m / peak if peak > 0 else m, origin="lower", cmap="magma", aspect="equal",
+              extent=(x[0], x[-1], y[0], y[-1]))
+    ax.plot(truth[0], truth[1], "o", mfc="none", mec="red", ms=10, mew=2, label="truth")
+    ax.plot(*location.position[:2], "+", color="cyan", ms=12, mew=2, label="located")
+    ax.set_title(title, fontsize=9)
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+
+
+def signals_figure(panels, title, out: Path, name: str) -> str:
+    """panels: list of (label, t_ns, [(curve in W, style, legend)]); one panel per column."""
+    plt = pyplot()
+    fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels), 3.4), layout="constrained")
+    for ax, (label, t_ns, curves) in zip(np.atleast_1d(axes), panels):
+        for y, style, legend in curves:
+            ax.plot(t_ns, y * 1e15, style, lw=1.0, label=legend)
+        ax.set_title(label, fontsize=9)
+        ax.set_xlabel("arrival time (ns)")
+        ax.set_ylabel("power (fW)")
+        ax.legend(fontsize=7)
+    fig.suptitle(title, fontsize=10)
+    return save(fig, out, name)
+
+
+def maps_figure(maps, truth, out: Path, name: str) -> str:
+    """maps: {method: (single-detector Location, joint Location)}, one column per method."""
+    plt = pyplot()
+    fig, axes = plt.subplots(2, len(maps), figsize=(4 * len(maps), 8), layout="constrained")
+    for col, (method, (single, joint)) in enumerate(maps.items()):
+        map_panel(axes[0, col], single, f"p_A from the {method} signal", truth)
+        map_panel(axes[1, col], joint, f"joint, {method}: located "
+                  f"({joint.position[0]:.2f}, {joint.position[1]:.2f})", truth)
+    axes[0, 0].legend(fontsize=7)
+    return save(fig, out, name)
+
+
+def sweep_figure(rows, key, xlabel, title, out: Path, name: str,
+                 methods=("filter", "fit")) -> str:
+    """Error (mean +- std over seeds) against the swept quantity `key`, one curve per method."""
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(5.5, 3.8), layout="constrained")
+    x = [r[key] for r in rows]
+    for m in methods:
+        if f"{m}_mean_m" in rows[0]:
+            ax.errorbar(x, [r[f"{m}_mean_m"] for r in rows], yerr=[r[f"{m}_std_m"] for r in rows],
+                        marker="o", capsize=3, label=f"Gauss {m}")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel("position error (m)")
+    ax.set_title(title, fontsize=10)
+    ax.grid(alpha=0.3)
+    ax.legend()
+    return save(fig, out, name)
+
+
+def grid_errors_figure(rows, errors, summary, out: Path, name: str) -> str:
+    """The 5 x 5 grid: per method, the mean error per position (top) and the histogram of
+    every error (bottom). rows: dicts with x, y, <method>_mean_m; errors: {method: [m]}."""
+    plt = pyplot()
+    fig, axes = plt.subplots(2, len(errors), figsize=(4 * len(errors), 7), layout="constrained")
+    ys = sorted({r["y"] for r in rows})
+    for col, m in enumerate(errors):
+        emap = np.array([[r[f"{m}_mean_m"] for r in rows if r["y"] == y] for y in ys])
+        im = axes[0, col].imshow(emap, origin="lower", extent=(0.5, 5.5, 0.5, 5.5), cmap="viridis")
+        axes[0, col].set_title(f"{m}: error per position (m)", fontsize=9)
+        axes[0, col].set_xlabel("x (m)")
+        axes[0, col].set_ylabel("y (m)")
+        fig.colorbar(im, ax=axes[0, col], label="error (m)")
+        axes[1, col].hist(errors[m], bins=20, color="C0")
+        axes[1, col].set_title(f"{m}: mean {summary[m]['mean_m']:.4f} m, std "
+                               f"{summary[m]['std_m']:.4f} m", fontsize=9)
+        axes[1, col].set_xlabel("error (m)")
+        axes[1, col].set_ylabel("count")
+    return save(fig, out, name)
+
+
+# ----------------------------------------------------------------------------- the benchmark
+
+PERFORMANCE_PANELS = (("forward", "facets x detectors x bins"), ("gauss_filter", "bins x taps"),
+                      ("ellipse_score", "cells x detectors"))
+
+
+def performance_figure(rows, path):
+    """Kernel and NumPy-twin time against work, log-log, one panel per case.
+    rows: objects with attributes case, work, kernel_s, twin_s."""
+    plt = pyplot()
+    fig, axes = plt.subplots(1, 3, figsize=(14, 4.2), layout="constrained")
+    for ax, (case, xlabel) in zip(axes, PERFORMANCE_PANELS):
+        case_rows = sorted((r for r in rows if r.case == case), key=lambda r: r.work)
+        x = [r.work for r in case_rows]
+        ax.loglog(x, [r.kernel_s for r in case_rows], "o-", label="OpenCL kernel")
+        ax.loglog(x, [r.twin_s for r in case_rows], "s--", label="NumPy twin")
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel("time (s)")
+        ax.set_title(case)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend()
+    fig.savefig(path, dpi=100)
     plt.close(fig)

@@ -12,17 +12,11 @@ import numpy as np
 import trimesh
 
 from .constants import FWHM_PER_SIGMA, SPEED_OF_LIGHT  # noqa: F401 (re-exported)
-from .errors import InputError, require
+from .errors import require
+from .geometry import as_point
+from .meshes import rectangle
+from .reflectance import Lambertian, as_reflectance
 
-
-
-def _point(value, field_name: str) -> np.ndarray:
-    arr = np.array(value, dtype=np.float64)  # a copy: the caller's array is never aliased
-    require(arr.shape == (3,), field_name, f"expected a point [x, y, z], got shape {arr.shape}",
-            "pass three coordinates in metres")
-    require(bool(np.all(np.isfinite(arr))), field_name, f"non-finite coordinate {arr.tolist()}",
-            "pass finite coordinates in metres")
-    return arr
 
 
 @dataclass(frozen=True)
@@ -80,7 +74,7 @@ class Setup:
     pulse: Pulse = field(default_factory=Pulse)
 
     def __post_init__(self):
-        laser = _point(self.laser_spot, "setup.laser_spot")
+        laser = as_point(self.laser_spot, "setup.laser_spot")
         spots = np.array(self.detector_spots, dtype=np.float64)
         if spots.ndim == 1 and spots.shape == (3,):
             spots = spots[None, :]
@@ -144,10 +138,11 @@ class Facets:
 
 @dataclass(frozen=True)
 class Target:
-    """A hidden object: any triangle mesh with a Lambertian BRDF f_c (paper: clothes 0.1284)."""
+    """A hidden object: any triangle mesh and how it reflects. `brdf` is a number (a Lambertian
+    BRDF f_c in 1/sr; the paper's clothes 0.1284) or a reflectance model (nlos_cl.reflectance)."""
 
     mesh: trimesh.Trimesh
-    brdf: float = 0.1284
+    brdf: object = 0.1284
 
     def __post_init__(self):
         mesh = self.mesh
@@ -160,14 +155,19 @@ class Target:
                 "vertices contain NaN or inf", "clean the mesh before passing it")
         require(float(mesh.area) > 0, "target.mesh",
                 "every face is degenerate (total area 0)", "pass a mesh with non-zero area")
-        require(math.isfinite(self.brdf) and self.brdf > 0, "target.brdf",
-                f"must be a positive number, got {self.brdf}", "pass e.g. 0.1284")
+        reflectance = as_reflectance(self.brdf)  # validates
+        if isinstance(reflectance, Lambertian):  # keep `brdf` the number the user gave
+            object.__setattr__(self, "brdf", reflectance.brdf)
         ymin = float(mesh.vertices[:, 1].min())
         require(ymin > 0, "target.mesh",
                 f"reaches y = {ymin:.4g} m, on or behind the relay wall (the hidden area is y > 0)",
                 "move the target into y > 0, e.g. mesh.apply_translation([0, d, 0])")
         # Keep our own copy: later edits to the caller's mesh must not change this target.
         object.__setattr__(self, "mesh", mesh.copy())
+
+    @property
+    def reflectance(self):
+        return as_reflectance(self.brdf)
 
     def facets(self, facet_size_m: float = 0.01) -> Facets:
         """Subdivide until every triangle edge is at most facet_size_m; drop zero-area faces.
@@ -224,97 +224,17 @@ class Scene:
         truth = self.truth
         if truth is None:
             truth = self.target.mesh.bounds.mean(axis=0)
-        truth = _point(truth, "scene.truth")
+        truth = as_point(truth, "scene.truth")
         truth.flags.writeable = False
         object.__setattr__(self, "truth", truth)
 
     def facets(self) -> Facets:
-        return self.target.facets(self.facet_size_m)
-
-
-# ---------------------------------------------------------------- target meshes
-
-def _grid_quad(u_len: float, v_len: float, cell: float) -> tuple[np.ndarray, np.ndarray]:
-    """A u_len x v_len rectangle in the (u, v) plane as a grid of right triangles whose
-    longest edge (the cell diagonal) is at most `cell`."""
-    side = cell / math.sqrt(2.0)
-    nu, nv = max(1, math.ceil(u_len / side - 1e-9)), max(1, math.ceil(v_len / side - 1e-9))
-    u = np.linspace(-u_len / 2, u_len / 2, nu + 1)
-    v = np.linspace(-v_len / 2, v_len / 2, nv + 1)
-    uu, vv = np.meshgrid(u, v, indexing="ij")
-    verts = np.stack([uu.ravel(), vv.ravel()], axis=1)
-    idx = np.arange((nu + 1) * (nv + 1)).reshape(nu + 1, nv + 1)
-    a, b = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel()
-    c, d = idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
-    faces = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
-    return verts, faces
-
-
-def rectangle(width_m: float = 0.3, height_m: float = 1.6, centre=(4.0, 2.0, 0.0),
-              normal=(-1.0, 0.0, 0.0), cell_m: float = 0.01) -> trimesh.Trimesh:
-    """An upright one-sided rectangle: `height_m` along z, `width_m` across, facing `normal`.
-
-    The paper's target (Section 3.1) is the default: 0.3 m along y by 1.6 m along z, centred at
-    (4, 2, 0) in the plane x = 4, facing the wall side (-x). Pre-gridded at `cell_m` so that no
-    further subdivision is needed at that facet size.
-    """
-    require(width_m > 0 and height_m > 0, "rectangle", "width_m and height_m must be positive",
-            "pass sizes in metres")
-    n = np.asarray(normal, dtype=np.float64)
-    require(n.shape == (3,) and np.linalg.norm(n) > 0 and abs(n[2]) < 1e-9, "rectangle.normal",
-            f"must be a horizontal non-zero vector, got {n.tolist()}",
-            "pass e.g. (-1, 0, 0); for tilted rectangles rotate the mesh with trimesh")
-    n = n / np.linalg.norm(n)
-    across = np.cross([0.0, 0.0, 1.0], n)  # horizontal in-plane direction
-    up = np.array([0.0, 0.0, 1.0])
-    verts2d, faces = _grid_quad(width_m, height_m, cell_m)
-    verts = np.asarray(centre, float) + verts2d[:, :1] * across + verts2d[:, 1:] * up
-    mesh = trimesh.Trimesh(verts, faces, process=False)
-    if np.dot(mesh.face_normals[0], n) < 0:
-        mesh.invert()
-    return mesh
-
-
-def box(extents=(0.3, 0.3, 1.6), centre=(4.0, 2.0, 0.0), cell_m: float = 0.01) -> trimesh.Trimesh:
-    """A closed box, each side pre-gridded at `cell_m`, outward normals."""
-    ext = np.asarray(extents, dtype=np.float64)
-    require(ext.shape == (3,) and bool(np.all(ext > 0)), "box.extents",
-            f"must be three positive lengths, got {ext.tolist()}", "pass e.g. (0.3, 0.3, 1.6)")
-    parts = []
-    for axis in range(3):
-        u_ax, v_ax = [a for a in range(3) if a != axis]
-        verts2d, faces = _grid_quad(ext[u_ax], ext[v_ax], cell_m)
-        for sign in (-1.0, 1.0):
-            verts = np.zeros((len(verts2d), 3))
-            verts[:, u_ax], verts[:, v_ax] = verts2d[:, 0], verts2d[:, 1]
-            verts[:, axis] = sign * ext[axis] / 2
-            m = trimesh.Trimesh(verts + np.asarray(centre, float), faces, process=False)
-            if m.face_normals[0][axis] * sign < 0:
-                m.invert()
-            parts.append(m)
-    return trimesh.util.concatenate(parts)
-
-
-def sphere(radius_m: float = 0.2, centre=(4.0, 2.0, 0.0), subdivisions: int = 4) -> trimesh.Trimesh:
-    require(radius_m > 0, "sphere.radius_m", f"must be positive, got {radius_m}", "pass metres")
-    mesh = trimesh.creation.icosphere(subdivisions=subdivisions, radius=radius_m)
-    mesh.apply_translation(np.asarray(centre, float))
-    return mesh
-
-
-def load_mesh(path, *, position=None) -> trimesh.Trimesh:
-    """Load any mesh file trimesh reads (OBJ, STL, PLY, GLB, ...), optionally re-centred at
-    `position` (its bounding-box centre moves there)."""
-    try:
-        loaded = trimesh.load(path, force="mesh")
-    except Exception as exc:  # trimesh raises many types for bad files
-        raise InputError(f"mesh file {path!s}: could not be read ({exc}). "
-                         "Fix: pass a mesh file trimesh can load (OBJ, STL, PLY, GLB, OFF)") from exc
-    require(isinstance(loaded, trimesh.Trimesh) and len(loaded.faces) > 0, f"mesh file {path!s}",
-            "holds no triangles", "pass a file with a surface mesh")
-    if position is not None:
-        loaded.apply_translation(_point(position, "position") - loaded.bounds.mean(axis=0))
-    return loaded
+        """The target cut into facets, computed once per scene (a scene is immutable)."""
+        cached = self.__dict__.get("_facets")
+        if cached is None:
+            cached = self.target.facets(self.facet_size_m)
+            object.__setattr__(self, "_facets", cached)
+        return cached
 
 
 def paper_setup(**overrides) -> Setup:

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 import nlos_cl as nl
-from nlos_cl.reference import NumpyBackend
+from nlos_cl.backend import NumpyBackend
 from nlos_cl.runtime import get_runtime
 
 C = nl.SPEED_OF_LIGHT

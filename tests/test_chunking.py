@@ -6,6 +6,7 @@ import pytest
 
 import nlos_cl as nl
 from nlos_cl.errors import DeviceError
+from nlos_cl.ops.gauss_filter import gauss_taps
 from nlos_cl.runtime import Runtime
 
 C = nl.SPEED_OF_LIGHT
@@ -33,7 +34,7 @@ def test_forward_in_detector_groups_is_identical(runtime, tiny, scene_axis):
 
 def test_filter_in_row_groups_is_identical(runtime):
     data = np.random.default_rng(3).standard_normal((7, 2000))
-    taps = nl.reference.gauss_taps(0.65e-9, 10e-12)
+    taps = gauss_taps(0.65e-9, 10e-12)
     small = Runtime(max_alloc_bytes=2 * 4 * (2000 + 2 * 65 + 32))  # two rows per group
     a = runtime.to_numpy(runtime.gauss_filter(runtime.from_numpy(data), taps))
     b = small.to_numpy(small.gauss_filter(small.from_numpy(data), taps))
@@ -76,7 +77,7 @@ def test_device_out_of_memory_retries_in_smaller_chunks():
         return "done"
 
     with pytest.warns(RuntimeWarning, match="out of memory"):
-        assert rt._shrinking_on_oom(stage) == "done"
+        assert rt.shrinking_on_oom(stage) == "done"
     assert seen == [64 << 20, 32 << 20, 16 << 20]
 
 
@@ -87,4 +88,4 @@ def test_device_out_of_memory_at_the_floor_says_what_to_reduce():
         raise nl.runtime.cl.MemoryError("MEM_OBJECT_ALLOCATION_FAILURE")
 
     with pytest.raises(DeviceError, match="reduce the grid"):
-        rt._shrinking_on_oom(stage)
+        rt.shrinking_on_oom(stage)

@@ -5,7 +5,7 @@ import sys
 
 import numpy as np
 
-from nlos_cl import reproduce as rp
+from nlos_cl.apps import reproduce as rp
 
 
 def test_fwhm_of_a_gaussian():

@@ -1,0 +1,18 @@
+"""`nlos-cl bench`: every registered operation against its NumPy twin and against this device's
+own limits, then the pipeline and a frame stream. See harness.py for how things are timed."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from .cases import Row, all_rows
+from .report import report
+
+
+def run(device=None, smoke=False, out_dir: Path | None = None, say=print) -> str:
+    from ...runtime import get_runtime
+    rt = get_runtime(device)
+    rows = all_rows(rt, smoke, say)
+    return report(rt.name, rows, smoke, out_dir)
+
+
+__all__ = ["Row", "all_rows", "report", "run"]

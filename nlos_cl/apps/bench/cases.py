@@ -1,0 +1,136 @@
+"""The benchmark's cases: every registered operation's "bench" examples (kernel against twin),
+then the whole pipeline and a tracking-style stream (per-frame functional calls against plans).
+"""
+from __future__ import annotations
+
+import math
+import statistics
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ... import pipeline as pl
+from ...backend import NumpyBackend
+from ...ops import OPERATIONS
+from .harness import fraction_of_limit, measure_limits, spread, time_pair, timed
+
+
+@dataclass
+class Row:
+    case: str
+    size: str
+    work: float  # problem size for the plot (work units, or frames)
+    kernel_s: float  # median
+    twin_s: float
+    build_s: float
+    throughput: float
+    unit: str
+    fraction: float  # of the limit named in `bound`, probed right before this case
+    bound: str
+    peak_host_mb: float
+    spread: float = 0.0  # kernel (max - min) / median over the repeats
+    limit_spread: float = 0.0  # the probe's own spread
+    note: str = ""
+    limits: dict = field(default_factory=dict)
+
+    @property
+    def ratio(self) -> float:
+        return self.twin_s / self.kernel_s
+
+
+def operation_rows(rt, smoke, say):
+    twin = NumpyBackend()
+    for op in OPERATIONS.values():
+        examples = op.examples("check")[:1] if smoke else op.examples("bench")
+        for ex in examples:
+            say(f"  {op.name}: {ex.label}")
+            args = ex.inputs(rt)
+            twin_args = (ex.twin_inputs or ex.inputs)(twin)
+            kernel, twin_t, build, mem = time_pair(
+                lambda: rt.call(op.name, *args), lambda: twin.call(op.name, *twin_args),
+                rt.finish, twin_repeats=1 if ex.twin_inputs or ex.work > 1e9 else 3)
+            k, k_spread = spread(kernel)
+            limits = measure_limits(rt, smoke)  # next to the case it judges
+            frac, probe = fraction_of_limit(limits, ex.work, ex.unit, k)
+            note = (f"twin timed on {ex.twin_fraction:.0%} of the work, scaled"
+                    if ex.twin_inputs else "")
+            yield Row(op.name, ex.label, ex.work or 1.0, k,
+                      statistics.median(twin_t) / ex.twin_fraction, build,
+                      (ex.work or 1.0) / k, ex.unit or "calls", frac,
+                      f"{op.bound}" + (f" (fraction: vs {probe} probe)" if probe else ""), mem,
+                      k_spread, limits.get(_probe_key(probe) + "_spread", 0.0), note, limits)
+
+
+def _probe_key(probe):
+    return {"exp": "exp_per_s", "FMA": "fma_per_s", "bandwidth": "bytes_per_s"}.get(probe, "")
+
+
+def pipeline_row(rt, smoke):
+    from ...grid import Grid
+    from ...paths import TimeAxis, default_time_axis
+    from ...scene import paper_scene
+    scene = paper_scene(facet_size_m=0.05 if smoke else 0.01)
+    axis = TimeAxis(40 / 299_792_458.0 + 29e-9, 1e-12, 8_000) if smoke else default_time_axis(
+        scene.setup)
+    grid = Grid.from_ranges(x=(3, 5), y=(1, 3), step_m=0.05) if smoke else Grid()
+
+    def run(backend):
+        f = pl.gauss_filter(pl.add_noise(pl.simulate(scene, axis, backend=backend), 10.0, 0))
+        return pl.locate(f, grid)
+    kernel, twin, build, mem = time_pair(lambda: run(rt), lambda: run(NumpyBackend()),
+                                         rt.finish, twin_repeats=1)
+    k, k_spread = spread(kernel)
+    return Row("pipeline", "demo: simulate, noise, filter, locate", 1, k,
+               statistics.median(twin), build, 1 / k, "localizations", math.nan, "-", mem,
+               k_spread)
+
+
+def stream_rows(rt, smoke):
+    """1,000 host frames (3 x 4,096 bins, 10 dB) located on a 512^2 grid: per-frame functional
+    calls (upload, filter, locate, each building its plan) against plans built once."""
+    from ...grid import Grid
+    from ...paths import TimeAxis
+    from ...plans import GaussFilter, Locator
+    from ...scene import paper_scene
+    from ...signals import upload
+    n_frames, n = (20, 64) if smoke else (1000, 512)
+    grid = Grid((2.0, 0.5, 0.0), (4 / n, 4 / n, 0.01), (n, n, 1))
+    clean = pl.simulate(paper_scene(facet_size_m=0.02), TimeAxis(40 / 299_792_458.0, 10e-12, 4096),
+                        backend=rt).histograms()
+    rng = np.random.default_rng(0)
+    power = np.sqrt(np.mean(clean.data ** 2, axis=1, keepdims=True) / 10.0)
+    frames = [clean.with_data(clean.data + power * rng.standard_normal(clean.data.shape))
+              for _ in range(8)]  # cycled: the noise draws are not what is timed
+    gauss, locator = GaussFilter(time_axis=clean.time_axis), Locator(clean.layout, grid)
+
+    def functional(i):
+        return pl.locate(pl.gauss_filter(frames[i % 8], backend=rt), grid)
+
+    def planned(i):
+        return locator(gauss(upload(frames[i % 8], rt)))
+    rows = []
+    for label, step in (("functional: nl.gauss_filter + nl.locate per frame", functional),
+                        ("plans: GaussFilter + Locator built once", planned)):
+        step(0)
+        rt.finish()
+        per_frame = [t / n_frames for t in timed(lambda: [step(i) for i in range(n_frames)],
+                                                 3 if smoke else 2, rt.finish)]
+        k, k_spread = spread(per_frame)
+        twin = NumpyBackend()
+        t0 = time.perf_counter()
+        pl.locate(pl.gauss_filter(frames[0], backend=twin), grid)
+        rows.append(Row("stream", f"{label}: {n_frames} frames, 3 x 4096 bins, {n}x{n} cells",
+                        n_frames, k, time.perf_counter() - t0, 0.0, 1 / k, "localizations",
+                        math.nan, "-", 0.0, k_spread, note="per frame; twin: one frame"))
+    return rows
+
+
+def all_rows(rt, smoke=False, say=print):
+    say("operations")
+    rows = list(operation_rows(rt, smoke, say))
+    say("pipeline")
+    rows.append(pipeline_row(rt, smoke))
+    say("stream")
+    rows.extend(stream_rows(rt, smoke))
+    return rows

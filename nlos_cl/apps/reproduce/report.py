@@ -1,0 +1,117 @@
+"""The report (docs/paper-results.md): every experiment's numbers from this run, the paper's
+beside them, the settings, and the remarks (text.yaml) on where and why they differ; and the
+JSON summary that `--json` prints."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import nlos_cl as nl
+
+from .common import METHODS, TEXT, Result, Settings
+
+
+def summary_json(results) -> str:
+    if len(results) == 1:
+        return json.dumps(results[0].summary)
+    return json.dumps({r.name: r.summary for r in results})
+
+
+def _pm(st, prefix=""):
+    return f"{st[prefix + 'mean_m']:.4f} ± {st[prefix + 'std_m']:.4f} (max {st[prefix + 'max_m']:.4f})"
+
+
+def _xy(x, y):
+    return f"({x:.3f}, {y:.3f})"
+
+
+def _table(header, rows):
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(str(c) for c in row) + " |" for row in rows]
+    return "\n".join(lines)
+
+
+def _fig5(r: Result) -> str:
+    return _table(["detector", "paper FWHM (ns)", "ours: clean signal", "ours: filtered h=0.8 ns",
+                   "ours: Gauss fit"],
+                  [(x["detector"], x["paper_fwhm_ns"], x["fwhm_clean_ns"], x["fwhm_filtered_ns"],
+                    x["fwhm_fit_ns"]) for x in r.rows])
+
+
+def _fig6(r: Result) -> str:
+    return _table(["signal", "paper (x, y)", "ours (x, y), mean over seeds",
+                   "ours: error mean ± std (max), m"],
+                  [(x["method"], f"({x['paper_x']}, {x['paper_y']})", _xy(x["x"], x["y"]), _pm(x))
+                   for x in r.rows])
+
+
+def _methods_sweep(key, label):
+    def section(r: Result) -> str:
+        return _table([label, "filter: error mean ± std (max), m",
+                       "fit: error mean ± std (max), m"],
+                      [(x[key], _pm(x, "filter_"), _pm(x, "fit_")) for x in r.rows])
+    return section
+
+
+def _fig7b(r: Result) -> str:
+    return _table(["h (ns)", "filter: error mean ± std (max), m", "located (x, y)"],
+                  [(x["h_ns"], _pm(x, "filter_"), _xy(x["filter_x"], x["filter_y"]))
+                   for x in r.rows])
+
+
+def _paper_positions(key, label, extra=()):
+    """Our filter's position beside the paper's; `extra`: (column title, row key) pairs."""
+    def section(r: Result) -> str:
+        return _table([label, "paper (x, y)", "ours: filter (x, y)", "ours: filter error (m)",
+                       "ours vs paper (m)"] + [head for head, _ in extra],
+                      [(x[key], f"({x['paper_x']}, {x['paper_y']})", _xy(x["x"], x["y"]),
+                        x["error_mean_m"], x["distance_to_paper_m"])
+                       + tuple(x[k] for _, k in extra) for x in r.rows])
+    return section
+
+
+def _mean_std_max(d):
+    return f"{d['mean_m']:.4f} ± {d['std_m']:.4f}" + (f" (max {d['max_m']:.4f})"
+                                                      if "max_m" in d else "")
+
+
+def _fig10(r: Result) -> str:
+    paper = r.summary["paper"]
+    return _table(["signal", "paper: error mean ± std (max), m", "ours: error mean ± std (max), m"],
+                  [(m, _mean_std_max(paper[m]) if m in paper else "-",
+                    _mean_std_max(r.summary[m])) for m in METHODS])
+
+
+SECTIONS = {
+    "fig5": _fig5, "fig6": _fig6,
+    "fig7a": _methods_sweep("delta_m", "detector spacing (m)"), "fig7b": _fig7b,
+    "table1": _paper_positions("fwhm_ps", "laser FWHM (ps)"),
+    "fig8": _paper_positions("target_m", "rectangle (m)",
+                             [("ours: fit error (m)", "fit_error_mean_m")]),
+    "fig9": _methods_sweep("side_m", "square side (m)"), "fig10": _fig10,
+}
+
+
+def _section(r: Result) -> str:
+    """The markdown table of one experiment: the paper's numbers beside ours."""
+    return SECTIONS[r.name](r) if r.name in SECTIONS else ""
+
+
+def write_report(results, s: Settings, path: Path, out: Path, wall_s: float) -> None:
+    """docs/paper-results.md: every experiment's numbers from this run, the paper's beside
+    them, the settings, and the remarks (text.yaml) on where and why they differ."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        figure_dir = out.resolve().relative_to(path.parent.resolve())
+    except ValueError:
+        figure_dir = out.resolve()
+    device = nl.resolve_backend().name
+    parts = ["# The paper's numbers and ours", "",
+             TEXT["header"].format(out=out, path=path, device=device, wall_s=wall_s), "",
+             TEXT["intro"].format(settings=s.describe()), "", TEXT["general"], ""]
+    for r in results:
+        remark = TEXT["experiments"].get(r.name, {}).get("remark", "")
+        parts += [f"## {r.title}", "", _section(r), "", remark, ""]
+        parts += [f"![{r.name}]({figure_dir / png})" for png in r.figures]
+        parts.append("")
+    path.write_text("\n".join(parts))

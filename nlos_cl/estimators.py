@@ -1,0 +1,125 @@
+"""Estimators: from a scored grid (and, for model fits, the histograms) to a `Location`.
+
+The `Locator` plan scores the grid; an estimator turns that into positions. The paper's
+estimator (`PaperArgmax`) is the first: the argmax of the joint likelihood, refined below the
+cell size by a parabola per axis. Others plug in through the same `estimate(scored)` call.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+from .constants import LOG_FLOOR, PRODUCT_FLOOR
+from .errors import InputError
+from .grid import Grid
+
+
+@dataclass(frozen=True)
+class Location:
+    """Where the target is: `position` (m, our frame), with what the estimator knows of it."""
+
+    position: np.ndarray  # (3,) metres
+    cell_position: np.ndarray  # centre of the best cell
+    score: float  # joint likelihood (or its log) at the best cell
+    grid: Grid
+    truth: np.ndarray | None = None
+    score_map: np.ndarray | None = field(default=None, repr=False)  # (nz, ny, nx) if asked
+    covariance: np.ndarray | None = None  # (3, 3) m^2, where the estimator provides one
+    estimator: str = "paper"
+
+    @property
+    def error_m(self) -> float | None:
+        if self.truth is None:
+            return None
+        return float(np.linalg.norm(self.position - self.truth))
+
+
+@dataclass(frozen=True)
+class Scored:
+    """What a Locator hands its estimator for one frame."""
+
+    backend: object
+    scores: object  # the score map on the backend
+    grid: Grid
+    log_mode: bool
+    n_detectors: int
+    signals: object  # the filtered Signals that were scored
+
+
+class Estimator(Protocol):
+    name: str
+
+    def estimate(self, scored: Scored) -> tuple[np.ndarray, np.ndarray, float, np.ndarray | None]:
+        """(position, best cell centre, score there, covariance or None)."""
+
+
+class PaperArgmax:
+    """The paper's estimator (Section 3.2): the cell of maximum joint likelihood, refined with
+    a parabola per axis through the log-score of the best cell and its two neighbours."""
+
+    name = "paper"
+
+    def estimate(self, scored: Scored):
+        be, grid = scored.backend, scored.grid
+        flat, best = be.call("argmax", scored.scores)
+        # Below these the joint likelihood is numerically zero: every detector at its log floor,
+        # or a product beyond float32's range (the float64 twin would otherwise "locate" on 1e-67).
+        floor = scored.n_detectors * math.log(LOG_FLOOR) if scored.log_mode else PRODUCT_FLOOR
+        if flat < 0 or not best > floor:
+            raise InputError("grid: no cell has a non-zero likelihood from every detector: the "
+                             "signals do not reach the grid. Fix: check that the grid covers "
+                             "the hidden area the time axis sees, and the calibration; with many "
+                             "detectors use log_mode=True")
+        nx, ny, _ = grid.shape
+        iz, rem = divmod(flat, nx * ny)
+        iy, ix = divmod(rem, nx)
+        patch = neighbourhood(be, scored.scores, grid.shape, ix, iy, iz)
+        cell = np.array([o + s * i for o, s, i in zip(grid.origin, grid.step, (ix, iy, iz))])
+        logp = patch if scored.log_mode else np.log(np.maximum(patch, 1e-300))
+        position = cell + parabolic_offsets(logp) * np.asarray(grid.step)
+        return position, cell, best, None
+
+
+def neighbourhood(be, score, shape, ix, iy, iz):
+    """3 x 3 x 3 scores around the best cell (NaN outside the grid), read row by row."""
+    nx, ny, nz = shape
+    patch = np.full((3, 3, 3), np.nan)
+    y0, y1 = max(iy - 1, 0), min(iy + 2, ny)
+    x0, x1 = max(ix - 1, 0), min(ix + 2, nx)
+    for dz in (-1, 0, 1):
+        z = iz + dz
+        if 0 <= z < nz:
+            rows = be.read_rows(score, z, y0, y1)[:, x0:x1]
+            patch[dz + 1, y0 - iy + 1:y1 - iy + 1, x0 - ix + 1:x1 - ix + 1] = rows
+    return patch
+
+
+def parabolic_offsets(logp):
+    """Per axis (x, y, z), the vertex of the parabola through (-1, 0, +1) cells, in cells."""
+    offsets = np.zeros(3)
+    lines = (logp[1, 1, :], logp[1, :, 1], logp[:, 1, 1])
+    for axis, (m, c, p) in enumerate(lines):
+        curvature = m - 2 * c + p
+        if np.isfinite(m) and np.isfinite(p) and curvature < 0:
+            offsets[axis] = float(np.clip(0.5 * (m - p) / curvature, -0.5, 0.5))
+    return offsets
+
+
+ESTIMATORS = {"paper": PaperArgmax}
+
+
+def as_estimator(value):
+    if value is None:
+        return PaperArgmax()
+    if isinstance(value, str):
+        if value not in ESTIMATORS:
+            raise InputError(f"estimator: unknown name {value!r}. Fix: pass one of "
+                             f"{sorted(ESTIMATORS)} or an object with estimate(scored)")
+        return ESTIMATORS[value]()
+    if not hasattr(value, "estimate"):
+        raise InputError(f"estimator: expected a name or an object with estimate(scored), got "
+                         f"{type(value).__name__}. Fix: pass e.g. 'paper'")
+    return value
