@@ -2,7 +2,8 @@
 definition, OpenCL launcher and float64 NumPy twin, with example inputs and tolerances) + one
 line below. Backends call them by name (`backend.call("gauss_filter", ...)`, or
 `backend.gauss_filter(...)`); tests, self-check, bench and the oclgrind check walk this list."""
-from . import add_awgn, argmax, ellipse_score, forward, gauss_filter, row_stats
+from . import (add_awgn, argmax, ellipse_score, forward, gauss_filter, row_stats,
+               subtract_background)
 from .base import Example, Operation
 
 OPERATIONS: dict[str, Operation] = {op.name: op for op in (
@@ -12,6 +13,7 @@ OPERATIONS: dict[str, Operation] = {op.name: op for op in (
     add_awgn.OP,
     ellipse_score.OP,
     argmax.OP,
+    subtract_background.OP,
 )}
 
 __all__ = ["OPERATIONS", "Example", "Operation"]
