@@ -13,7 +13,7 @@ _EXPORTS = {
     ".capture": ("read_capture", "write_capture"),
     ".constants": ("SPEED_OF_LIGHT", "PAPER_H_S"),
     ".errors": ("DeviceError", "InputError"),
-    ".estimators": ("Location", "PaperArgmax"),
+    ".estimators": ("Estimate", "LocatedTarget", "Location", "PaperArgmax"),
     ".grid": ("Grid",),
     ".histograms": ("HistogramSet", "Layout"),
     ".measured": ("CalibrationFit", "PhotonCounter", "fit_calibration", "peak_times",

@@ -18,8 +18,27 @@ from .grid import Grid
 
 
 @dataclass(frozen=True)
+class LocatedTarget:
+    """One located target: centre (m, our frame) and what the estimator knows of it."""
+
+    position: np.ndarray  # (3,)
+    covariance: np.ndarray | None = None  # (3, 3) m^2, where the estimator provides one
+    extent_m: np.ndarray | None = None  # size along its axes, where the estimator fits one
+    details: dict = field(default_factory=dict)  # estimator-specific (fit parameters, ...)
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """What an estimator returns: the targets (best first), the best cell and its score."""
+
+    targets: list
+    cell_position: np.ndarray
+    score: float
+
+
+@dataclass(frozen=True)
 class Location:
-    """Where the target is: `position` (m, our frame), with what the estimator knows of it."""
+    """Where the target is: `position` (m, our frame) is the first of `targets`."""
 
     position: np.ndarray  # (3,) metres
     cell_position: np.ndarray  # centre of the best cell
@@ -27,8 +46,15 @@ class Location:
     grid: Grid
     truth: np.ndarray | None = None
     score_map: np.ndarray | None = field(default=None, repr=False)  # (nz, ny, nx) if asked
-    covariance: np.ndarray | None = None  # (3, 3) m^2, where the estimator provides one
+    covariance: np.ndarray | None = None  # (3, 3) m^2 of the first target, if known
     estimator: str = "paper"
+    targets: list = field(default_factory=list)  # every LocatedTarget, best first
+
+    @classmethod
+    def of(cls, estimate: Estimate, grid: Grid, truth, score_map, estimator: str) -> "Location":
+        first = estimate.targets[0]
+        return cls(first.position, estimate.cell_position, estimate.score, grid, truth,
+                   score_map, first.covariance, estimator, list(estimate.targets))
 
     @property
     def error_m(self) -> float | None:
@@ -47,13 +73,13 @@ class Scored:
     log_mode: bool
     n_detectors: int
     signals: object  # the filtered Signals that were scored
+    raw: object = None  # the unfiltered Signals, where the caller passed them (model fits)
 
 
 class Estimator(Protocol):
     name: str
 
-    def estimate(self, scored: Scored) -> tuple[np.ndarray, np.ndarray, float, np.ndarray | None]:
-        """(position, best cell centre, score there, covariance or None)."""
+    def estimate(self, scored: Scored) -> Estimate: ...
 
 
 class PaperArgmax:
@@ -80,7 +106,7 @@ class PaperArgmax:
         cell = np.array([o + s * i for o, s, i in zip(grid.origin, grid.step, (ix, iy, iz))])
         logp = patch if scored.log_mode else np.log(np.maximum(patch, 1e-300))
         position = cell + parabolic_offsets(logp) * np.asarray(grid.step)
-        return position, cell, best, None
+        return Estimate([LocatedTarget(position)], cell, best)
 
 
 def neighbourhood(be, score, shape, ix, iy, iz):

@@ -94,10 +94,11 @@ def gauss_fit(signals, *, backend=None):
 
 
 def locate(signals, grid: Grid | None = None, *, log_mode: bool = False,
-           return_map: bool = False, estimator=None, backend=None) -> Location:
+           return_map: bool = False, estimator=None, raw=None, backend=None) -> Location:
     """Score every grid cell by the signals at its ellipse path |c - O| + |c - spot| per
     detector, combine (product, or sum of logs when log_mode), and estimate the position
-    (default: the paper's argmax, refined with a parabola per axis)."""
+    (default: the paper's argmax, refined with a parabola per axis). `raw`: the unfiltered
+    signals, for estimators that fit a model to the histograms."""
     sig = as_signals(signals, backend)
     plan = Locator(sig.layout, grid, estimator=estimator, log_mode=log_mode)
-    return plan(sig, return_map=return_map)
+    return plan(sig, raw=raw, return_map=return_map)

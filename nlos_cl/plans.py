@@ -90,7 +90,9 @@ class Locator:
                                self.log_mode, LOG_FLOOR, out=self._scores)
         return self._scores
 
-    def __call__(self, signals, *, return_map: bool = False) -> Location:
+    def __call__(self, signals, *, raw=None, return_map: bool = False) -> Location:
+        """Locate from filtered signals; `raw`: the same frame unfiltered, for estimators that
+        fit a model to the histograms (the paper's argmax does not need it)."""
         sig = as_signals(signals, self.backend)
         require(sig.layout.shape == self.layout.shape, "signals", f"shape {sig.layout.shape} "
                 f"differs from the plan's {self.layout.shape}", "build a Locator for this layout")
@@ -100,9 +102,9 @@ class Locator:
                     "come from another wall layout or time axis than the plan's",
                     "build a Locator for this layout")
         scores = self.scores(sig)
-        scored = Scored(sig.backend, scores, self.grid, self.log_mode, sig.n_detectors, sig)
-        position, cell, best, cov = self.estimator.estimate(scored)
+        raw = None if raw is None else as_signals(raw, sig.backend)
+        scored = Scored(sig.backend, scores, self.grid, self.log_mode, sig.n_detectors, sig, raw)
+        estimate = self.estimator.estimate(scored)
         full = sig.backend.to_numpy(scores) if return_map else None
-        return Location(position, cell, best, self.grid, sig.layout.truth, full, cov,
-                        self.estimator.name)
+        return Location.of(estimate, self.grid, sig.layout.truth, full, self.estimator.name)
 
