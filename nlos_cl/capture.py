@@ -4,8 +4,8 @@ y-tal itself is not a dependency (it pins numpy < 2); the layout is followed fie
 
 | y-tal field | dtype, shape | ours |
 |---|---|---|
-| H | float32, time axis first: (T, S) for H_format T_Si, (T, Sx, Sy) for T_Sx_Sy; (T, Lx, Ly, Sx, Sy) for T_Lx_Ly_Sx_Sy and (T, S, L) for T_Si_Li (several laser points) | HistogramSet.data (detectors x bins), one set per laser point |
-| H_format | enum dataset (int32, shape (1,)): UNKNOWN 0, T_Sx_Sy 1, T_Lx_Ly_Sx_Sy 2, T_Si 3, T_Si_Li 4 | |
+| H | float32, time axis first: (T, S) for H_format T_Si, (T, Sx, Sy) for T_Sx_Sy; (T, Lx, Ly, Sx, Sy) for T_Lx_Ly_Sx_Sy and (T, L, S) for T_Li_Si (several laser points; value 4, named T_Li_Si and read as (T, L, S) by y-tal 0.20's code, whose docstring still says T_Si_Li) | HistogramSet.data (detectors x bins), one set per laser point |
+| H_format | enum dataset (int32, shape (1,)): UNKNOWN 0, T_Sx_Sy 1, T_Lx_Ly_Sx_Sy 2, T_Si 3, T_Li_Si 4 | |
 | sensor_grid_xyz, sensor_grid_normals | float32 (S, 3) [N_3] or (Sx, Sy, 3) [X_Y_3] | detector_spots, flattened row-major |
 | laser_grid_xyz, laser_grid_normals | float32 (L, 3) / (3,) [N_3] or (Lx, Ly, 3) [X_Y_3] | laser_spot |
 | sensor_grid_format, laser_grid_format | enum: UNKNOWN 0, N_3 1, X_Y_3 2 | |
@@ -14,13 +14,13 @@ y-tal itself is not a dependency (it pins numpy < 2); the layout is followed fie
 | t_accounts_first_and_last_bounces | bool | if true, |laser_xyz - laser point| + |sensor point - sensor_xyz| is removed from the path |
 | scene_info | YAML string | kept; ours under the key `nlos_cl` (y-tal rejects unknown top-level fields, so extra metadata rides here) |
 
-Frames: y-tal's relay wall is Z = 0 with the hidden space at Z > 0; ours is y = 0 with y > 0
-hidden and z up. Points map by the proper rotation (X, Y, Z) = (-x, z, y), i.e. y-tal's Y is our
-up and its Z our depth; back by (x, y, z) = (-X, Z, Y).
+Frames (nlos_cl.frames.YTAL): y-tal's wall is Z = 0, hidden space Z > 0; ours y = 0, y > 0, z up;
+(X, Y, Z) = (-x, z, y), back by (x, y, z) = (-X, Z, Y). `read_capture_with_frame` returns that
+frame with the sets, to give and report positions in the file's coordinates.
 
-Several laser points (T_Lx_Ly_Sx_Sy, T_Si_Li) give one HistogramSet per laser point, each
-located separately. Confocal captures (every sensor point paired with its own laser point)
-are not supported: the ellipse model needs one laser spot per histogram set.
+Writes are atomic; reads check truncation, declared sizes against memory and the geometry.
+Several laser points give one HistogramSet each, located separately. Confocal captures are
+not supported: the ellipse model needs one laser spot per histogram set.
 """
 from __future__ import annotations
 
@@ -29,50 +29,52 @@ from pathlib import Path
 
 import numpy as np
 
+from .constants import SPEED_OF_LIGHT
 from .errors import InputError, require
+from .frames import YTAL, CaptureFrame, check_wall_spots, from_ytal, to_ytal  # noqa: F401
 from .histograms import HistogramSet, PathCalibration, TimeAxis
-from .scene import SPEED_OF_LIGHT
 
-H_FORMATS = {"UNKNOWN": 0, "T_Sx_Sy": 1, "T_Lx_Ly_Sx_Sy": 2, "T_Si": 3, "T_Si_Li": 4}
+H_FORMATS = {"UNKNOWN": 0, "T_Sx_Sy": 1, "T_Lx_Ly_Sx_Sy": 2, "T_Si": 3, "T_Li_Si": 4}
 GRID_FORMATS = {"UNKNOWN": 0, "N_3": 1, "X_Y_3": 2}
 REQUIRED = ("H", "H_format", "sensor_grid_xyz", "laser_grid_xyz", "delta_t", "t_start",
             "t_accounts_first_and_last_bounces")
-
-# ours (x, y, z) -> y-tal (X, Y, Z) = (-x, z, y): a rotation (determinant +1)
-_TO_YTAL = np.array([[-1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0]])
-
-
-def to_ytal(points) -> np.ndarray:
-    return np.asarray(points, dtype=np.float64) @ _TO_YTAL.T
-
-
-def from_ytal(points) -> np.ndarray:
-    return np.asarray(points, dtype=np.float64) @ _TO_YTAL  # the inverse of a rotation
+HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 
 
 # ---------------------------------------------------------------------------- writing
 
 def write_capture(path, histograms: HistogramSet, *, device_distance_m: float = 20.0,
-                  metadata: dict | None = None, compression: int = 4) -> Path:
-    """Write one HistogramSet as a y-tal capture (H_format T_Si, sensor grid N_3).
-
-    y-tal has one time origin for all sensors, so every detector must share the calibration
-    offset; the slope a becomes the optical-path-per-second of delta_t. Our exact time axis,
-    calibration, truth and `metadata` ride in scene_info['nlos_cl'] for a lossless round trip.
-    """
+                  metadata: dict | None = None, compression: int = 4, force: bool = False
+                  ) -> Path:
+    """Write one HistogramSet as a y-tal capture (H_format T_Si, sensor grid N_3); one t_start
+    for all sensors. Our exact time axis, calibration, truth and `metadata` ride in
+    scene_info['nlos_cl']. Atomic (see nlos_cl.safe_io.atomic_write: Ctrl-C leaves the old file,
+    a concurrent writer's file is never silently lost); a non-capture file needs force=True."""
     import h5py
-    import yaml
+
+    from .safe_io import atomic_write
 
     h = histograms
     offsets = h.calibration.offsets(h.n_detectors)
     require(bool(np.allclose(offsets, offsets[0], rtol=0, atol=1e-9)), "calibration.b_m",
             "differs between detectors, but a y-tal capture has a single t_start",
             "write one file per group of detectors that share an offset")
+    require(isinstance(device_distance_m, (int, float)) and 0 < device_distance_m < math.inf,
+            "device_distance_m", f"must be a positive distance, got {device_distance_m!r}", "20.0")
+
+    def write(tmp):
+        with h5py.File(tmp, "w") as f:
+            _write_fields(f, h, device_distance_m, metadata, compression)
+    return atomic_write(path, write, keep_unless=_is_capture, force=force, what="capture",
+                        kind="an HDF5 capture (nlos_cl's or y-tal's)")
+
+
+def _write_fields(f, h: HistogramSet, device_distance_m, metadata, compression):
+    import yaml
+
     a, axis = h.calibration.a_m_per_s, h.time_axis
-    delta_t = a * axis.dt_s
-    t_start = a * (axis.t0_s + 0.5 * axis.dt_s) + offsets[0]  # sample k = our bin centre k
-    spots = to_ytal(h.detector_spots)
-    laser = to_ytal(h.laser_spot)
+    offsets = h.calibration.offsets(h.n_detectors)
+    spots, laser = to_ytal(h.detector_spots), to_ytal(h.laser_spot)
     wall_normal = to_ytal([0.0, 1.0, 0.0])
     ours = {"format_version": 1,
             "time_axis": {"t0_s": axis.t0_s, "dt_s": axis.dt_s, "n_bins": axis.n_bins},
@@ -82,56 +84,114 @@ def write_capture(path, histograms: HistogramSet, *, device_distance_m: float = 
             "frame": "nlos_cl (x, y, z) = (-X, Z, Y) of this file"}
     if metadata:
         ours["metadata"] = metadata
-    path = Path(path)
-    with h5py.File(path, "w") as f:
-        f.create_dataset("H", data=np.ascontiguousarray(h.data.T, dtype=np.float32),
-                         compression="gzip" if compression else None,
-                         compression_opts=compression or None)
-        _enum(f, "H_format", H_FORMATS, "T_Si")
-        f["sensor_xyz"] = (spots.mean(axis=0) + device_distance_m * wall_normal).astype(np.float32)
-        f["sensor_grid_xyz"] = spots.astype(np.float32)
-        f["sensor_grid_normals"] = np.tile(wall_normal, (h.n_detectors, 1)).astype(np.float32)
-        _enum(f, "sensor_grid_format", GRID_FORMATS, "N_3")
-        f["laser_xyz"] = (laser + device_distance_m * wall_normal).astype(np.float32)
-        f["laser_grid_xyz"] = laser.reshape(1, 3).astype(np.float32)
-        f["laser_grid_normals"] = wall_normal.reshape(1, 3).astype(np.float32)
-        _enum(f, "laser_grid_format", GRID_FORMATS, "N_3")
-        f["delta_t"] = np.float32(delta_t)
-        f["t_start"] = np.float32(t_start)
-        f["t_accounts_first_and_last_bounces"] = False
-        f["scene_info"] = yaml.safe_dump({"original_format": "nlos_cl", "nlos_cl": ours})
-    return path
+    f.create_dataset("H", data=np.ascontiguousarray(h.data.T, dtype=np.float32),
+                     compression="gzip" if compression else None,
+                     compression_opts=compression or None)
+    _enum(f, "H_format", H_FORMATS, "T_Si")
+    f["sensor_xyz"] = (spots.mean(axis=0) + device_distance_m * wall_normal).astype(np.float32)
+    f["sensor_grid_xyz"] = spots.astype(np.float32)
+    f["sensor_grid_normals"] = np.tile(wall_normal, (h.n_detectors, 1)).astype(np.float32)
+    _enum(f, "sensor_grid_format", GRID_FORMATS, "N_3")
+    f["laser_xyz"] = (laser + device_distance_m * wall_normal).astype(np.float32)
+    f["laser_grid_xyz"] = laser.reshape(1, 3).astype(np.float32)
+    f["laser_grid_normals"] = wall_normal.reshape(1, 3).astype(np.float32)
+    _enum(f, "laser_grid_format", GRID_FORMATS, "N_3")
+    f["delta_t"] = np.float32(a * axis.dt_s)
+    f["t_start"] = np.float32(a * (axis.t0_s + 0.5 * axis.dt_s) + offsets[0])  # bin centre 0
+    f["t_accounts_first_and_last_bounces"] = False
+    f["scene_info"] = yaml.safe_dump({"original_format": "nlos_cl", "nlos_cl": ours})
 
 
 def _enum(f, name, members, value):
     import h5py
-    dtype = h5py.enum_dtype(members, basetype="i")
-    ds = f.create_dataset(name, (1,), dtype=dtype)
-    ds[0] = members[value]
+    f.create_dataset(name, (1,), dtype=h5py.enum_dtype(members, basetype="i"))[0] = members[value]
+
+
+def _is_capture(path: Path) -> bool:
+    import h5py
+    try:
+        with open(path, "rb") as fh:
+            if fh.read(8) != HDF5_SIGNATURE:
+                return False
+        with h5py.File(path, "r") as f:
+            return "H" in f and "H_format" in f
+    except Exception:  # noqa: BLE001 - anything unreadable is not a capture
+        return False
 
 
 # ---------------------------------------------------------------------------- reading
 
-def read_capture(path) -> list[HistogramSet]:
+def read_capture(path, *, max_bytes: int | None = None) -> list[HistogramSet]:
     """One HistogramSet per laser point of a y-tal capture (the file is opened read-only).
+    Our own metadata (from write_capture), where it agrees with the y-tal fields, restores the
+    exact time axis and calibration. `max_bytes`: memory H may take (default half of RAM)."""
+    return read_capture_with_frame(path, max_bytes=max_bytes)[0]
 
-    Where the file carries our own metadata (written by write_capture) and it agrees with the
-    y-tal fields, the exact time axis and calibration are restored from it."""
+
+def read_capture_with_frame(path, *, max_bytes: int | None = None
+                            ) -> tuple[list[HistogramSet], CaptureFrame]:
+    """read_capture's sets (internal frame) and the file's own frame, to give and report
+    positions, grids and regions in the file's coordinates."""
     import h5py
 
     path = Path(path)
-    require(path.is_file(), f"capture {path}", "does not exist", "pass the path of an .h5 file")
+    where = f"capture {path}"
+    require(path.is_file(), where, "does not exist", "pass the path of an .h5 file")
+    _check_complete(path)
     try:
-        f = h5py.File(path, "r")
-    except OSError as exc:
-        raise InputError(f"capture {path}: not a readable HDF5 file ({exc}). Fix: pass an HDF5 "
-                         "capture in y-tal's layout (truncated or corrupt files cannot be read)")
-    with f:
-        missing = [k for k in REQUIRED if k not in f]
-        require(not missing, f"capture {path}", f"missing field(s) {missing}",
-                "write every field of y-tal's NLOSCaptureData (see nlos_cl.capture)")
-        fields = {k: _dataset(f, k, path) for k in f.keys()}
-    return _to_histograms(fields, path)
+        with h5py.File(path, "r") as f:
+            missing = [k for k in REQUIRED if k not in f]
+            require(not missing, where, f"missing field(s) {missing}",
+                    "write every field of y-tal's NLOSCaptureData (see nlos_cl.capture)")
+            _check_memory(f, path, max_bytes)
+            fields = {k: _dataset(f, k, path) for k in f.keys() if k != "H"}
+            sets = _to_histograms(fields, f["H"], path)
+    except InputError:
+        raise
+    except (OSError, RuntimeError, LookupError, ValueError, TypeError, AttributeError,
+            OverflowError) as exc:  # h5py on corrupted bytes raises all of these
+        raise InputError(f"{where}: incomplete or corrupted file ({type(exc).__name__}: "
+                         f"{exc}). Fix: copy or write the capture again")
+    return sets, YTAL
+
+
+def _check_complete(path: Path) -> None:
+    """An HDF5 superblock declares the file's end (base + EOF address): a shorter file was cut
+    off. Superblock versions 0-1 hold it after 24/28 bytes and 2 offsets, 2-3 after 12."""
+    where, size = f"capture {path}", path.stat().st_size
+    with open(path, "rb") as fh:
+        head = fh.read(4096)
+    base = next((b for b in (0, 512, 1024, 2048) if head[b:b + 8] == HDF5_SIGNATURE), None)
+    require(base is not None or (size >= 8 and not HDF5_SIGNATURE.startswith(head[:8])), where,
+            f"incomplete or corrupted file: {size} bytes, shorter than an HDF5 header",
+            "copy or write the capture again")
+    require(base is not None, where, "not an HDF5 file (no HDF5 signature)",
+            "pass a capture in y-tal's HDF5 layout")
+    padded = head + bytes(64)  # a file cut inside the superblock reads as zeros there
+    version = head[base + 8] if len(head) > base + 8 else -1
+    o = padded[base + 13] if version in (0, 1) else padded[base + 9] if version in (2, 3) else 0
+    start = base + {0: 24, 1: 28, 2: 12, 3: 12}.get(version, 0)
+    end = [int.from_bytes(head[start + i * o:start + (i + 1) * o], "little") for i in (0, 2)]
+    require(o in (2, 4, 8) and len(head) >= start + 3 * o and size >= sum(end), where,
+            f"incomplete or corrupted file: its HDF5 header declares {sum(end) if o else '?'} "
+            f"bytes but the file has {size} (cut off by an interrupted copy, download or write)",
+            "copy or write the capture again")
+
+
+def _check_memory(f, path, max_bytes) -> None:
+    """Declared sizes against memory, before anything is read: H becomes float64 sets (8 bytes
+    a value) beside one laser point's slice as stored; the other fields are read as stored."""
+    import h5py
+
+    from .safe_io import memory_limit
+    limit = memory_limit() if max_bytes is None else int(max_bytes)
+    sets = [(k, f[k]) for k in f.keys()]
+    need = sum(int(np.prod(o.shape, dtype=np.float64)) * (o.dtype.itemsize + 8 * (k == "H"))
+               for k, o in sets if isinstance(o, h5py.Dataset) and o.shape is not None)
+    require(need <= limit, f"capture {path}: H", f"the file declares {need / 2**30:.3g} GiB of "
+            f"data (H {f['H'].shape} {f['H'].dtype}), more than the {limit / 2**30:.3g} GiB allowed"
+            f" ({'half the memory available' if max_bytes is None else 'max_bytes'})", "crop the "
+            "capture (fewer bins or sensor points), or read it on a machine with more memory")
 
 
 def _dataset(f, key, path):
@@ -142,22 +202,18 @@ def _dataset(f, key, path):
                          "it as y-tal does")
     if obj.shape is None:  # h5py.Empty: y-tal's None
         return None
-    value = obj[()]
-    if h5py.check_enum_dtype(obj.dtype) is not None:
-        names = {v: k for k, v in h5py.check_enum_dtype(obj.dtype).items()}
-        return names.get(int(np.ravel(value)[0]), "UNKNOWN")
+    value, members = obj[()], h5py.check_enum_dtype(obj.dtype)
+    if members is not None:
+        return {v: k for k, v in members.items()}.get(int(np.ravel(value)[0]), "UNKNOWN")
     return value
 
 
 def _enum_name(value, members, field, path):
-    if isinstance(value, str):
-        name = value
-    else:
-        arr = np.ravel(np.asarray(value))
+    name, arr = value, np.ravel(np.asarray(value))
+    if not isinstance(value, str):
         require(arr.size == 1 and np.issubdtype(arr.dtype, np.integer), f"capture {path}: {field}",
                 f"expected an enum (integer), got {value!r}", "write y-tal's enum value")
-        lookup = {v: k for k, v in members.items()}
-        name = lookup.get(int(arr[0]), "UNKNOWN")
+        name = {v: k for k, v in members.items()}.get(int(arr[0]), "UNKNOWN")
     require(name in members and name != "UNKNOWN", f"capture {path}: {field}",
             f"value {value!r} is not one of {[k for k in members if k != 'UNKNOWN']}",
             "write a known y-tal enum value")
@@ -169,12 +225,11 @@ def _float_array(value, field, path, last_dim=3):
     require(np.issubdtype(arr.dtype, np.floating) or np.issubdtype(arr.dtype, np.integer),
             f"capture {path}: {field}", f"has dtype {arr.dtype}, expected floating point",
             "store coordinates as float32 metres")
-    arr = arr.astype(np.float64)
     require(arr.ndim >= 1 and arr.shape[-1] == last_dim, f"capture {path}: {field}",
             f"has shape {arr.shape}, expected (..., {last_dim})", "store (x, y, z) rows")
     require(bool(np.all(np.isfinite(arr))), f"capture {path}: {field}", "contains NaN or inf",
             "store finite coordinates")
-    return arr
+    return arr.astype(np.float64)
 
 
 def _scalar(value, field, path):
@@ -186,85 +241,96 @@ def _scalar(value, field, path):
     return x
 
 
-def _to_histograms(fields, path) -> list[HistogramSet]:
-    import yaml
-
+def _to_histograms(fields, H, path) -> list[HistogramSet]:
+    """H (unread): shapes are checked first, then it is read one laser point at a time."""
+    where = f"capture {path}"
     h_format = _enum_name(fields["H_format"], H_FORMATS, "H_format", path)
-    H = np.asarray(fields["H"])
-    require(np.issubdtype(H.dtype, np.floating) or np.issubdtype(H.dtype, np.integer),
-            f"capture {path}: H", f"has dtype {H.dtype}, expected float32 counts or power",
+    require(H.shape is not None and (np.issubdtype(H.dtype, np.floating)
+            or np.issubdtype(H.dtype, np.integer)), f"{where}: H",
+            f"has dtype {H.dtype} (shape {H.shape}), expected float32 counts or power",
             "store H as float32")
-    require(bool(np.all(np.isfinite(H))), f"capture {path}: H",
-            f"{int(H.size - np.isfinite(H).sum())} values are NaN or inf",
-            "replace missing bins by 0 before writing")
     sensors = _float_array(fields["sensor_grid_xyz"], "sensor_grid_xyz", path)
     lasers = _float_array(fields["laser_grid_xyz"], "laser_grid_xyz", path)
     delta_t = _scalar(fields["delta_t"], "delta_t", path)
     t_start = _scalar(fields["t_start"], "t_start", path)
-    require(delta_t > 0, f"capture {path}: delta_t", f"must be positive, got {delta_t}",
+    require(delta_t > 0, f"{where}: delta_t", f"must be positive, got {delta_t}",
             "store the bin width in metres of optical path")
-    require(delta_t >= 1e-6, f"capture {path}: delta_t",
-            f"is {delta_t:.3g}: that looks like seconds, but y-tal stores metres of optical path "
-            f"(a 10 ps bin is {SPEED_OF_LIGHT * 10e-12:.4f} m)", "multiply delta_t and t_start by c")
-    require(abs(t_start) < 1e5, f"capture {path}: t_start", f"is {t_start:.3g} m",
+    require(delta_t >= 1e-6, f"{where}: delta_t", f"is {delta_t:.3g}: that looks like seconds, "
+            f"but y-tal stores metres of optical path (a 10 ps bin is {SPEED_OF_LIGHT * 1e-11:.4f}"
+            " m)", "multiply delta_t and t_start by c")
+    require(abs(t_start) < 1e5, f"{where}: t_start", f"is {t_start:.3g} m",
             "store t_start in metres of optical path")
-    n_t = H.shape[0] if H.ndim else 0
-    # Arrange H as (laser points, sensors, time).
+    slices, laser_points = _arrange(h_format, H.shape, sensors, lasers, path)
+    spots = from_ytal(sensors.reshape(-1, 3))
+    check_wall_spots(from_ytal(laser_points), spots, YTAL, laser_field="laser_grid_xyz",
+                     spots_field="sensor_grid_xyz", prefix=f"{where}: ")
+    legs = np.zeros(len(spots)), np.zeros(len(laser_points))
+    if bool(np.ravel(np.asarray(fields["t_accounts_first_and_last_bounces"]))[0]):
+        require(fields.get("laser_xyz") is not None and fields.get("sensor_xyz") is not None,
+                f"{where}: laser_xyz", "t_accounts_first_and_last_bounces is set but "
+                "the device positions are missing", "store laser_xyz and sensor_xyz")
+        lxyz = _float_array(fields["laser_xyz"], "laser_xyz", path).reshape(3)
+        sxyz = _float_array(fields["sensor_xyz"], "sensor_xyz", path).reshape(3)
+        legs = (np.linalg.norm(sensors.reshape(-1, 3) - sxyz, axis=1),
+                np.linalg.norm(laser_points - lxyz, axis=1))
+    n_t = H.shape[0]
+    axis = TimeAxis((t_start - 0.5 * delta_t) / SPEED_OF_LIGHT, delta_t / SPEED_OF_LIGHT, n_t)
+    ours = _our_metadata(fields.get("scene_info")) if len(laser_points) == 1 else None
+    sets = []
+    for i, (index, laser) in enumerate(zip(slices, laser_points)):
+        data = np.asarray(H[index], dtype=np.float64).reshape(n_t, -1).T
+        bad = int(data.size - np.count_nonzero(np.isfinite(data)))
+        require(bad == 0, f"{where}: H", f"{bad} values are NaN or inf"
+                + (f" (laser point {i})" if len(slices) > 1 else ""),
+                "replace missing bins by 0 before writing")
+        calibration = PathCalibration(SPEED_OF_LIGHT, -(legs[0] + legs[1][i]))
+        exact = _restore(ours, axis, calibration) if ours else (axis, calibration, None, True)
+        sets.append(HistogramSet(data, exact[0], spots, from_ytal(laser), exact[1],
+                                 truth=exact[2], allow_negative=exact[3]))
+    return sets
+
+
+def _arrange(h_format, shape, sensors, lasers, path):
+    """Per laser point, the index into H of its (time, sensors...) block; the laser points."""
+    where, n_t = f"capture {path}: H", shape[0] if len(shape) else 0
+    n_s = int(np.prod(sensors.shape[:-1]))
+    laser_points = lasers.reshape(-1, 3)
     if h_format in ("T_Si", "T_Sx_Sy"):
         expect = (n_t,) + sensors.shape[:-1]
-        require(H.shape == expect, f"capture {path}: H",
-                f"has shape {H.shape}, but sensor_grid_xyz {sensors.shape} needs {expect}",
+        require(tuple(shape) == expect, where, f"has shape {shape}, but sensor_grid_xyz "
+                f"{sensors.shape} needs {expect}",
                 "store H with the time axis first, then the sensor grid's shape")
-        per_laser = [H.reshape(n_t, -1).T]
-        laser_points = lasers.reshape(-1, 3)
-        require(len(laser_points) == 1 or len(laser_points) != per_laser[0].shape[0]
+        require(len(laser_points) == 1 or len(laser_points) != n_s
                 or not np.allclose(laser_points, sensors.reshape(-1, 3)),
-                f"capture {path}: laser_grid_xyz",
-                "is paired with the sensor grid (a confocal capture)",
-                "nlos_cl needs one laser spot per set of histograms: use a non-confocal capture")
+                f"capture {path}: laser_grid_xyz", "is paired with the sensor grid (a confocal "
+                "capture)", "nlos_cl needs one laser spot per set of histograms: use a "
+                "non-confocal capture")
         require(len(laser_points) == 1, f"capture {path}: laser_grid_xyz",
                 f"has {len(laser_points)} points for H_format {h_format}",
-                "store one laser point, or use H_format T_Lx_Ly_Sx_Sy / T_Si_Li")
+                "store one laser point, or use H_format T_Lx_Ly_Sx_Sy / T_Li_Si")
+        slices = [()]
     elif h_format == "T_Lx_Ly_Sx_Sy":
         expect = (n_t,) + lasers.shape[:-1] + sensors.shape[:-1]
-        require(H.shape == expect, f"capture {path}: H", f"has shape {H.shape}, expected {expect}",
+        require(tuple(shape) == expect, where, f"has shape {shape}, expected {expect}",
                 "store H as (T, Lx, Ly, Sx, Sy)")
-        flat = H.reshape(n_t, -1, int(np.prod(sensors.shape[:-1])))
-        per_laser = [flat[:, i, :].T for i in range(flat.shape[1])]
-        laser_points = lasers.reshape(-1, 3)
-    else:  # T_Si_Li
-        expect = (n_t, int(np.prod(sensors.shape[:-1])), int(np.prod(lasers.shape[:-1])))
-        require(H.shape == expect, f"capture {path}: H", f"has shape {H.shape}, expected {expect}",
-                "store H as (T, Si, Li)")
-        per_laser = [H[:, :, i].T for i in range(H.shape[2])]
-        laser_points = lasers.reshape(-1, 3)
-    spots = from_ytal(sensors.reshape(-1, 3))
-    info = fields.get("scene_info")
-    info = yaml.safe_load(info) if isinstance(info, (bytes, str)) else None
-    ours = info.get("nlos_cl") if isinstance(info, dict) else None
-    accounts = bool(np.ravel(np.asarray(fields["t_accounts_first_and_last_bounces"]))[0])
-    sets = []
-    for data, laser_ytal in zip(per_laser, laser_points):
-        laser = from_ytal(laser_ytal)
-        # hidden path of sample k = t_start + k delta_t - (first and last legs, if included)
-        legs = np.zeros(len(spots))
-        if accounts:
-            require(fields.get("laser_xyz") is not None and fields.get("sensor_xyz") is not None,
-                    f"capture {path}: laser_xyz", "t_accounts_first_and_last_bounces is set but "
-                    "the device positions are missing", "store laser_xyz and sensor_xyz")
-            lxyz = _float_array(fields["laser_xyz"], "laser_xyz", path).reshape(3)
-            sxyz = _float_array(fields["sensor_xyz"], "sensor_xyz", path).reshape(3)
-            legs = (np.linalg.norm(lxyz - laser_ytal)
-                    + np.linalg.norm(sensors.reshape(-1, 3) - sxyz, axis=1))
-        axis = TimeAxis((t_start - 0.5 * delta_t) / SPEED_OF_LIGHT, delta_t / SPEED_OF_LIGHT,
-                        n_t)
-        calibration = PathCalibration(SPEED_OF_LIGHT, -legs)
-        truth, allow_negative = None, True
-        if ours and len(per_laser) == 1:
-            axis, calibration, truth, allow_negative = _restore(ours, axis, calibration)
-        sets.append(HistogramSet(data.astype(np.float64), axis, spots, laser, calibration,
-                                 truth=truth, allow_negative=allow_negative))
-    return sets
+        slices = [(slice(None),) + tuple(int(v) for v in np.unravel_index(i, lasers.shape[:-1]))
+                  for i in range(len(laser_points))]
+    else:  # T_Li_Si
+        expect = (n_t, len(laser_points), n_s)
+        require(tuple(shape) == expect, where, f"has shape {shape}, expected {expect}",
+                "store H as (T, Li, Si)")
+        slices = [(slice(None), i) for i in range(len(laser_points))]
+    require(n_t >= 2, where, f"has {n_t} time bins", "store at least 2 time bins")
+    return slices, laser_points
+
+
+def _our_metadata(info):
+    import yaml
+    try:
+        info = yaml.safe_load(info) if isinstance(info, (bytes, str)) else None
+    except yaml.YAMLError:  # another tool's scene_info: ours is simply not there
+        return None
+    return info.get("nlos_cl") if isinstance(info, dict) else None
 
 
 def _restore(ours, axis, calibration):
@@ -276,12 +342,9 @@ def _restore(ours, axis, calibration):
         exact_cal = PathCalibration(float(c["a_m_per_s"]), np.asarray(c["b_m"], float))
     except (KeyError, TypeError, ValueError, InputError):
         return axis, calibration, None, True
-    ends = [0, -1]  # the hidden path at the first and last bin centre, for detector 0
-    ours_path = exact_cal.a_m_per_s * exact.centres()[ends] + exact_cal.b_m[0]
-    file_path = calibration.a_m_per_s * axis.centres()[ends] + calibration.b_m[0]
-    # float32 fields round to ~1e-6 of their size; 0.1 mm is far below any bin
-    same = exact.n_bins == axis.n_bins and np.allclose(ours_path, file_path, rtol=0, atol=1e-4)
-    if not same:
+    ends = [0, -1]  # the hidden path at the first and last bin centre, for detector 0; float32
+    ours_path = exact_cal.a_m_per_s * exact.centres()[ends] + exact_cal.b_m[0]  # fields round
+    file_path = calibration.a_m_per_s * axis.centres()[ends] + calibration.b_m[0]  # ~1e-6 rel
+    if exact.n_bins != axis.n_bins or not np.allclose(ours_path, file_path, rtol=0, atol=1e-4):
         return axis, calibration, None, True
-    truth = ours.get("truth")
-    return exact, exact_cal, truth, bool(ours.get("allow_negative", True))
+    return exact, exact_cal, ours.get("truth"), bool(ours.get("allow_negative", True))

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import trimesh
 
-from .constants import FWHM_PER_SIGMA, SPEED_OF_LIGHT  # noqa: F401 (re-exported)
+from .constants import FWHM_PER_SIGMA
 from .errors import require
 from .geometry import as_point
 from .meshes import rectangle

@@ -3,6 +3,7 @@ reference backend) in units of `scale_w` watts, with the `Layout` the next stage
 chain on the device; `histograms()` brings them back to the host in watts."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -42,13 +43,14 @@ class Signals:
 
 def upload(histograms: HistogramSet, backend=None) -> Signals:
     """Put host histograms on a backend, normalised so that float32 neither under- nor
-    overflows (measured powers are ~1e-20 W)."""
+    overflows (measured powers are ~1e-20 W). The scale is a power of two, so scaling is exact:
+    photon counts come back as the integers they were."""
     require(isinstance(histograms, HistogramSet), "histograms",
             f"expected a nlos_cl.HistogramSet, got {type(histograms).__name__}",
             "wrap your array: HistogramSet(data, time_axis, detector_spots, laser_spot, calibration)")
     backend = resolve_backend(backend)
     peak = float(np.max(np.abs(histograms.data)))
-    scale = peak if peak > 0 else 1.0
+    scale = 2.0 ** math.floor(math.log2(peak)) if peak > 0 else 1.0
     return Signals(backend, backend.from_numpy(histograms.data / scale), scale, histograms.layout)
 
 

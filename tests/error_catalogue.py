@@ -12,6 +12,9 @@ import numpy as np
 import trimesh
 
 import nlos_cl as nl
+import nlos_cl.capture  # noqa: F401  (nl.capture, nl.measured, nl.frames)
+import nlos_cl.frames  # noqa: F401
+import nlos_cl.measured  # noqa: F401
 from nlos_cl import devices
 from nlos_cl.errors import DeviceError, InputError
 
@@ -74,6 +77,47 @@ def replace_field(name, value):
         del f[name]
         f[name] = value
     return edit
+
+
+def existing_file(name, content=b"my notes\n"):
+    import tempfile
+    path = Path(tempfile.mkdtemp()) / name
+    path.write_bytes(content)
+    return path
+
+
+def folder(name):
+    import tempfile
+    path = Path(tempfile.mkdtemp()) / name
+    path.mkdir()
+    return path
+
+
+def concurrent_writers():
+    """Another writer finishes the same capture while this one is still writing."""
+    path = capture_file()
+
+    def slow(tmp):
+        nl.write_capture(path, histograms(2 * np.ones((3, 100))))
+        Path(tmp).write_bytes(b"")
+    nl.safe_io.atomic_write(path, slow, what="capture")
+
+
+def huge_declared_capture():
+    """A few-KB file whose H declares 10^9 x 3 float32 values (chunks never written)."""
+    import h5py
+    path = capture_file(lambda f: f.__delitem__("H"))
+    with h5py.File(path, "a") as f:
+        f.create_dataset("H", shape=(10 ** 9, 3), dtype=np.float32, chunks=(1024, 3))
+    return path
+
+
+def ytal_points(points):
+    return nl.capture.to_ytal(np.asarray(points, float)).astype(np.float32)
+
+
+def one_detector():
+    return histograms(np.ones((1, 2000)), detector_spots=SPOTS[:1])
 
 
 def small_scene():
@@ -158,15 +202,64 @@ CASES = [
      lambda: nl.read_capture(capture_file(replace_field("H", np.zeros((100, 5), np.float32))))),
     ("a capture with a NaN in H", "H: 1 values are NaN",
      lambda: nl.read_capture(capture_file(lambda f: f["H"].__setitem__((3, 1), np.nan)))),
-    ("a truncated capture file", "not a readable HDF5 file",
+    ("a truncated capture file", "incomplete or corrupted file",
      lambda: nl.read_capture(truncated_capture())),
+    ("a capture cut off by one byte (every field still listed)", "incomplete or corrupted file",
+     lambda: nl.read_capture(existing_file("cut.h5", capture_file().read_bytes()[:-1]))),
+    ("a capture path that is not an HDF5 file", "not an HDF5 file",
+     lambda: nl.read_capture(existing_file("notes.h5", b"just some text, long enough"))),
+    ("a capture declaring H far larger than memory", "H: the file declares 33.5 GiB",
+     lambda: nl.read_capture(huge_declared_capture(), max_bytes=2 ** 30)),
+    ("a capture whose laser point is a sensor point", "sensor_grid_xyz: a detector spot "
+     "coincides with the laser spot", lambda: nl.read_capture(capture_file(replace_field(
+         "laser_grid_xyz", ytal_points(SPOTS[1:2]))))),
+    ("a capture with two sensors on the same spot", "sensor_grid_xyz: points 1 and 2 are the "
+     "same spot", lambda: nl.read_capture(capture_file(replace_field(
+         "sensor_grid_xyz", ytal_points([SPOTS[0], SPOTS[1], SPOTS[1]]))))),
+    ("a capture with a sensor 0.3 m off the wall", "sensor_grid_xyz: point 1",
+     lambda: nl.read_capture(capture_file(replace_field(
+         "sensor_grid_xyz", ytal_points(SPOTS + [[0, 0, 0], [0, 0.3, 0], [0, 0, 0]]))))),
+    ("writing a capture over a file that is not a capture", "exists and is not an HDF5 capture",
+     lambda: nl.write_capture(existing_file("thesis.h5"), histograms())),
+    ("writing a capture into a folder that does not exist", "does not exist",
+     lambda: nl.write_capture("/nonexistent-folder/c.h5", histograms())),
+    ("writing a capture onto a folder path", "is a folder",
+     lambda: nl.write_capture(folder("captures"), histograms())),
+    ("two writers finishing the same capture at once", "by another writer while this one",
+     concurrent_writers),
+    ("a default search region for a single detector", "histograms.detector_spots",
+     lambda: nl.frames.default_region(one_detector())),
+    ("a default search region for a window that sees no hidden point", "time_axis",
+     lambda: nl.frames.default_region(histograms(np.ones((3, 100))))),
+    ("a grid in a capture's frame that reaches behind the wall", "grid.Z",
+     lambda: nl.frames.YTAL.grid([(-1, 1), (0, 0), (-1, 3)], step_m=0.1)),
     ("a confocal capture", "confocal",
      lambda: nl.read_capture(capture_file(replace_field("laser_grid_xyz",
                                                         nl.capture.to_ytal(SPOTS).astype(np.float32))))),
     ("too few calibration pairs", "calibration pairs",
      lambda: nl.fit_calibration([1.0, 2.0], [1e-9, 2e-9])),
+    ("calibration peak times in nanoseconds", "peak times in nanoseconds",
+     lambda: nl.fit_calibration([2.5, 3.0, 3.5], [51.7, 53.4, 55.0])),
+    ("a calibration CSV with one column", "has 1 column(s)",
+     lambda: nl.measured.read_calibration_pairs(write_file("pairs.csv", "2.5\n3.0\n3.5\n"))),
+    ("a calibration CSV with no rows", "has no rows",
+     lambda: nl.measured.read_calibration_pairs(write_file("pairs.csv", ""))),
+    ("a calibration CSV with only a header", "has a header but no data rows",
+     lambda: nl.measured.read_calibration_pairs(write_file("pairs.csv", "path;time\n"))),
+    ("a calibration CSV with a text cell below the header", "line 3",
+     lambda: nl.measured.read_calibration_pairs(write_file("pairs.csv",
+                                                           "path,time\n2.5,5e-8\n3.0,n/a\n"))),
+    ("a calibration file that is binary", "is not a text file",
+     lambda: nl.measured.read_calibration_pairs(existing_file("pairs.csv", b"\x89PNG\x00\x01"))),
     ("a background recorded on another time axis", "background",
      lambda: nl.subtract_background(histograms(), histograms(np.ones((3, 80))))),
+    ("a background shifted by one bin", "background.time_axis",
+     lambda: nl.subtract_background(histograms(), histograms(
+         time_axis=nl.TimeAxis(1e-7 + 1e-11, 1e-11, 100)))),
+    ("a background subtracted from itself", "background: is the signal itself",
+     lambda: nl.subtract_background(histograms(), histograms())),
+    ("a background stronger than the signal in every bin", "at least as strong as the signal",
+     lambda: nl.subtract_background(histograms(), histograms(2 * np.ones((3, 100))))),
     ("a TDC bin that is not a multiple of the data's bins", "photon_counter.tdc_bin_s",
      lambda: nl.PhotonCounter(tdc_bin_s=15e-12).expected_counts(histograms())),
     ("no OpenCL device on the machine", "No OpenCL device found", no_device),

@@ -117,8 +117,9 @@ def test_several_laser_points_give_one_set_each(paper_hist, tmp_path):
     path = tmp_path / "two_lasers.h5"
     lasers = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
     with h5py.File(path, "w") as f:
-        f["H"] = np.stack([paper_hist.data.T, 0.5 * paper_hist.data.T], axis=2).astype(np.float32)
-        ytal_enum(f, "H_format", H_FORMATS, "T_Si_Li")
+        # (T, L, S), as y-tal 0.20's reconstruct reads value 4 (T_Li_Si)
+        f["H"] = np.stack([paper_hist.data.T, 0.5 * paper_hist.data.T], axis=1).astype(np.float32)
+        ytal_enum(f, "H_format", H_FORMATS, "T_Li_Si")
         f["sensor_grid_xyz"] = to_ytal(paper_hist.detector_spots).astype(np.float32)
         ytal_enum(f, "sensor_grid_format", GRID_FORMATS, "N_3")
         f["laser_grid_xyz"] = to_ytal(lasers).astype(np.float32)
@@ -162,11 +163,19 @@ def test_bad_files_name_the_field(paper_hist, tmp_path, field, edit):
     assert path.read_bytes() == before
 
 
-def test_truncated_file_is_a_clear_error(paper_hist, tmp_path):
+@pytest.mark.parametrize("keep", [0, 5, 100, 2000, 0.5, 0.9, -1])
+def test_truncated_file_is_a_clear_error(paper_hist, tmp_path, keep):
+    """Cut anywhere (even one byte short, where every field is still listed): "incomplete or
+    corrupted file", never "missing field(s)"; the file stays as it was."""
     path = nl.write_capture(tmp_path / "x.h5", paper_hist)
-    path.write_bytes(path.read_bytes()[:2000])
-    with pytest.raises(nl.InputError, match="not a readable HDF5 file"):
+    full = path.read_bytes()
+    cut = full[:keep if isinstance(keep, int) and keep >= 0 else
+               len(full) - 1 if keep == -1 else int(keep * len(full))]
+    path.write_bytes(cut)
+    with pytest.raises(nl.InputError, match="incomplete or corrupted file") as info:
         nl.read_capture(path)
+    assert "missing field" not in str(info.value) and "Fix:" in str(info.value)
+    assert path.read_bytes() == cut
 
 
 def test_confocal_capture_is_refused(paper_hist, tmp_path):

@@ -1,0 +1,276 @@
+"""A capture's own coordinate frame, the wall-geometry rules for what a capture declares, and
+the search region a capture can see.
+
+Internally the relay wall is y = 0, the hidden space y > 0 and z up. A file has its own frame:
+y-tal's wall is Z = 0 with the hidden space at Z > 0 and Y up, mapped to ours by the proper
+rotation (x, y, z) = (-X, Z, Y). Which way a lab's X points is not recorded in the format, so
+no fixed mapping can put every target at positive x: the default region therefore covers both
+sides of every spot, and positions are reported back in the file's own frame.
+
+`default_region(histograms, h_s)`, in our internal frame:
+
+- extent: a cell is scored by every detector only if its hidden path |c - O| + |c - D_i| fits
+  the time window, i.e. is at most L_i = a t_end + b_i (the calibration at the window's end).
+  That is an ellipsoid with foci O, D_i and major axis L_i; the region is the intersection of
+  their axis-aligned bounding boxes, cut to the hidden half-space y >= step.
+- height: when the laser spot and all detector spots lie on one line, every ellipsoid is
+  symmetric about that line and the height is unobservable: a line along x gives the plane
+  z = the spots' mean height (the paper's search plane), a line along z the plane x = mean x.
+  Otherwise the region is 3-D.
+- step: the filtered pulse has a path width sigma_p = a max(h/3, dt) (h/3 is the filter's
+  sigma, dt one bin); a cell step s moves the ellipse path by at most 2 s, so s = sigma_p / 4
+  keeps the peak's neighbours inside it for the sub-cell refinement; rounded down to 1, 2 or
+  5 x 10^k (the paper's h = 0.65 ns gives its 1 cm). If the region would exceed `max_cells`
+  (4 million), the step is coarsened until it fits: search a zoomed grid around the answer
+  (`zoom_region`) for the fine position.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .constants import PAPER_H_S
+from .errors import require
+from .histograms import Grid, HistogramSet
+
+WALL_TOLERANCE_M = 0.01  # a spot this far off the wall biases the ellipse path by <= 1 cm
+SAME_SPOT_M = 1e-4  # spots closer than this are one spot (float32 files resolve ~1e-6 m)
+MAX_CELLS = 4_000_000
+
+
+# ---------------------------------------------------------------------------- frames
+
+@dataclass(frozen=True)
+class CaptureFrame:
+    """A file's coordinate frame: internal = matrix @ file, a signed axis permutation."""
+
+    name: str
+    axes: tuple
+    matrix: tuple  # 3 x 3, rows: internal axes in terms of the file's axes
+    description: str
+
+    def __post_init__(self):
+        m = np.asarray(self.matrix, dtype=np.float64)
+        require(m.shape == (3, 3) and np.allclose(np.abs(m).sum(axis=0), 1)
+                and np.allclose(np.abs(m).sum(axis=1), 1) and np.allclose(np.abs(m).max(0), 1),
+                "frame.matrix", "must be a signed permutation of the axes",
+                "map each file axis to one internal axis, with a sign")
+        object.__setattr__(self, "matrix", tuple(tuple(float(v) for v in row) for row in m))
+        object.__setattr__(self, "axes", tuple(self.axes))
+
+    def to_internal(self, points) -> np.ndarray:
+        return np.asarray(points, dtype=np.float64) @ np.asarray(self.matrix).T
+
+    def from_internal(self, points) -> np.ndarray:
+        return np.asarray(points, dtype=np.float64) @ np.asarray(self.matrix)  # inverse = T
+
+    def grid(self, ranges, step_m: float) -> Grid:
+        """An internal Grid from inclusive (low, high) ranges along the file's three axes."""
+        m = np.asarray(self.matrix)
+        out = [None, None, None]
+        for i, (name, rng) in enumerate(zip(self.axes, ranges)):
+            lo, hi = (float(v) for v in rng)
+            require(math.isfinite(lo) and math.isfinite(hi) and hi >= lo, f"grid.{name}",
+                    f"range ({lo}, {hi}) is empty or inverted", "pass (low, high), high >= low")
+            j = int(np.argmax(np.abs(m[:, i])))
+            out[j] = (lo, hi) if m[j, i] > 0 else (-hi, -lo)
+        d = int(np.argmax(np.abs(m[1])))
+        require(out[1][0] > 0, f"grid.{self.axes[d]}", f"the range {tuple(ranges[d])} reaches "
+                f"the wall or behind it (hidden space is {self.axes[d]} > 0 in the {self.name} "
+                "frame)", f"start the {self.axes[d]} range above 0, e.g. at one step")
+        return Grid.from_ranges(x=out[0], y=out[1], z=out[2], step_m=step_m)
+
+    def ranges(self, grid: Grid) -> tuple:
+        """The grid's (low, high) cell centres along the file's three axes."""
+        lo = np.array([a[0] for a in grid.axes()])
+        hi = np.array([a[-1] for a in grid.axes()])
+        a, b = self.from_internal(lo), self.from_internal(hi)
+        return tuple((float(min(p, q)), float(max(p, q))) for p, q in zip(a, b))
+
+    def as_json(self) -> dict:
+        return {"name": self.name, "axes": list(self.axes), "to_internal": [list(r) for r in
+                self.matrix], "description": self.description}
+
+
+INTERNAL = CaptureFrame("nlos_cl", ("x", "y", "z"), np.eye(3),
+                        "nlos_cl's frame: relay wall y = 0, hidden space y > 0, z up")
+YTAL = CaptureFrame("ytal", ("X", "Y", "Z"), [[-1, 0, 0], [0, 0, 1], [0, 1, 0]],
+                    "the capture file's (y-tal) frame: relay wall Z = 0, hidden space Z > 0, "
+                    "Y up; nlos_cl's internal (x, y, z) = (-X, Z, Y)")
+
+
+def to_ytal(points) -> np.ndarray:
+    return YTAL.from_internal(points)
+
+
+def from_ytal(points) -> np.ndarray:
+    return YTAL.to_internal(points)
+
+
+# ---------------------------------------------------------------------------- geometry rules
+
+def check_wall_spots(laser, spots, frame: CaptureFrame = INTERNAL, *, laser_field="laser_spot",
+                     spots_field="detector_spots", prefix="") -> None:
+    """nl.Setup's rules for spots a file declares (internal coordinates, messages in the
+    file's): on the wall within WALL_TOLERANCE_M, no two detectors on one spot, none on the
+    laser spot."""
+    laser = np.asarray(laser, dtype=np.float64).reshape(-1, 3)
+    spots = np.asarray(spots, dtype=np.float64).reshape(-1, 3)
+    wall = frame.axes[int(np.argmax(np.abs(np.asarray(frame.matrix)[1])))]
+    for name, pts in ((laser_field, laser), (spots_field, spots)):
+        off = np.abs(pts[:, 1])
+        i = int(np.argmax(off))
+        require(off[i] <= WALL_TOLERANCE_M, f"{prefix}{name}",
+                f"point {i} {_fmt(frame.from_internal(pts[i]))} lies {off[i]:.3g} m off the "
+                f"relay wall {wall} = 0 (tolerance {WALL_TOLERANCE_M} m), but the ellipse model "
+                "puts every spot on the wall", f"store wall points with {wall} = 0 (shift the "
+                f"file's frame so that the relay wall is the plane {wall} = 0)")
+    pair = _coincident_pair(spots)
+    require(pair is None, f"{prefix}{spots_field}",
+            "points {} and {} are the same spot {}, so their ellipses carry the same "
+            "information".format(*(pair or (0, 0)), _fmt(frame.from_internal(spots[pair[0]]))
+                                 if pair else ""), "give every detector its own spot on the wall")
+    gap = (np.linalg.norm(spots[None, :, :] - laser[:, None, :], axis=2).min(axis=1)
+           if len(spots) else np.array([np.inf]))
+    require(bool(np.all(gap > SAME_SPOT_M)), f"{prefix}{spots_field}",
+            f"a detector spot coincides with the laser spot {_fmt(frame.from_internal(laser[0]))}"
+            " (the direct wall return would swamp it)", "move that sensor point off the laser "
+            "point, or drop it")
+
+
+def _coincident_pair(spots):
+    """The first pair (i, j) of spots closer than SAME_SPOT_M, or None, in O(n log n): sorted
+    along x, a spot can only coincide with the few that follow it within SAME_SPOT_M in x.
+    (SciPy's k-d tree would do, but importing it costs ~0.2 s of every `nlos-cl locate`.)"""
+    order = np.argsort(spots[:, 0], kind="stable")
+    ordered = spots[order]
+    for k in range(1, len(spots)):
+        near_in_x = ordered[k:, 0] - ordered[:-k, 0] <= SAME_SPOT_M
+        if not near_in_x.any():
+            return None
+        close = near_in_x & (np.linalg.norm(ordered[k:] - ordered[:-k], axis=1) <= SAME_SPOT_M)
+        if close.any():
+            i = int(np.argmax(close))
+            return tuple(sorted((int(order[i]), int(order[i + k]))))
+    return None
+
+
+def require_locatable(histograms: HistogramSet, field: str = "histograms.detector_spots"
+                      ) -> None:
+    """Refuse a layout that cannot determine a position: one detector gives one ellipsoid, and
+    every point on it fits the data equally well."""
+    require(histograms.n_detectors >= 2, field, "has a single detector: every point of its "
+            "ellipse fits the data equally well, so the position is underdetermined",
+            "record with 2 or more detector spots (3 or more, not all on one line with the laser "
+            "spot, to see height)")
+
+
+def _fmt(p) -> str:
+    return "(" + ", ".join(f"{v:.4g}" for v in np.ravel(p)) + ")"
+
+
+# ---------------------------------------------------------------------------- search region
+
+def _line_direction(points) -> np.ndarray | None:
+    """The direction of the line through all points, or None when they do not lie on one
+    (perpendicular spread above 1 mm or 0.1 % of the line's length)."""
+    centred = points - points.mean(axis=0)
+    _, s, vt = np.linalg.svd(centred, full_matrices=False)
+    length = float(np.ptp(centred @ vt[0]))
+    spread = float(np.max(np.abs(centred - np.outer(centred @ vt[0], vt[0])).sum(axis=1)))
+    return vt[0] if spread <= max(1e-3, 1e-3 * length) else None
+
+
+def _nice_step(step: float) -> float:
+    """Round down to 1, 2 or 5 x 10^k."""
+    k = math.floor(math.log10(step))
+    return max(m * 10.0 ** k for m in (1, 2, 5) if m * 10.0 ** k <= step * (1 + 1e-9))
+
+
+def region_step(histograms: HistogramSet, h_s: float = PAPER_H_S) -> float:
+    """The fine cell size: a quarter of the filtered pulse's path width a max(h/3, dt)."""
+    require(isinstance(h_s, (int, float)) and math.isfinite(h_s) and h_s > 0, "h_s",
+            f"the filter window must be a positive time in seconds, got {h_s!r}",
+            "pass e.g. 0.65e-9 (the paper's h)")
+    a = histograms.calibration.a_m_per_s
+    return _nice_step(a * max(h_s / 3.0, histograms.time_axis.dt_s) / 4.0)
+
+
+def visible_box(histograms: HistogramSet) -> tuple[np.ndarray, np.ndarray]:
+    """(low, high) corners of the box around every point all detectors' windows reach."""
+    h = histograms
+    reach = h.hidden_path_axis()[:, -1] + 0.5 * h.calibration.a_m_per_s * h.time_axis.dt_s
+    baseline = np.linalg.norm(h.detector_spots - h.laser_spot, axis=1)
+    i = int(np.argmin(reach - baseline))
+    require(reach[i] > baseline[i], "time_axis",
+            f"the window ends at a hidden path of {reach[i]:.3g} m for detector {i}, shorter "
+            f"than the {baseline[i]:.3g} m between its spot and the laser spot: no hidden point "
+            "is in view", "record a longer time window, or check the calibration (t_start)")
+    centre = 0.5 * (h.detector_spots + h.laser_spot)
+    semi_major = 0.5 * reach
+    semi_minor2 = semi_major ** 2 - (0.5 * baseline) ** 2
+    u = (h.detector_spots - h.laser_spot) / np.maximum(baseline, 1e-12)[:, None]
+    half = np.sqrt(semi_major[:, None] ** 2 * u ** 2 + semi_minor2[:, None] * (1 - u ** 2))
+    return (centre - half).max(axis=0), (centre + half).min(axis=0)
+
+
+def default_region(histograms: HistogramSet, h_s: float = PAPER_H_S, *,
+                   max_cells: int = MAX_CELLS) -> Grid:
+    """The search grid (internal frame) a capture can see; the rules are in the module doc."""
+    h = histograms
+    require_locatable(h)
+    step = region_step(h, h_s)
+    lo, hi = visible_box(h)
+    lo[1] = max(lo[1], 0.0)
+    spots = np.vstack([h.laser_spot, h.detector_spots])
+    line = _line_direction(spots)
+    flat = None  # the internal axis collapsed to one plane, if height is unobservable
+    if line is not None and abs(line[0]) > math.cos(math.radians(1)):
+        flat = 2
+    elif line is not None and abs(line[2]) > math.cos(math.radians(1)):
+        flat = 0
+    if flat is not None:
+        lo[flat] = hi[flat] = float(spots[:, flat].mean())
+    require(hi[1] > 0 and bool(np.all(hi >= lo)), "time_axis", "the detectors' windows share "
+            "no hidden point in front of the wall", "record a longer time window")
+    dims = 3 - (flat is not None)
+    while True:
+        lo[1] = step
+        shape = [int(math.floor(max(e, 0.0) / step)) + 1 for e in (hi - lo)]
+        if int(np.prod(shape)) <= max_cells:
+            break
+        step = max(step * 1.05, step * (np.prod(shape) / max_cells) ** (1 / dims))
+    require(hi[1] >= lo[1], "time_axis", f"the window only reaches {hi[1]:.3g} m in front of "
+            "the wall, less than one grid step", "record a longer time window")
+    return Grid(tuple(lo), (step,) * 3, tuple(shape))
+
+
+def zoom_region(position, grid: Grid, histograms: HistogramSet, h_s: float = PAPER_H_S, *,
+                cells: int = 4) -> Grid:
+    """A fine grid (the region_step) around `position`, `cells` coarse steps each way: search
+    it after a coarse default_region whose step was coarsened to fit max_cells."""
+    fine = min(region_step(histograms, h_s), min(grid.step))
+    p = np.asarray(position, dtype=np.float64).reshape(3)
+    lo, hi = [], []
+    for axis, s, n, v in zip(grid.axes(), grid.step, grid.shape, p):
+        if n == 1:
+            lo.append(float(axis[0]))
+            hi.append(float(axis[0]))
+        else:
+            lo.append(max(float(axis[0]), v - cells * s))
+            hi.append(min(float(axis[-1]), v + cells * s))
+    lo[1] = max(lo[1], fine)
+    shape = tuple(int(math.floor((b - a) / fine + 1e-9)) + 1 for a, b in zip(lo, hi))
+    return Grid(tuple(lo), (fine,) * 3, shape)
+
+
+def on_region_edge(position, grid: Grid) -> bool:
+    """True when `position` lies in the outermost cell layer of `grid` (or outside it) along an
+    axis with more than one cell: the answer may be beyond the region, widen it."""
+    p = np.asarray(position, dtype=np.float64).reshape(3)
+    for axis, s, n, v in zip(grid.axes(), grid.step, grid.shape, p):
+        if n > 1 and (v - axis[0] < s or axis[-1] - v < s):
+            return True
+    return False

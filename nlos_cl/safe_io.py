@@ -1,0 +1,84 @@
+"""Files we write appear whole or not at all, and files we read are checked against memory
+before anything is allocated: the atomic write and the memory budget every writer and reader
+of the package uses (captures today, sequences and study tables next)."""
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+from .errors import InputError, require
+
+
+def memory_limit() -> int:
+    """Half the memory available now (MemAvailable), or 4 GiB where that is unknown."""
+    try:
+        with open("/proc/meminfo") as fh:
+            kib = next(int(line.split()[1]) for line in fh if line.startswith("MemAvailable:"))
+        return kib * 1024 // 2
+    except (OSError, StopIteration, ValueError, IndexError):
+        return 4 << 30
+
+
+def atomic_write(path, write, *, keep_unless=None, force: bool = False, what: str = "file",
+                 kind: str = "a file of this kind") -> Path:
+    """Call write(tmp) on a temporary file beside `path`, fsync it, then os.replace it onto
+    `path`: Ctrl-C, a crash or a full disk leave the old file as it was (a SIGKILL can leave a
+    hidden '.NAME.*.tmp' beside it, never a broken NAME). An existing file for which
+    keep_unless(path) is False is replaced only with force=True. Concurrent writers: the
+    target's identity (inode, size, mtime, mode) is noted first and checked again under an
+    exclusive flock on the folder just before the rename; a writer that finds it changed
+    refuses with an InputError (its own result not saved, the other writer's kept), so no
+    result is ever lost without notice. The old file's permissions carry over."""
+    path = Path(path)
+    where = f"{what} {path}"
+    require(path.parent.is_dir(), where, f"the folder {path.parent} does not exist",
+            "create the folder first, or pick another path")
+    require(not path.is_dir(), where, "is a folder", "pass a file path")
+    before = _identity(path)
+    if before is not None and not force and keep_unless is not None:
+        require(keep_unless(path), where, f"exists and is not {kind}, so writing would destroy "
+                "it", "pick another path, or pass force=True (nlos-cl: --force) to replace it")
+    tmp = None
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        os.close(fd)
+        write(tmp)
+        with open(tmp, "rb+") as fh:
+            os.fsync(fh.fileno())
+        mask = os.umask(0o022)
+        os.umask(mask)
+        os.chmod(tmp, before[-1] if before else 0o666 & ~mask)
+        _replace(tmp, path, before, where)
+        tmp = None
+    except OSError as exc:
+        raise InputError(f"{where}: could not be written ({exc}); any existing file there is "
+                         "unchanged. Fix: pick a writable folder with free space")
+    finally:
+        if tmp is not None and os.path.exists(tmp):
+            os.unlink(tmp)
+    return path
+
+
+def _identity(path: Path):
+    try:
+        st = os.lstat(path)
+    except FileNotFoundError:
+        return None
+    return (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_mode & 0o7777)
+
+
+def _replace(tmp: str, path: Path, before, where: str) -> None:
+    import fcntl
+    dirfd = os.open(path.parent, os.O_RDONLY)
+    try:
+        fcntl.flock(dirfd, fcntl.LOCK_EX)
+        if _identity(path) != before:
+            raise InputError(f"{where}: was {'created' if before is None else 'replaced'} by "
+                             "another writer while this one was writing; that file was kept and "
+                             "this result was NOT saved. Fix: write to another path, or run "
+                             "again to replace it")
+        os.replace(tmp, path)
+        os.fsync(dirfd)
+    finally:
+        os.close(dirfd)  # also releases the lock
