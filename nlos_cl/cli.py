@@ -6,14 +6,46 @@ command runs, so `nlos-cl --help` and `nlos-cl locate` pay for no import they do
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse, but a bad argument is one line on stderr (field, problem, fix) and exit 2."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: {message}\n")
+
+
+def _number(field: str, fix: str, *, positive=False, minimum=None, integer=False):
+    """An argparse type: a finite number (int if `integer`), checked as the API checks it."""
+    def parse(text):
+        try:
+            value = int(text) if integer else float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{field}: {text!r} is not "
+                                             f"{'an integer' if integer else 'a number'}. "
+                                             f"Fix: {fix}") from None
+        bad = (not math.isfinite(value) or (positive and value <= 0)
+               or (minimum is not None and value < minimum))
+        if bad:
+            need = ("positive" if positive else f">= {minimum}" if minimum is not None
+                    else "finite")
+            raise argparse.ArgumentTypeError(f"{field}: must be {need}, got {text}. Fix: {fix}")
+        return value
+    return parse
+
+
+COORD = _number("position", "pass finite coordinates in metres")
+SEED = _number("seed", "pass e.g. 0", minimum=0, integer=True)
+H_NS = _number("h_s", "pass the window in ns, e.g. 0.65", positive=True)
+
+
 def _parents():
-    device = argparse.ArgumentParser(add_help=False)
+    device = _Parser(add_help=False)
     device.add_argument("--device", help="'P:D' indices or part of a device/platform name "
                         "(`nlos-cl info` lists them; default: PYOPENCL_CTX, else the best)")
-    as_json = argparse.ArgumentParser(add_help=False)
+    as_json = _Parser(add_help=False)
     as_json.add_argument("--json", action="store_true", help="print one JSON object")
     return device, as_json
 
@@ -21,11 +53,12 @@ def _parents():
 def _demo_args(p):
     p.add_argument("--reference", action="store_true", help="run on the NumPy twins")
     p.add_argument("--png", default="nlos_demo.png", help="figure path ('' for none)")
-    p.add_argument("--snr-db", type=float, default=10.0)
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--h-ns", type=float, default=0.65, help="Gauss filter window h (ns)")
-    p.add_argument("--step", type=float, default=0.01, help="grid step (m)")
-    p.add_argument("--position", type=float, nargs=3, default=(4.0, 2.0, 0.0),
+    p.add_argument("--snr-db", type=_number("snr_db", "pass decibels, e.g. 10"), default=10.0)
+    p.add_argument("--seed", type=SEED, default=0)
+    p.add_argument("--h-ns", type=H_NS, default=0.65, help="Gauss filter window h (ns)")
+    p.add_argument("--step", type=_number("grid.step", "pass metres, e.g. 0.01", positive=True),
+                   default=0.01, help="grid step (m)")
+    p.add_argument("--position", type=COORD, nargs=3, default=(4.0, 2.0, 0.0),
                    metavar=("X", "Y", "Z"), help="target centre (m)")
 
 
@@ -38,36 +71,50 @@ def _reproduce_args(p):
     from .apps.reproduce import EXPERIMENTS  # a light module: names only
     p.add_argument("name", choices=["all", *EXPERIMENTS])
     p.add_argument("--out", default="out/reproduce", help="folder for figures and CSVs")
-    p.add_argument("--seeds", type=int, default=None, help="noise seeds (default 3; 1 quick)")
+    p.add_argument("--seeds", type=_number("seeds", "pass a count, e.g. 3", minimum=1,
+                                           integer=True), default=None,
+                   help="noise seeds (default 3; 1 quick)")
     p.add_argument("--quick", action="store_true", help="coarse setting (CI)")
     p.add_argument("--doc", default="", help="write the paper-vs-ours report here "
                    "(default with 'all': OUT/paper-results.md)")
 
 
 def _simulate_args(p):
-    p.add_argument("--out", required=True, help="the .h5 file to write")
-    p.add_argument("--position", type=float, nargs=3, default=(4.0, 2.0, 0.0),
-                   metavar=("X", "Y", "Z"))
-    p.add_argument("--facet", type=float, default=0.01, help="facet size (m)")
-    p.add_argument("--dt-ps", type=float, default=10.0, help="bin width (ps)")
-    p.add_argument("--snr-db", type=float, default=None, help="add white Gaussian noise")
+    p.add_argument("--out", required=True, help="the .h5 file to write (atomically)")
+    p.add_argument("--force", action="store_true", help="replace a file that is not a capture")
+    p.add_argument("--position", type=COORD, nargs=3, default=(4.0, 2.0, 0.0),
+                   metavar=("X", "Y", "Z"), help="target centre (m, nlos_cl's frame)")
+    p.add_argument("--facet", type=_number("facet_size_m", "pass metres, e.g. 0.01",
+                                           positive=True), default=0.01, help="facet size (m)")
+    p.add_argument("--dt-ps", type=_number("time_axis.dt_s", "pass picoseconds, e.g. 10",
+                                           positive=True), default=10.0, help="bin width (ps)")
+    p.add_argument("--snr-db", type=_number("snr_db", "pass decibels, e.g. 10"), default=None,
+                   help="add white Gaussian noise")
     p.add_argument("--photons", action="store_true", help="photon-counting detector + TDC")
-    p.add_argument("--pulses", type=float, default=80e6, help="laser pulses summed")
-    p.add_argument("--tdc-ps", type=float, default=50.0, help="TDC bin (ps)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--pulses", type=_number("photon_counter.n_pulses", "pass e.g. 80e6",
+                                            positive=True), default=80e6,
+                   help="laser pulses summed")
+    p.add_argument("--tdc-ps", type=_number("photon_counter.tdc_bin_s", "pass picoseconds, "
+                                            "e.g. 50", positive=True), default=50.0,
+                   help="TDC bin (ps)")
+    p.add_argument("--seed", type=SEED, default=0)
 
 
 def _locate_args(p):
     p.add_argument("file")
-    p.add_argument("--grid", type=float, nargs=5, default=(0.0, 6.0, 0.01, 6.0, 0.01),
-                   metavar=("X0", "X1", "Y0", "Y1", "STEP"), help="search plane (m)")
-    p.add_argument("--z", type=float, nargs=2, default=(0.0, 0.0), metavar=("Z0", "Z1"))
-    p.add_argument("--h-ns", type=float, default=0.65, help="Gauss filter window h (ns)")
+    p.add_argument("--region", type=_number("region", "pass finite ranges in metres"), nargs=6,
+                   metavar=("A0", "A1", "B0", "B1", "C0", "C1"), default=None,
+                   help="search ranges along the file's three axes (m; for y-tal files X, Y, Z "
+                   "with the wall at Z = 0); default: derived from the capture")
+    p.add_argument("--step", type=_number("grid.step", "pass metres, e.g. 0.01", positive=True),
+                   default=None, help="grid step with --region (m; default from the bins and h)")
+    p.add_argument("--h-ns", type=H_NS, default=0.65, help="Gauss filter window h (ns)")
     p.add_argument("--log", action="store_true", help="sum of logs (many detectors)")
     p.add_argument("--background", help="capture without the target, subtracted first")
     p.add_argument("--negatives", default="clip", choices=["clip", "floor", "keep"])
     p.add_argument("--calibration", help="CSV of (path m, peak time s) pairs: fit Eq. 26")
     p.add_argument("--map", help="save the probability map (.npz)")
+    p.add_argument("--force", action="store_true", help="let --map replace a non-.npz file")
 
 
 def _calibrate_args(p):
@@ -94,7 +141,7 @@ COMMANDS = {
 
 def parser() -> argparse.ArgumentParser:
     device, as_json = _parents()
-    top = argparse.ArgumentParser(prog="nlos-cl", description=__doc__.split("\n\n")[0])
+    top = _Parser(prog="nlos-cl", description=__doc__.split("\n\n")[0])
     sub = top.add_subparsers(dest="command", required=True)
     for name, (help_text, add_args, takes_device, takes_json, _) in COMMANDS.items():
         parents = [p for p, on in ((device, takes_device), (as_json, takes_json)) if on]
@@ -114,6 +161,10 @@ def main(argv=None) -> int:
         return getattr(importlib.import_module(f".apps.{module}", __package__), function)(args)
     except (InputError, DeviceError) as exc:
         print(f"nlos-cl: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # an output path we could not write: say which and why
+        print(f"nlos-cl: {exc.filename or 'output'}: {exc.strerror or exc}. Fix: pick a "
+              "writable file path in an existing folder", file=sys.stderr)
         return 2
 
 

@@ -236,9 +236,13 @@ def default_region(histograms: HistogramSet, h_s: float = PAPER_H_S, *,
     require(hi[1] > 0 and bool(np.all(hi >= lo)), "time_axis", "the detectors' windows share "
             "no hidden point in front of the wall", "record a longer time window")
     dims = 3 - (flat is not None)
+    box_lo = lo.copy()
     while True:
+        # cells on whole multiples of the step (as a user's round grid would be): answers
+        # that do not depend on where the window happened to end
+        lo = np.where(hi > box_lo, np.ceil(box_lo / step - 1e-9) * step, box_lo)
         lo[1] = step
-        shape = [int(math.floor(max(e, 0.0) / step)) + 1 for e in (hi - lo)]
+        shape = [int(math.floor(max(e, 0.0) / step + 1e-9)) + 1 for e in (hi - lo)]
         if int(np.prod(shape)) <= max_cells:
             break
         step = max(step * 1.05, step * (np.prod(shape) / max_cells) ** (1 / dims))

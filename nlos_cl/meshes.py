@@ -17,8 +17,15 @@ from .geometry import as_point
 def _grid_quad(u_len: float, v_len: float, cell: float) -> tuple[np.ndarray, np.ndarray]:
     """A u_len x v_len rectangle in the (u, v) plane as a grid of right triangles whose
     longest edge (the cell diagonal) is at most `cell`."""
+    require(math.isfinite(cell) and cell > 0, "facet_size_m", f"must be a positive length in "
+            f"metres, got {cell!r}", "pass e.g. 0.01")
     side = cell / math.sqrt(2.0)
     nu, nv = max(1, math.ceil(u_len / side - 1e-9)), max(1, math.ceil(v_len / side - 1e-9))
+    from .safe_io import require_memory
+    require_memory("facet_size_m", 200.0 * (nu + 1) * (nv + 1), f"a {u_len:.3g} m x {v_len:.3g} "
+                   f"m face cut into {cell:.3g} m facets ({2 * nu * nv:.3g} triangles)",
+                   f"use facet_size_m >= {math.sqrt(u_len * v_len * 800 / 2**30):.2g} "
+                   "(1 cm is the default and converges)")
     u = np.linspace(-u_len / 2, u_len / 2, nu + 1)
     v = np.linspace(-v_len / 2, v_len / 2, nv + 1)
     uu, vv = np.meshgrid(u, v, indexing="ij")

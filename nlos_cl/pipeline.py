@@ -34,6 +34,10 @@ def simulate(scene, time_axis: TimeAxis | None = None, *, backend=None) -> Signa
     axis = time_axis if time_axis is not None else default_time_axis(setup)
     require(isinstance(axis, TimeAxis), "time_axis", f"expected a nlos_cl.TimeAxis, got "
             f"{type(axis).__name__}", "pass TimeAxis(t0_s, dt_s, n_bins)")
+    from .safe_io import require_memory
+    require_memory("time_axis", 12.0 * setup.n_detectors * axis.n_bins,  # float32 + float64
+                   f"{setup.n_detectors} x {axis.n_bins} bins of {axis.dt_s:.3g} s",
+                   "use wider bins (dt_s) or a shorter window (n_bins)")
     backend = resolve_backend(backend)
     layout = Layout(axis, setup.detector_spots, setup.laser_spot,
                     PathCalibration.for_setup(setup), scene.truth)

@@ -82,3 +82,10 @@ def _replace(tmp: str, path: Path, before, where: str) -> None:
         os.fsync(dirfd)
     finally:
         os.close(dirfd)  # also releases the lock
+
+
+def require_memory(field: str, n_bytes: float, what: str, fix: str) -> None:
+    """Refuse, before allocating, what would not fit in half the memory available now."""
+    limit = memory_limit()
+    require(n_bytes <= limit, field, f"{what} needs about {n_bytes / 2**30:.3g} GiB, more than "
+            f"the {limit / 2**30:.3g} GiB allowed (half the memory available)", fix)

@@ -178,6 +178,14 @@ class Target:
         require(math.isfinite(facet_size_m) and facet_size_m > 0, "facet_size_m",
                 f"must be a positive length in metres, got {facet_size_m}", "pass e.g. 0.01")
         mesh = self.mesh
+        # Subdividing to edges <= f leaves triangles of area >= ~f^2 / 4 (right halves of a
+        # square of diagonal f): refuse before trimesh allocates them (~200 B each, in flight).
+        estimate = float(mesh.area) / (0.25 * facet_size_m ** 2) + len(mesh.faces)
+        from .safe_io import require_memory
+        require_memory("facet_size_m", 200.0 * estimate, f"cutting this {float(mesh.area):.3g} "
+                       f"m^2 target into facets of {facet_size_m:.3g} m (~{estimate:.3g} facets)",
+                       f"use facet_size_m >= {math.sqrt(float(mesh.area) * 800 / 2**30):.2g}"
+                       " (1 cm is the default and converges)")
         longest = float(mesh.edges_unique_length.max())
         vertices, faces = mesh.vertices, mesh.faces
         if longest > facet_size_m:

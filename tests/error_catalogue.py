@@ -124,6 +124,28 @@ def small_scene():
     return nl.paper_scene(facet_size_m=0.05)
 
 
+class CommandLineError(Exception):
+    """What `nlos-cl` printed on stderr when it exited with status 2."""
+
+
+def cli(*args):
+    """Run `nlos-cl ARGS` in this process: a bad input must exit 2 with one line on stderr."""
+    import contextlib
+    import io
+
+    from nlos_cl.cli import main
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        try:
+            status = main([str(a) for a in args])
+        except SystemExit as exc:  # argparse
+            status = exc.code
+    text = err.getvalue().strip()
+    if status == 2 and len(text.splitlines()) == 1:
+        raise CommandLineError(text)
+    raise AssertionError(f"nlos-cl {' '.join(map(str, args))}: status {status}, stderr {text!r}")
+
+
 # (what the user did, the field the message must name, the call)
 CASES = [
     ("a histogram bin is NaN", "histograms.data", lambda: histograms(with_bin(np.nan))),
@@ -262,6 +284,31 @@ CASES = [
      lambda: nl.subtract_background(histograms(), histograms(2 * np.ones((3, 100))))),
     ("a TDC bin that is not a multiple of the data's bins", "photon_counter.tdc_bin_s",
      lambda: nl.PhotonCounter(tdc_bin_s=15e-12).expected_counts(histograms())),
+    ("nlos-cl demo --step 0", "grid.step", lambda: cli("demo", "--step", 0, "--png", "")),
+    ("nlos-cl demo --h-ns nan", "h_s", lambda: cli("demo", "--h-ns", "nan", "--png", "")),
+    ("nlos-cl demo --png onto a folder", "--png", lambda: cli("demo", "--png", folder("figs"))),
+    ("nlos-cl simulate --facet 0", "facet_size_m",
+     lambda: cli("simulate", "--out", "x.h5", "--facet", 0)),
+    ("nlos-cl simulate --facet 1e-5 (71.5 GiB of facets)", "facet_size_m",
+     lambda: cli("simulate", "--out", folder("o") / "x.h5", "--facet", 1e-5)),
+    ("nlos-cl simulate --dt-ps nan", "time_axis.dt_s",
+     lambda: cli("simulate", "--out", "x.h5", "--dt-ps", "nan")),
+    ("nlos-cl simulate --dt-ps 0.00001 (60 G bins)", "time_axis",
+     lambda: cli("simulate", "--out", folder("o") / "x.h5", "--dt-ps", 1e-5)),
+    ("nlos-cl simulate --out over a file that is not a capture", "--force",
+     lambda: cli("simulate", "--out", existing_file("thesis.h5"), "--facet", 0.05)),
+    ("nlos-cl reproduce fig10 --seeds -1", "seeds", lambda: cli("reproduce", "fig10", "--seeds",
+                                                               -1)),
+    ("nlos-cl locate --region with a NaN", "region",
+     lambda: cli("locate", capture_file(), "--region", 0, 1, "nan", 1, 1, 2)),
+    ("nlos-cl locate --step 0", "grid.step", lambda: cli("locate", capture_file(), "--step", 0)),
+    ("nlos-cl locate --region of 2.5e14 cells", "--region",
+     lambda: cli("locate", capture_file(), "--region", -50, 50, 0, 50, 0.01, 50, "--step",
+                 0.001)),
+    ("nlos-cl locate --map over a file that is not a map", "--map",
+     lambda: cli("locate", capture_file(), "--map", existing_file("notes.txt"))),
+    ("nlos-cl calibrate on a CSV with ';' and one column", "calibration file",
+     lambda: cli("calibrate", write_file("pairs.csv", "path\n2.5\n3.0\n"))),
     ("no OpenCL device on the machine", "No OpenCL device found", no_device),
     ("a device choice that matches no device", "matches no OpenCL device",
      lambda: devices.choose_device("no-such-device-xyz")),
@@ -271,7 +318,7 @@ CASES = [
 def message(call) -> tuple[str, str]:
     try:
         call()
-    except (InputError, DeviceError) as exc:
+    except (InputError, DeviceError, CommandLineError) as exc:
         return type(exc).__name__, str(exc)
     return "", "(no error)"
 

@@ -198,5 +198,11 @@ def test_cli_simulate_then_locate(tmp_path):
     found = run("locate", str(out), "--json", "--map", str(tmp_path / "m.npz"))
     assert found.returncode == 0, found.stderr
     result = json.loads(found.stdout)
-    assert result["error_m"] < 0.05 and result["truth"] == [4.0, 2.0, 0.0]
-    assert np.load(tmp_path / "m.npz")["score"].shape == (1, 600, 601)
+    # reported in the file's own (y-tal) frame: nlos_cl's (4, 2, 0) is y-tal's (-4, 0, 2)
+    assert result["frame"]["name"] == "ytal" and result["truth"] == [-4.0, 0.0, 2.0]
+    assert result["error_m"] < 0.05
+    assert np.linalg.norm(np.subtract(result["position"], result["truth"])) < 0.05
+    region = result["region"]  # derived from the capture: the plane of the collinear spots
+    assert region["ranges_m"][1] == [0.0, 0.0] and region["ranges_m"][0][0] < -4 < 4 < \
+        region["ranges_m"][0][1]
+    assert np.load(tmp_path / "m.npz")["score"].size == region["cells"]

@@ -48,7 +48,10 @@ def test_default_region_covers_both_sides_out_to_the_window():
     A = reach / 2  # semi-major axis of every ellipse (foci O = 0 and D = (-d, 0, 0))
     # x: the box of the ellipse around O and D = -0.5 starts furthest right, that of D = -1.5
     # ends furthest left; y: the flattest ellipse (D = -1.5) is the lowest
-    assert x[0] == pytest.approx(-0.25 - A) and x[-1] == pytest.approx(A - 0.75, abs=0.01)
+    # cells sit on whole multiples of the step, inside the box: within one step of its edge
+    assert -0.25 - A <= x[0] < -0.25 - A + g.step[0] and x[0] / g.step[0] == pytest.approx(
+        round(x[0] / g.step[0]), abs=1e-6)
+    assert x[-1] == pytest.approx(A - 0.75, abs=0.01)
     assert x[0] < -1.5 - 1 and x[-1] > 0 + 1  # over a metre beyond the spots on each side
     assert y[0] > 0 and y[-1] == pytest.approx(np.sqrt(A ** 2 - 0.75 ** 2), abs=0.01)
     assert g.shape[2] == 1 and z[0] == 0.0  # collinear spots: height unobservable

@@ -39,9 +39,25 @@ def _print_text(args, result, scene, loc, grid, cold, warm):
         print(f"figure   : {args.png}")
 
 
+def _check_png(path_text: str) -> None:
+    """Before any work: a figure path that can be written as given (matplotlib would turn a
+    folder 'out' into 'out.png' beside it)."""
+    from pathlib import Path
+
+    from ..errors import require
+    path = Path(path_text)
+    require(not path.is_dir(), "--png", f"{path} is a folder", "pass a file path, e.g. demo.png")
+    require(path.parent.is_dir(), "--png", f"the folder {path.parent} does not exist",
+            "create it first, or pass '' for no figure")
+    require(path.suffix.lower() in (".png", ".svg", ".pdf"), "--png", f"{path.name} has no "
+            ".png, .svg or .pdf suffix", "name the figure e.g. demo.png")
+
+
 def run(args) -> int:
     from ..backend import resolve_backend
     from ..grid import Grid
+    if args.png:
+        _check_png(args.png)
     backend = resolve_backend("reference" if args.reference else args.device)
     grid = Grid.from_ranges(x=(0.0, 6.0), y=(0.01, 6.0), step_m=args.step)
     (scene, sim, noisy, filtered, loc), cold = _run_once(args, backend, grid)

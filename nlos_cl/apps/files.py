@@ -1,16 +1,24 @@
 """`nlos-cl simulate | locate | calibrate`: y-tal capture files in and out, and the paper's
-Eq. 26 calibration from measured (path, peak time) pairs."""
+Eq. 26 calibration from measured (path, peak time) pairs.
+
+`locate` works in the capture's own frame: --region is given along the file's axes, and
+positions, covariances, truth and the region are reported in them (the JSON's `frame` says
+which). Without --region the search region is derived from the capture (nlos_cl.frames:
+in front of the wall, around every spot, out to what the time window reaches); a coarse
+default region is refined around the answer, and an answer on the region's edge warns.
+"""
 from __future__ import annotations
 
 import json
+import sys
 
 
 def simulate(args) -> int:
     from .. import pipeline as pl
     from ..backend import resolve_backend
     from ..capture import write_capture
-    from ..histograms import default_time_axis
     from ..measured import PhotonCounter
+    from ..paths import default_time_axis
     from ..scene import paper_scene
 
     scene = paper_scene(position=tuple(args.position), facet_size_m=args.facet)
@@ -26,53 +34,139 @@ def simulate(args) -> int:
         noise = f"photon counting ({counter})"
     path = write_capture(args.out, hist, device_distance_m=scene.setup.device_distance_m,
                          metadata={"scene": "paper rectangle 0.3 m x 1.6 m",
-                                   "noise": noise, "seed": args.seed})
+                                   "noise": noise, "seed": args.seed}, force=args.force)
     print(f"wrote {path}: {hist.n_detectors} detectors x {hist.time_axis.n_bins} bins of "
-          f"{hist.time_axis.dt_s * 1e12:g} ps, target at {[float(v) for v in scene.truth]}, noise: {noise}")
+          f"{hist.time_axis.dt_s * 1e12:g} ps, target at {[float(v) for v in scene.truth]}, "
+          f"noise: {noise}")
     return 0
 
 
-def locate(args) -> int:
-    from pathlib import Path
-
-    import numpy as np
-
-    from .. import pipeline as pl
-    from ..backend import resolve_backend
-    from ..capture import read_capture
-    from ..histograms import Grid
-    from ..measured import fit_calibration, subtract_background, with_calibration
-
-    sets = read_capture(args.file)
+def _read(args):
+    """The capture's sets (background subtracted, calibration applied) and its frame."""
+    from ..capture import read_capture, read_capture_with_frame
+    from ..measured import (fit_calibration, read_calibration_pairs, subtract_background,
+                            with_calibration)
+    sets, frame = read_capture_with_frame(args.file)
     if args.background:
         backgrounds = read_capture(args.background)
         sets = [subtract_background(h, b, negatives=args.negatives)
                 for h, b in zip(sets, backgrounds)]
     calibration = None
     if args.calibration:
-        pairs = np.loadtxt(args.calibration, delimiter=",", ndmin=2)
-        fit = fit_calibration(pairs[:, 0], pairs[:, 1])
-        calibration = fit.calibration
+        calibration = fit_calibration(*read_calibration_pairs(args.calibration)).calibration
         sets = [with_calibration(h, calibration) for h in sets]
-    x0, x1, y0, y1, step = args.grid
-    grid = Grid.from_ranges(x=(x0, x1), y=(y0, y1), z=tuple(args.z), step_m=step)
+    return sets, frame, calibration
+
+
+def _region(args, hist, frame):
+    """(grid, was it derived) in our frame: --region along the file's axes, else the default."""
+    from ..frames import default_region, region_step
+    h_s = args.h_ns * 1e-9
+    if args.region is None:
+        return default_region(hist, h_s), True
+    a0, a1, b0, b1, c0, c1 = args.region
+    step = args.step if args.step is not None else region_step(hist, h_s)
+    grid = frame.grid(((a0, a1), (b0, b1), (c0, c1)), step)
+    from ..safe_io import memory_limit
+    need = 4 * grid.n_cells
+    if need > memory_limit():
+        from ..errors import InputError
+        raise InputError(f"--region: {grid.n_cells:.3g} cells at a {step:g} m step need "
+                         f"{need / 2**30:.1f} GiB for the score map, more than the "
+                         f"{memory_limit() / 2**30:.1f} GiB allowed (half the memory available)."
+                         " Fix: a smaller region or a larger --step")
+    return grid, False
+
+
+def _locate_one(args, hist, frame, backend):
+    from .. import pipeline as pl
+    from ..frames import on_region_edge, region_step, zoom_region
+    grid, derived = _region(args, hist, frame)
+    log_mode = args.log or hist.n_detectors > 8  # products of many detectors underflow float32
+    filtered = pl.gauss_filter(hist, args.h_ns * 1e-9, backend=backend)
+    loc = pl.locate(filtered, grid, log_mode=log_mode, return_map=bool(args.map))
+    warnings = []
+    if on_region_edge(loc.position, grid):
+        lo_hi = frame.ranges(grid)
+        warnings.append(f"the answer lies on the search region's edge ({_ranges(frame, lo_hi)}), "
+                        "so the target may be outside it. Fix: widen it with --region "
+                        "(ranges along the file's axes) or record a longer time window")
+    elif derived and min(grid.step) > region_step(hist, args.h_ns * 1e-9) * 1.001:
+        fine = zoom_region(loc.position, grid, hist, args.h_ns * 1e-9)
+        loc = pl.locate(filtered, fine, log_mode=log_mode)  # the coarse answer, refined
+    return loc, grid, log_mode, warnings
+
+
+def _ranges(frame, lo_hi) -> str:
+    return ", ".join(f"{a} {lo:.3g}..{hi:.3g} m" for a, (lo, hi) in zip(frame.axes, lo_hi))
+
+
+def _entry(i, hist, loc, grid, log_mode, frame, warnings) -> dict:
+    import numpy as np
+    m = np.asarray(frame.matrix)  # internal = m @ file, so a covariance maps as m^T C m
+    r5 = lambda v: [round(float(x), 5) for x in np.ravel(v)]  # noqa: E731
+    targets = [{"position": r5(frame.from_internal(t.position)),
+                "covariance": None if t.covariance is None else
+                (m.T @ np.asarray(t.covariance) @ m).round(8).tolist(),
+                "extent_m": None if t.extent_m is None else r5(t.extent_m)}
+               for t in loc.targets]
+    truth = None if loc.truth is None else r5(frame.from_internal(loc.truth))
+    return {"laser_point": i, "laser_spot": r5(frame.from_internal(hist.laser_spot)),
+            "position": targets[0]["position"], "targets": targets, "truth": truth,
+            "error_m": None if loc.error_m is None else round(loc.error_m, 5),
+            "estimator": loc.estimator, "log_mode": log_mode,
+            "region": {"ranges_m": [list(r) for r in frame.ranges(grid)],
+                       "step_m": min(grid.step), "cells": grid.n_cells},
+            "warnings": warnings}
+
+
+def _save_map(args, i, n_sets, loc, grid):
+    from pathlib import Path
+
+    import numpy as np
+
+    from ..safe_io import atomic_write
+    out = Path(args.map) if n_sets == 1 else Path(args.map).with_suffix(f".{i}.npz")
+    x, y, z = grid.axes()
+
+    def write(tmp):
+        with open(tmp, "wb") as fh:  # a file object: savez would append .npz to a name
+            np.savez_compressed(fh, score=loc.score_map, x=x, y=y, z=z)
+    atomic_write(out, write, keep_unless=lambda p: p.suffix == ".npz", force=args.force,
+                 what="--map", kind="a .npz map")
+    return str(out)
+
+
+def _check_map_path(args) -> None:
+    """Before any work: --map must be writable as a .npz map (never over another kind of file)."""
+    from pathlib import Path
+
+    from ..errors import require
+    path = Path(args.map)
+    require(path.parent.is_dir() and not path.is_dir(), "--map", f"{path} is a folder or its "
+            "folder does not exist", "pass a file path in an existing folder, e.g. map.npz")
+    require(args.force or not path.exists() or path.suffix == ".npz", "--map", f"{path} exists "
+            "and is not a .npz map, so writing would destroy it", "pick another path, or pass "
+            "--force to replace it")
+
+
+def locate(args) -> int:
+    from ..backend import resolve_backend
+    if args.map:
+        _check_map_path(args)
+    sets, frame, calibration = _read(args)
     backend = resolve_backend(args.device)
     results = []
     for i, hist in enumerate(sets):
-        filtered = pl.gauss_filter(hist, args.h_ns * 1e-9, backend=backend)
-        loc = pl.locate(filtered, grid, log_mode=args.log, return_map=bool(args.map))
-        entry = {"laser_point": i, "laser_spot": [float(v) for v in hist.laser_spot],
-                 "position": [round(float(v), 5) for v in loc.position],
-                 "truth": None if loc.truth is None else [float(v) for v in loc.truth],
-                 "error_m": None if loc.error_m is None else round(loc.error_m, 5)}
+        loc, grid, log_mode, warnings = _locate_one(args, hist, frame, backend)
+        entry = _entry(i, hist, loc, grid, log_mode, frame, warnings)
         if args.map:
-            out = Path(args.map) if len(sets) == 1 else Path(args.map).with_suffix(f".{i}.npz")
-            x, y, z = grid.axes()
-            np.savez_compressed(out, score=loc.score_map, x=x, y=y, z=z)
-            entry["map"] = str(out)
+            entry["map"] = _save_map(args, i, len(sets), loc, grid)
         results.append(entry)
-    summary = {"file": str(args.file), "device": getattr(backend, "name", str(backend)),
-               "grid_cells": grid.n_cells, "h_s": args.h_ns * 1e-9,
+        for w in warnings:
+            print(f"nlos-cl: warning: laser point {i}: {w}", file=sys.stderr)
+    summary = {"file": str(args.file), "frame": frame.as_json(),
+               "device": getattr(backend, "name", str(backend)), "h_s": args.h_ns * 1e-9,
                "calibration": None if calibration is None else
                {"a_m_per_s": calibration.a_m_per_s, "b_m": float(calibration.b_m[0])},
                **(results[0] if len(results) == 1 else {"per_laser_point": results})}
@@ -80,17 +174,15 @@ def locate(args) -> int:
         print(json.dumps(summary))
     else:
         for r in results:
-            print(f"laser point {r['laser_point']}: located {r['position']} m"
-                  + (f", truth {r['truth']}, error {r['error_m']:.4f} m" if r["truth"] else ""))
+            print(f"laser point {r['laser_point']}: located {r['position']} m in the file's "
+                  f"frame ({frame.name})" + (f", truth {r['truth']}, error {r['error_m']:.4f} m"
+                                             if r["truth"] else ""))
     return 0
 
 
 def calibrate(args) -> int:
-    import numpy as np
-
-    from ..measured import fit_calibration
-    pairs = np.loadtxt(args.pairs, delimiter=",", ndmin=2)
-    fit = fit_calibration(pairs[:, 0], pairs[:, 1])
+    from ..measured import fit_calibration, read_calibration_pairs
+    fit = fit_calibration(*read_calibration_pairs(args.pairs))
     result = {"a_m_per_s": fit.calibration.a_m_per_s, "b_m": float(fit.calibration.b_m[0]),
               "rmse_m": fit.rmse_m, "r2": fit.r2, "pairs": fit.n_pairs,
               "speed_error": fit.speed_error}
@@ -101,5 +193,3 @@ def calibrate(args) -> int:
               f"{fit.calibration.b_m[0] * 100:.2f} cm  (RMSE {fit.rmse_m * 100:.2f} cm, "
               f"R^2 {fit.r2:.4f}, slope {100 * fit.speed_error:+.2f} % from c, {fit.n_pairs} pairs)")
     return 0
-
-
