@@ -134,7 +134,9 @@ def parabolic_offsets(logp):
     return offsets
 
 
-ESTIMATORS = {"paper": PaperArgmax}
+ESTIMATORS = {"paper": PaperArgmax,
+              # lazy: nlos_cl.model (SciPy) loads only when the model estimator is asked for
+              "model": lambda: __import__("nlos_cl.model", fromlist=["_"]).ModelEstimator()}
 
 
 def as_estimator(value):

@@ -1,0 +1,113 @@
+"""`ModelEstimator`: analysis by synthesis. Fit K upright plates to the measured histograms with
+the forward model (the registered "forward" operation, on the backend), report each plate's
+centre, size and a calibrated covariance. Plugs into `nl.locate(..., estimator="model")`."""
+from __future__ import annotations
+
+import time
+import warnings
+
+import numpy as np
+
+from ..constants import FWHM_PER_SIGMA, PAPER_H_S
+from ..errors import require
+from ..estimators import Estimate, LocatedTarget, PaperArgmax
+from . import data, plate
+from .fit import centre_covariance, covariance
+from .likelihood import Problem
+
+HEIGHT_WARNING = ("height (z) is unobservable with collinear wall spots (rotating the target "
+                  "about their line changes no path): z is held at {z:.3f} m; use spots off "
+                  "one line to measure it")
+
+
+class ModelEstimator:
+    """Fit `targets` plates (an int, or 'auto': add plates while they pass the test in
+    nlos_cl.model.select). `likelihood`: 'gauss' (AWGN; the data are compared after a Gauss
+    filter of window h_s), 'poisson' (photon counts in `raw`), or 'auto' (counts when `raw`
+    holds non-negative whole numbers). `backend`: where the forward model runs while fitting
+    (default: the scored frame's backend)."""
+
+    name = "model"
+
+    def __init__(self, targets=1, *, likelihood="auto", h_s=PAPER_H_S, pulse_fwhm_s=70e-12,
+                 jitter_s=30e-12, lattice=None, max_targets=3, backend=None, final_nfev=30):
+        require(targets == "auto" or (isinstance(targets, int) and targets >= 1), "targets",
+                f"must be a positive integer or 'auto', got {targets!r}", "pass e.g. 1 or 'auto'")
+        require(likelihood in ("auto", "gauss", "poisson"), "likelihood",
+                f"must be 'auto', 'gauss' or 'poisson', got {likelihood!r}", "pick one")
+        self.targets, self.likelihood, self.h_s = targets, likelihood, float(h_s)
+        self.pulse_sigma_s = float(pulse_fwhm_s) / FWHM_PER_SIGMA
+        self.jitter_s, self.lattice = float(jitter_s), lattice
+        self.max_targets, self.backend, self.final_nfev = int(max_targets), backend, final_nfev
+        self.timings: dict = {}
+
+    # ------------------------------------------------------------------ data
+    def observation(self, scored):
+        be, layout = scored.backend, scored.signals.layout
+        filtered = be.to_numpy(scored.signals.handle)
+        raw = None if scored.raw is None else be.to_numpy(scored.raw.handle)
+        mode = self.likelihood
+        if mode == "auto":
+            mode = "poisson" if raw is not None and data.looks_like_counts(
+                raw * scored.raw.scale_w) else "gauss"
+        if mode == "poisson":
+            require(raw is not None, "raw", "the Poisson likelihood needs the photon counts",
+                    "pass raw=counts to locate")
+            return data.poisson_observation(layout, raw * scored.raw.scale_w, filtered,
+                                            pulse_sigma_s=self.pulse_sigma_s,
+                                            jitter_s=self.jitter_s)
+        return data.gaussian_observation(layout, filtered, raw, h_s=self.h_s,
+                                         pulse_sigma_s=self.pulse_sigma_s)
+
+    # ------------------------------------------------------------------ the estimate
+    def estimate(self, scored) -> Estimate:
+        clock = {"start": time.perf_counter()}
+        paper = PaperArgmax().estimate(scored)  # also rejects frames with no signal
+        clock["argmax"] = time.perf_counter()
+        obs = self.observation(scored)
+        clock["data"] = time.perf_counter()
+        lattice = self.lattice or ((10, 20) if obs.mode == "gauss" else (16, 32))
+        problem = Problem(obs, self.backend or scored.backend, lattice)
+        observable = plate.height_observable(obs.spots, obs.laser)
+        z0 = float(scored.grid.origin[2] + 0.5 * (scored.grid.shape[2] - 1) * scored.grid.step[2])
+        free = np.array([True, True, observable, True, True, True])
+        from .select import fit_targets
+        result, history = fit_targets(problem, self, paper.targets[0].position, free, z0)
+        clock["fit"] = time.perf_counter()
+        cov_all, info = covariance(problem, result, free)
+        clock["covariance"] = time.perf_counter()
+        notes = [] if observable else [HEIGHT_WARNING.format(z=z0)]
+        for note in notes:
+            warnings.warn(note, stacklevel=3)
+        self.timings = _stages(clock, problem)
+        located = [self._target(result, cov_all, k, info, notes, obs, history, observable)
+                   for k in _order(result)]
+        return Estimate(located, paper.cell_position, paper.score)
+
+    def _target(self, result, cov_all, k, info, notes, obs, history, observable):
+        p = result.params[k]
+        details = {"model": "upright plate", "params": dict(zip(plate.NAMES, map(float, p))),
+                   "normal": plate.normal_of(p), "amplitude": float(result.linear[k]),
+                   "likelihood": obs.mode, "cost": result.cost, "n_residuals": result.n_residuals,
+                   "targets_tried": history, "height_observable": observable,
+                   "warnings": list(notes), "timings_s": dict(self.timings), **info}
+        return LocatedTarget(p[:3].copy(), centre_covariance(cov_all, k), plate.extent(p),
+                             details)
+
+
+def _order(result):
+    """Targets by the signal energy they explain, strongest first."""
+    return list(np.argsort(-np.abs(result.linear[:len(result.params)])))
+
+
+def _stages(clock, problem) -> dict:
+    keys = list(clock)
+    out = {b: clock[b] - clock[a] for a, b in zip(keys, keys[1:])}
+    out["forward_calls"] = problem.calls
+    out["forward_s"] = problem.model_s
+    out["total"] = clock[keys[-1]] - clock[keys[0]]
+    return out
+
+
+def model_estimator(**options) -> ModelEstimator:
+    return ModelEstimator(**options)

@@ -1,0 +1,105 @@
+"""How many plates, and where they start: one plate from the centroid start (and the paper's
+argmax), then, greedily, one more from the centroid of what the plates so far leave
+unexplained, followed by a joint fit of all of them.
+
+'auto' keeps a new plate only if (i) the BIC improves: the drop of -2 log L, divided by the
+noise correlation's inflation kappa = tr(C^2) / tr(C) (1 for counts), exceeds p ln(N / kappa)
+with p = the plate's free parameters + 1 amplitude; and (ii) the new plate carries at least
+`MIN_SHARE` of the fitted signal energy, because with any model error (a real object is no
+plate) a spare plate always lowers the residual somewhat.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from . import starts
+from .fit import fit
+
+MIN_SHARE = 0.10
+SHORT_NFEV = 6
+
+
+def best_of(problem, rows, free, final_nfev, fixed=None):
+    """Short fits from the best candidate rows, then the best one to convergence."""
+    prefix = [] if fixed is None else list(fixed)
+    chosen = starts.best_starts(problem, rows, fixed, keep=3)
+    short = [fit(problem, np.array(prefix + [p]), free, SHORT_NFEV) for p in chosen]
+    best = min(short, key=lambda r: r.cost)
+    return fit(problem, best.params, free, final_nfev)
+
+
+def one_plate(problem, argmax_position, free, z0, final_nfev):
+    centres = starts.start_centres(problem.obs, argmax_position, bool(free[2]), z0)
+    return best_of(problem, starts.candidates(centres, problem.obs.laser), free, final_nfev)
+
+
+def add_plate(problem, current, free, z0, final_nfev):
+    """current + one plate started where the residual signal is."""
+    cols = problem.columns(current.params)
+    rest = problem.obs.y - problem.mean(cols, current.linear)
+    if problem.obs.mode == "poisson":
+        rest = rest + problem.obs.y[:, :5].mean(axis=1, keepdims=True)
+    centres = starts.start_centres(problem.obs, None, bool(free[2]), z0, data=rest)
+    rows = starts.candidates(centres, problem.obs.laser)
+    joint = best_of(problem, rows, free, final_nfev, fixed=current.params)
+    for _ in range(2):
+        swept = sweep(problem, joint, free, final_nfev)
+        if swept is joint:
+            break
+        joint = swept
+    return joint
+
+
+def sweep(problem, current, free, final_nfev):
+    """Re-seat each plate in turn (yaw and size lattice around its centre, the others fixed),
+    then refit all jointly: a plate that first grew to cover two targets' signals shrinks."""
+    params = current.params.copy()
+    for k in range(len(params)):
+        others = np.delete(params, k, axis=0)
+        rows = starts.candidates([params[k][:3]], problem.obs.laser)
+        rows = np.concatenate([rows, params[k][None]])
+        params[k] = starts.best_starts(problem, rows, others, keep=1)[0]
+    again = fit(problem, params, free, final_nfev)
+    return again if again.cost < current.cost else current
+
+
+def kappa(obs) -> float:
+    if obs.mode != "gauss":
+        return 1.0
+    return float(1.0 + 2.0 * np.sum(obs.rho[1:] ** 2))
+
+
+def accepts(problem, before, after, free) -> tuple[bool, dict]:
+    """Does `after` (one plate more) pass the BIC and signal-share tests?"""
+    obs = problem.obs
+    k = kappa(obs)
+    n_eff = max(after.n_residuals / k, 2.0)
+    penalty = (int(np.count_nonzero(free)) + 1) * math.log(n_eff)
+    gain = (before.cost - after.cost) / k
+    cols = problem.columns(after.params)
+    energy = np.array([np.sum((a * c) ** 2) for a, c in zip(after.linear, cols)])
+    share = float(energy.min() / max(energy.sum(), 1e-300))
+    ok = gain > penalty and share >= MIN_SHARE
+    return ok, {"bic_gain": gain - penalty, "share": share}
+
+
+def fit_targets(problem, est, argmax_position, free, z0):
+    """The fit for est.targets plates (int or 'auto'), and what was tried."""
+    current = one_plate(problem, argmax_position, free, z0, est.final_nfev)
+    history = [{"targets": 1, "cost": current.cost}]
+    wanted = est.targets if est.targets != "auto" else est.max_targets
+    while len(current.params) < wanted:
+        bigger = add_plate(problem, current, free, z0, est.final_nfev)
+        entry = {"targets": len(bigger.params), "cost": bigger.cost}
+        if est.targets == "auto":
+            ok, why = accepts(problem, current, bigger, free)
+            entry.update(why, accepted=ok)
+            history.append(entry)
+            if not ok:
+                break
+        else:
+            history.append(entry)
+        current = bigger
+    return current, history

@@ -1,0 +1,102 @@
+"""The model-based estimator (nlos_cl.model) end to end: data from nl.simulate at the library's
+defaults (1 cm facets, 1 ps bins), located by fitting a coarse plate model."""
+import math
+import subprocess
+import sys
+import warnings
+
+import numpy as np
+import pytest
+
+import nlos_cl as nl
+from nlos_cl.model import HEIGHT_WARNING, ModelEstimator, height_observable, plate_facets
+
+GRID = nl.Grid.from_ranges(x=(0, 6), y=(0.01, 6), step_m=0.02)
+TRIANGLE = [[-0.5, 0, 0], [-1.0, 0, 0.5], [-1.0, 0, -0.5]]
+CIRCLE8 = [[-1.0 + 0.5 * math.cos(a), 0.0, 0.5 * math.sin(a)] for a in np.arange(8) * math.pi / 4]
+
+
+def frame(position, size=(0.3, 1.6), spots=None, seed=0, normal=(-1, 0, 0)):
+    setup = nl.paper_setup() if spots is None else nl.paper_setup(detector_spots=spots)
+    mesh = nl.rectangle(size[0], size[1], centre=position, normal=normal)
+    signals = nl.simulate(nl.Scene(setup, nl.Target(mesh), truth=position))
+    noisy = nl.add_noise(signals, 10, seed=seed)
+    return nl.gauss_filter(noisy), noisy
+
+
+def test_paper_scene_centre_size_and_covariance():
+    filtered, noisy = frame((4.0, 2.0, 0.0))
+    with pytest.warns(UserWarning, match="height"):
+        loc = nl.locate(filtered, GRID, estimator="model", raw=noisy)
+    assert loc.estimator == "model" and loc.error_m < 0.02
+    target = loc.targets[0]
+    assert abs(target.extent_m[0] - 0.3) < 0.1 and abs(target.extent_m[1] - 1.6) < 0.3
+    cov = target.covariance
+    assert cov.shape == (3, 3) and np.all(np.isfinite(cov[:2, :2]))
+    assert np.all(np.linalg.eigvalsh(cov[:2, :2]) > 0)
+    assert np.isinf(cov[2, 2]) and not target.details["height_observable"]
+    assert target.position[2] == 0.0  # held on the search plane, and said so
+    assert HEIGHT_WARNING.split(":")[0] in target.details["warnings"][0]
+
+
+def test_extended_target_centre_where_the_argmax_is_far_off():
+    filtered, noisy = frame((4.0, 2.0, 0.0), size=(0.8, 1.2))
+    paper = nl.locate(filtered, GRID)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model = nl.locate(filtered, GRID, estimator="model", raw=noisy)
+    assert paper.error_m > 0.5  # the paper's argmax lands on the near edge
+    assert model.error_m < 0.10
+
+
+def test_non_collinear_spots_measure_height():
+    truth = (3.0, 2.0, 0.3)
+    filtered, noisy = frame(truth, spots=TRIANGLE)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no height warning here
+        loc = nl.locate(filtered, GRID, estimator="model", raw=noisy)
+    target = loc.targets[0]
+    assert target.details["height_observable"]
+    assert abs(target.position[2] - truth[2]) < 0.10 and loc.error_m < 0.10
+    assert np.all(np.isfinite(target.covariance))
+
+
+def test_two_targets_on_an_eight_spot_layout():
+    truths = [(4.0, 2.0, 0.0), (2.0, 4.0, 0.0)]
+    setup = nl.paper_setup(detector_spots=CIRCLE8)
+    hists = [nl.simulate(nl.Scene(setup, nl.Target(nl.rectangle(0.3, 0.3, centre=t)), truth=t))
+             .histograms() for t in truths]
+    total = nl.upload(hists[0].with_data(hists[0].data + hists[1].data))
+    noisy = nl.add_noise(total, 10, seed=1)
+    loc = nl.locate(nl.gauss_filter(noisy), GRID, log_mode=True,
+                    estimator=ModelEstimator(targets=2), raw=noisy)
+    assert len(loc.targets) == 2
+    for t in truths:
+        assert min(np.linalg.norm(tg.position - t) for tg in loc.targets) < 0.10
+
+
+def test_photon_counts_use_the_poisson_likelihood():
+    signals = nl.simulate(nl.paper_scene()).histograms()
+    counter = nl.PhotonCounter(n_pulses=80e6 * 3000 / 44234)  # ~3000 signal photons/detector
+    counts = counter.counts(signals, seed=2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        loc = nl.locate(nl.gauss_filter(counts), GRID, estimator="model", raw=counts)
+    assert loc.targets[0].details["likelihood"] == "poisson"
+    assert loc.error_m < 0.10
+
+
+def test_plate_facets_and_observability():
+    f = plate_facets([4.0, 2.0, 0.0, 0.3, 1.6, math.pi], (10, 20))
+    assert f.count == 200 and math.isclose(f.areas.sum(), 0.48)
+    assert np.allclose(f.centres.mean(axis=0), [4.0, 2.0, 0.0])
+    assert np.allclose(f.normals, [-1, 0, 0])
+    assert not height_observable(nl.paper_setup().detector_spots, np.zeros(3))
+    assert height_observable(np.array(TRIANGLE), np.zeros(3))
+
+
+def test_choosing_the_model_estimator_by_name_loads_scipy_only_then():
+    code = ("import sys, nlos_cl.estimators as e; assert 'scipy' not in sys.modules; "
+            "m = e.as_estimator('model'); print(m.name)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "model"
