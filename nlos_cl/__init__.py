@@ -25,7 +25,8 @@ _EXPORTS = {
     ".pipeline": ("add_noise", "gauss_filter", "gauss_fit", "locate", "simulate"),
     ".plans": ("GaussFilter", "Locator"),
     ".reflectance": ("Lambertian",),
-    ".scene": ("Facets", "Pulse", "Scene", "Setup", "Target", "paper_scene", "paper_setup"),
+    ".geometry": ("Facets",),
+    ".scene": ("Pulse", "Scene", "Setup", "Target", "paper_scene", "paper_setup"),
     ".signals": ("Signals", "upload"),
 }
 _WHERE = {name: module for module, names in _EXPORTS.items() for name in names}

@@ -60,6 +60,8 @@ def _demo_args(p):
                    default=0.01, help="grid step (m)")
     p.add_argument("--position", type=COORD, nargs=3, default=(4.0, 2.0, 0.0),
                    metavar=("X", "Y", "Z"), help="target centre (m)")
+    p.add_argument("--estimator", choices=["model", "paper"], default="model",
+                   help="whose answer heads the output (both are run and shown)")
 
 
 def _bench_args(p):
@@ -115,6 +117,21 @@ def _locate_args(p):
     p.add_argument("--calibration", help="CSV of (path m, peak time s) pairs: fit Eq. 26")
     p.add_argument("--map", help="save the probability map (.npz)")
     p.add_argument("--force", action="store_true", help="let --map replace a non-.npz file")
+    _estimator_args(p)
+
+
+def _targets(text):
+    if text == "auto":
+        return text
+    return _number("targets", "pass a count, e.g. 1, or 'auto'", minimum=1, integer=True)(text)
+
+
+def _estimator_args(p):
+    p.add_argument("--estimator", choices=["model", "paper"], default="model",
+                   help="model: fit a plate's centre, size and yaw with the forward model, with "
+                   "a covariance (docs/model-estimator.md); paper: the paper's argmax")
+    p.add_argument("--targets", type=_targets, default=1,
+                   help="targets to fit (model estimator): a count, or 'auto' (by BIC)")
 
 
 def _calibrate_args(p):

@@ -1,5 +1,8 @@
-"""Small geometric validators shared by the scene, the meshes and the grid."""
+"""Small geometric types and validators shared by the scene, the meshes, the grid and the
+model fits (no trimesh here: what only needs facets stays light)."""
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -14,3 +17,16 @@ def as_point(value, field_name: str) -> np.ndarray:
     require(bool(np.all(np.isfinite(arr))), field_name, f"non-finite coordinate {arr.tolist()}",
             "pass finite coordinates in metres")
     return arr
+
+
+@dataclass(frozen=True)
+class Facets:
+    """A target cut into small flat pieces: centre, outward unit normal, area (m^2)."""
+
+    centres: np.ndarray
+    normals: np.ndarray
+    areas: np.ndarray
+
+    @property
+    def count(self) -> int:
+        return self.areas.shape[0]

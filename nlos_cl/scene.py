@@ -13,7 +13,7 @@ import trimesh
 
 from .constants import FWHM_PER_SIGMA
 from .errors import require
-from .geometry import as_point
+from .geometry import Facets, as_point  # noqa: F401  (Facets: re-exported)
 from .meshes import rectangle
 from .reflectance import Lambertian, as_reflectance
 
@@ -121,19 +121,6 @@ class Setup:
         """
         return (target_brdf * self.wall_brdf ** 2 * self.detected_spot_area_m2
                 * self.aperture_area_m2 / self.device_distance_m ** 2)
-
-
-@dataclass(frozen=True)
-class Facets:
-    """A target cut into small flat pieces: centre, outward unit normal, area (m^2)."""
-
-    centres: np.ndarray
-    normals: np.ndarray
-    areas: np.ndarray
-
-    @property
-    def count(self) -> int:
-        return self.areas.shape[0]
 
 
 @dataclass(frozen=True)

@@ -78,23 +78,39 @@ def _region(args, hist, frame):
     return grid, False
 
 
+def _estimator(args):
+    if args.estimator == "paper":
+        return "paper"
+    from ..model import ModelEstimator
+    return ModelEstimator(targets=args.targets)
+
+
 def _locate_one(args, hist, frame, backend):
+    """The paper's argmax on the region (refined on a fine zoom where the derived region had to
+    be coarsened), then the chosen estimator on the final grid; warnings collected."""
+    import warnings as pywarnings
+
     from .. import pipeline as pl
     from ..frames import on_region_edge, region_step, zoom_region
-    grid, derived = _region(args, hist, frame)
+    region, derived = _region(args, hist, frame)
     log_mode = args.log or hist.n_detectors > 8  # products of many detectors underflow float32
-    filtered = pl.gauss_filter(hist, args.h_ns * 1e-9, backend=backend)
-    loc = pl.locate(filtered, grid, log_mode=log_mode, return_map=bool(args.map))
-    warnings = []
-    if on_region_edge(loc.position, grid):
-        lo_hi = frame.ranges(grid)
-        warnings.append(f"the answer lies on the search region's edge ({_ranges(frame, lo_hi)}), "
-                        "so the target may be outside it. Fix: widen it with --region "
-                        "(ranges along the file's axes) or record a longer time window")
-    elif derived and min(grid.step) > region_step(hist, args.h_ns * 1e-9) * 1.001:
-        fine = zoom_region(loc.position, grid, hist, args.h_ns * 1e-9)
-        loc = pl.locate(filtered, fine, log_mode=log_mode)  # the coarse answer, refined
-    return loc, grid, log_mode, warnings
+    h_s = args.h_ns * 1e-9
+    filtered = pl.gauss_filter(hist, h_s, backend=backend)
+    grid = region
+    if derived and min(region.step) > region_step(hist, h_s) * 1.001:
+        coarse = pl.locate(filtered, region, log_mode=log_mode, estimator="paper")
+        grid = zoom_region(coarse.position, region, hist, h_s)
+    with pywarnings.catch_warnings(record=True) as caught:
+        pywarnings.simplefilter("always")
+        loc = pl.locate(filtered, grid, log_mode=log_mode, estimator=_estimator(args),
+                        raw=hist, return_map=bool(args.map))
+    notes = [str(w.message) for w in caught]
+    if on_region_edge(loc.position, region):
+        notes.append(f"the answer lies on the search region's edge "
+                     f"({_ranges(frame, frame.ranges(region))}), so the target may be outside "
+                     "it. Fix: widen it with --region (ranges along the file's axes) or record "
+                     "a longer time window")
+    return loc, grid, log_mode, notes
 
 
 def _ranges(frame, lo_hi) -> str:
@@ -106,18 +122,32 @@ def _entry(i, hist, loc, grid, log_mode, frame, warnings) -> dict:
     m = np.asarray(frame.matrix)  # internal = m @ file, so a covariance maps as m^T C m
     r5 = lambda v: [round(float(x), 5) for x in np.ravel(v)]  # noqa: E731
     targets = [{"position": r5(frame.from_internal(t.position)),
-                "covariance": None if t.covariance is None else
-                (m.T @ np.asarray(t.covariance) @ m).round(8).tolist(),
+                "covariance": _covariance_json(t.covariance, m),
                 "extent_m": None if t.extent_m is None else r5(t.extent_m)}
                for t in loc.targets]
     truth = None if loc.truth is None else r5(frame.from_internal(loc.truth))
     return {"laser_point": i, "laser_spot": r5(frame.from_internal(hist.laser_spot)),
             "position": targets[0]["position"], "targets": targets, "truth": truth,
+            "argmax_cell": r5(frame.from_internal(loc.cell_position)),
             "error_m": None if loc.error_m is None else round(loc.error_m, 5),
             "estimator": loc.estimator, "log_mode": log_mode,
             "region": {"ranges_m": [list(r) for r in frame.ranges(grid)],
                        "step_m": min(grid.step), "cells": grid.n_cells},
             "warnings": warnings}
+
+
+def _covariance_json(cov, m):
+    """A 3 x 3 covariance in the file's frame (m^2). The frame is a signed permutation, so the
+    entries are moved, not mixed: an unobservable axis (infinite variance) becomes null in its
+    row and column only (JSON has no infinity)."""
+    import numpy as np
+    if cov is None:
+        return None
+    c = np.asarray(cov, dtype=np.float64)
+    axis = np.abs(m).argmax(axis=0)  # file axis i is internal axis axis[i]
+    sign = m[axis, np.arange(3)]
+    out = c[np.ix_(axis, axis)] * np.outer(sign, sign)
+    return [[float(f"{v:.6g}") if np.isfinite(v) else None for v in row] for row in out]
 
 
 def _save_map(args, i, n_sets, loc, grid):

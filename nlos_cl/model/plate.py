@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from ..scene import Facets
+from ..geometry import Facets
 
 NAMES = ("x", "y", "z", "width", "height", "yaw")
 LOWER = np.array([-np.inf, 0.05, -np.inf, 0.04, 0.04, -np.inf])
