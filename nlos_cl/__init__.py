@@ -16,6 +16,7 @@ _EXPORTS = {
     ".estimators": ("Estimate", "LocatedTarget", "Location", "PaperArgmax"),
     ".grid": ("Grid",),
     ".histograms": ("HistogramSet", "Layout"),
+    ".layouts": ("height_observable",),
     ".measured": ("CalibrationFit", "PhotonCounter", "fit_calibration", "peak_times",
                   "subtract_background", "with_calibration"),
     ".meshes": ("box", "load_mesh", "rectangle", "sphere"),
