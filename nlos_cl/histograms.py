@@ -29,6 +29,7 @@ class Layout:
     laser_spot: np.ndarray  # (3,)
     calibration: PathCalibration
     truth: np.ndarray | None = None
+    truths: np.ndarray | None = None  # (K, 3) every target's centre, where known
 
     @property
     def n_detectors(self) -> int:
@@ -53,6 +54,7 @@ class HistogramSet:
     calibration: PathCalibration
     truth: np.ndarray | None = field(default=None)
     allow_negative: bool = True  # noisy or background-subtracted data dip below zero
+    truths: np.ndarray | None = field(default=None)  # (K, 3) every target's centre, if known
 
     def __post_init__(self):
         data = np.array(self.data, dtype=np.float64)
@@ -80,16 +82,18 @@ class HistogramSet:
         object.__setattr__(self, "laser_spot", _frozen(self.laser_spot, 3))
         if self.truth is not None:
             object.__setattr__(self, "truth", _frozen(self.truth, 3))
+        if self.truths is not None:
+            object.__setattr__(self, "truths", _frozen(self.truths, (-1, 3)))
 
     @classmethod
     def from_layout(cls, data, layout: Layout) -> "HistogramSet":
         return cls(data, layout.time_axis, layout.detector_spots, layout.laser_spot,
-                   layout.calibration, truth=layout.truth)
+                   layout.calibration, truth=layout.truth, truths=layout.truths)
 
     @property
     def layout(self) -> Layout:
         return Layout(self.time_axis, self.detector_spots, self.laser_spot, self.calibration,
-                      self.truth)
+                      self.truth, self.truths)
 
     @property
     def n_detectors(self) -> int:

@@ -40,19 +40,27 @@ def simulate(scene, time_axis: TimeAxis | None = None, *, backend=None) -> Signa
                    "use wider bins (dt_s) or a shorter window (n_bins)")
     backend = resolve_backend(backend)
     layout = Layout(axis, setup.detector_spots, setup.laser_spot,
-                    PathCalibration.for_setup(setup), scene.truth)
+                    PathCalibration.for_setup(setup), scene.truth, scene.truths)
     paths = layout.path_axis()  # bin edges in hidden-path metres, through the exact calibration
     sigma_path = SPEED_OF_LIGHT * setup.pulse.sigma_s
-    reflectance = scene.target.reflectance
-    hist, span = backend.call("forward", scene.facets(), setup.detector_spots, setup.laser_spot,
-                              paths.start_m, paths.step_m, sigma_path, axis.n_bins, reflectance)
-    if not np.all(np.isfinite(span)):
-        raise InputError("scene.target: no facet faces both the laser spot and a detector spot, "
-                         "so nothing returns to the wall. Fix: turn the target towards the wall "
-                         "(one-sided rectangles light only on their normal's side)")
-    _check_window(axis, paths, span, sigma_path)
-    scale = 0.5 * setup.pulse.energy_j * setup.power_scale(reflectance.scale) / axis.dt_s
-    return Signals(backend, hist, scale, layout)
+    watts = 0.5 * setup.pulse.energy_j / axis.dt_s  # W per unit of kernel value and power scale
+    total, scale = None, None
+    for i, target in enumerate(scene.targets):  # third-order light: the targets' signals add
+        hist, span = backend.call("forward", scene.facets(i), setup.detector_spots,
+                                  setup.laser_spot, paths.start_m, paths.step_m, sigma_path,
+                                  axis.n_bins, target.reflectance)
+        field = "scene.target" if i == 0 else f"scene.more_targets[{i - 1}]"
+        if not np.all(np.isfinite(span)):
+            raise InputError(f"{field}: no facet faces both the laser spot and a detector spot, "
+                             "so nothing returns to the wall. Fix: turn the target towards the "
+                             "wall (one-sided rectangles light only on their normal's side)")
+        _check_window(axis, paths, span, sigma_path)
+        own = watts * setup.power_scale(target.reflectance.scale)
+        if total is None:
+            total, scale = hist, own
+        else:  # in the first target's units (a device-side axpy on OpenCL)
+            total = total + hist * (own / scale)
+    return Signals(backend, total, scale, layout)
 
 
 def _check_window(axis: TimeAxis, paths: PathAxis, span, sigma_path):

@@ -204,18 +204,30 @@ def _morton_order(points: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Scene:
-    """A setup, a target, and how finely the target is cut into facets."""
+    """A setup, the hidden target(s), and how finely they are cut into facets.
+
+    `target` is the first target; `more_targets` are further ones (a second object, static
+    clutter). Light is third-order only (no occlusion between them), so each target's signal is
+    simulated on its own and the signals add. `truth` is the first target's centre (its
+    bounding-box centre unless given); `truths` has every target's, in order.
+    """
 
     setup: Setup
     target: Target
     facet_size_m: float = 0.01
     truth: np.ndarray | None = None  # where the target "is" (its centre), for error reports
+    more_targets: tuple = ()
 
     def __post_init__(self):
         require(isinstance(self.setup, Setup), "scene.setup", "expected a nlos_cl.Setup",
                 "build one with nlos_cl.Setup(...)")
         require(isinstance(self.target, Target), "scene.target", "expected a nlos_cl.Target",
                 "wrap your mesh: nlos_cl.Target(mesh)")
+        more = tuple(self.more_targets)
+        for i, t in enumerate(more):
+            require(isinstance(t, Target), f"scene.more_targets[{i}]", "expected a "
+                    f"nlos_cl.Target, got {type(t).__name__}", "wrap each mesh in nlos_cl.Target")
+        object.__setattr__(self, "more_targets", more)
         truth = self.truth
         if truth is None:
             truth = self.target.mesh.bounds.mean(axis=0)
@@ -223,13 +235,22 @@ class Scene:
         truth.flags.writeable = False
         object.__setattr__(self, "truth", truth)
 
-    def facets(self) -> Facets:
-        """The target cut into facets, computed once per scene (a scene is immutable)."""
-        cached = self.__dict__.get("_facets")
-        if cached is None:
-            cached = self.target.facets(self.facet_size_m)
-            object.__setattr__(self, "_facets", cached)
-        return cached
+    @property
+    def targets(self) -> tuple:
+        return (self.target,) + self.more_targets
+
+    @property
+    def truths(self) -> np.ndarray:
+        """(K, 3) centres: `truth` for the first target, bounding-box centres for the others."""
+        rest = [t.mesh.bounds.mean(axis=0) for t in self.more_targets]
+        return np.array([self.truth, *rest]).reshape(-1, 3)
+
+    def facets(self, which: int = 0) -> Facets:
+        """Target `which` cut into facets, computed once per scene (a scene is immutable)."""
+        cache = self.__dict__.setdefault("_facets", {})
+        if which not in cache:
+            cache[which] = self.targets[which].facets(self.facet_size_m)
+        return cache[which]
 
 
 def paper_setup(**overrides) -> Setup:
