@@ -3,8 +3,8 @@
 // Detectors are processed in groups (det0 = the group's first) when the path and weight rows
 // of all detectors would not fit in one device allocation.
 //
-// Two kernels, both gather-style (a work item owns every value it writes: no atomics,
-// deterministic sums):
+// The exact path, two kernels, both gather-style (a work item owns every value it writes: no
+// atomics, deterministic sums):
 //   facet_paths: per (chunk of CHUNK facets, detector) the hidden path s = r1 + r2 and the
 //                geometric weight g = cos_a1 cos_b1 cos_a2 cos_b2 area / (r1^2 r2^2), plus the
 //                [min, max] path of the chunk's contributing facets (for culling).
@@ -13,6 +13,13 @@
 //                i.e. twice the pulse energy fraction that falls inside each bin. The host
 //                applies 0.5 * energy * f_c f_w^2 S_A S_d / (d^2 dt) in float64.
 // Everything is in metres of hidden path; float32 throughout.
+//
+// The fast path (deposit, resolve, convolve): each facet's weight is split between the two
+// sub-bins (OS per bin) around its path, linearly (its weight and its weighted path are kept
+// exactly), then one correlation with the bin-integrated pulse per phase of the sub-bins
+// gives every bin. The deposit is a scatter, made deterministic by summing in 64-bit fixed
+// point with 32-bit integer atomics (core OpenCL 1.1): integer sums do not depend on the
+// order of the additions, so the result is bit-identical run after run.
 //
 // Build options: -D CHUNK=<facets per chunk> [-D REFLECTANCE_FACTOR(n, to_laser, to_detector)=...]
 
@@ -32,7 +39,7 @@ __kernel void facet_paths(__global const float4 *centres,  // xyz of each facet
                           const int det0,                  // first detector of this group
                           __global float *path,            // [group][n_chunks * CHUNK]
                           __global float *weight,          // [group][n_chunks * CHUNK]
-                          __global float2 *chunk_range)    // [group][n_chunks]
+                          __global float4 *chunk_range)    // [group][n_chunks]: min, max path, weight sum
 {
     const int chunk = get_global_id(0);
     const int det = get_global_id(1);  // within the group
@@ -40,7 +47,7 @@ __kernel void facet_paths(__global const float4 *centres,  // xyz of each facet
     const int row = det * n_chunks * CHUNK;
     const float3 spot = spots[det0 + det].xyz;
     const float3 o = laser.xyz;
-    float lo = INFINITY, hi = -INFINITY;
+    float lo = INFINITY, hi = -INFINITY, total = 0.0f;
     for (int k = 0; k < CHUNK; ++k) {
         const int f = chunk * CHUNK + k;
         float s = 0.0f, g = 0.0f;
@@ -61,12 +68,13 @@ __kernel void facet_paths(__global const float4 *centres,  // xyz of each facet
                     * REFLECTANCE_FACTOR(nw.xyz, -v1 / r1, v2 / r2);
                 lo = fmin(lo, s);
                 hi = fmax(hi, s);
+                total += g;
             }
         }
         path[row + f] = s;
         weight[row + f] = g;
     }
-    chunk_range[det * n_chunks + chunk] = (float2)(lo, hi);
+    chunk_range[det * n_chunks + chunk] = (float4)(lo, hi, total, 0.0f);
 }
 
 // 15 bins have 16 edges: one float16 erf per facet serves the whole block (measured on PoCL:
@@ -75,7 +83,7 @@ __kernel void facet_paths(__global const float4 *centres,  // xyz of each facet
 
 __kernel void pulse_bins(__global const float *path,
                          __global const float *weight,
-                         __global const float2 *chunk_range,
+                         __global const float4 *chunk_range,
                          const int n_chunks,
                          __global const float2 *edges,   // per detector: (path at bin-0 start, path per bin)
                          const float inv_sqrt2_sigma,    // 1 / (sqrt(2) sigma_path)
@@ -98,7 +106,7 @@ __kernel void pulse_bins(__global const float *path,
     const int row = det * n_chunks * CHUNK;
     float16 acc = (float16)(0.0f);  // lane 15 is unused
     for (int c = 0; c < n_chunks; ++c) {
-        const float2 r = chunk_range[det * n_chunks + c];
+        const float4 r = chunk_range[det * n_chunks + c];
         if (r.y < win_lo || r.x > win_hi) continue;  // the whole chunk is out of reach
         for (int k = 0; k < CHUNK; ++k) {
             const int f = row + c * CHUNK + k;
@@ -114,4 +122,77 @@ __kernel void pulse_bins(__global const float *path,
     vstore16(acc, 0, bins);
     __global float *out = hist + (det0 + det) * n_bins + k0;
     for (int j = 0; j < BLOCK && k0 + j < n_bins; ++j) out[j] = bins[j];
+}
+
+// ------------------------------------------------------------------ deposit and convolve
+// Build options (besides CHUNK): -D OS=<sub-bins per bin> -D SPAN=<taps per phase>.
+// Per detector the deposit covers a window of bins; dep holds [group][OS phases][padded]
+// sub-bins, phase-major: sub-bin j (from the window's base) is dep[j % OS][j / OS].
+#ifndef OS
+#define OS 1
+#endif
+#ifndef SPAN
+#define SPAN 1
+#endif
+
+__kernel void deposit(__global const float *path, __global const float *weight,
+                      const int n_pad,
+                      __global const float4 *win,      // per detector: base path, 1 / dsub, fixed-point scale
+                      const int padded, const int det0,
+                      __global uint *lo, __global uint *hi)  // [group][OS][padded] 64-bit sums
+{
+    const int f = get_global_id(0), det = get_global_id(1);
+    const float g = weight[det * n_pad + f];
+    if (g == 0.0f) return;
+    const float4 w = win[det0 + det];
+    const float u = (path[det * n_pad + f] - w.x) * w.y - 0.5f;  // from sub-bin centres
+    const float fu = floor(u);
+    const float t = u - fu;
+    const int j = (int)fu;
+    for (int side = 0; side < 2; ++side) {
+        const int k = j + side;
+        if (k < 0 || k / OS >= padded) continue;  // out of the time axis by more than the reach
+        const ulong q = convert_ulong_rte(g * (side ? t : 1.0f - t) * w.z);
+        const int at = (det * OS + k % OS) * padded + k / OS;
+        const uint low = (uint)q;
+        const uint old = atomic_add(lo + at, low);
+        const uint carry = (old + low < old) ? 1u : 0u;
+        atomic_add(hi + at, (uint)(q >> 32) + carry);
+    }
+}
+
+__kernel void resolve(__global const uint *lo, __global const uint *hi,
+                      __global const float4 *win, const int padded, const int det0,
+                      __global float *dep)  // [group][OS][padded]
+{
+    const int i = get_global_id(0), det = get_global_id(1);
+    const int at = det * OS * padded + i;
+    dep[at] = fma((float)hi[at], 4294967296.0f, (float)lo[at]) / win[det0 + det].z;
+}
+
+// out[k] = sum over phases p and taps t of dep[p][k - first + t] * taps[p][t] for k in the
+// detector's window [first, first + count), 0 elsewhere; 16 bins per work item.
+__kernel void convolve(__global const float *dep, __constant const float *taps,  // [OS][SPAN]
+                       __global const int2 *window,  // per detector of the group: first bin, bin count
+                       const int padded, const int n_bins, const int det0,
+                       __global float *hist)         // [n_det][n_bins]
+{
+    const int k0 = get_global_id(0) * 16, det = get_global_id(1);
+    const int2 wnd = window[det];  // the group's own rows
+    float16 acc = (float16)(0.0f);
+    const int i0 = k0 - wnd.x;
+    if (i0 >= 0 && i0 < wnd.y) {  // windows start on a multiple of 16 bins
+        for (int p = 0; p < OS; ++p) {
+            __global const float *src = dep + (det * OS + p) * padded + i0;
+            for (int t = 0; t < SPAN; ++t)
+                acc = fma(vload16(0, src + t), (float16)(taps[p * SPAN + t]), acc);
+        }
+    }
+    float bins[16];
+    vstore16(acc, 0, bins);
+    __global float *out = hist + (det0 + det) * n_bins + k0;
+    for (int j = 0; j < 16 && k0 + j < n_bins; ++j) {
+        const int i = i0 + j;
+        out[j] = (i >= 0 && i < wnd.y) ? bins[j] : 0.0f;
+    }
 }

@@ -128,8 +128,10 @@ def parabolic_offsets(logp):
     offsets = np.zeros(3)
     lines = (logp[1, 1, :], logp[1, :, 1], logp[:, 1, 1])
     for axis, (m, c, p) in enumerate(lines):
+        if not (np.isfinite(m) and np.isfinite(c) and np.isfinite(p)):
+            continue  # the best cell is on the grid's edge (or a neighbour is -inf)
         curvature = m - 2 * c + p
-        if np.isfinite(m) and np.isfinite(p) and curvature < 0:
+        if curvature < 0:
             offsets[axis] = float(np.clip(0.5 * (m - p) / curvature, -0.5, 0.5))
     return offsets
 

@@ -106,11 +106,15 @@ def gauss_fit(signals, *, backend=None):
 
 
 def locate(signals, grid: Grid | None = None, *, log_mode: bool = False,
-           return_map: bool = False, estimator=None, raw=None, backend=None) -> Location:
+           return_map: bool = False, estimator=None, raw=None, backend=None,
+           search: str = "coarse_to_fine", signal_width_m: float | None = None) -> Location:
     """Score every grid cell by the signals at its ellipse path |c - O| + |c - spot| per
     detector, combine (product, or sum of logs when log_mode), and estimate the position
     (default: the paper's argmax, refined with a parabola per axis). `raw`: the unfiltered
-    signals, for estimators that fit a model to the histograms."""
+    signals, for estimators that fit a model to the histograms. search: "coarse_to_fine"
+    (default: the same argmax cell as "exhaustive" for a fraction of the work; see `Locator`)
+    or "exhaustive"; signal_width_m: the filtered signal's width in path metres (speed only)."""
     sig = as_signals(signals, backend)
-    plan = Locator(sig.layout, grid, estimator=estimator, log_mode=log_mode)
+    plan = Locator(sig.layout, grid, estimator=estimator, log_mode=log_mode, search=search,
+                   signal_width_m=signal_width_m)
     return plan(sig, raw=raw, return_map=return_map)

@@ -6,17 +6,24 @@ only for the frame: its upload (if it comes from the host), the kernels, and the
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
-from .constants import LOG_FLOOR, PAPER_H_S
+from .constants import LOG_FLOOR, PAPER_H_S, SPEED_OF_LIGHT
 from .errors import require
-from .estimators import Location, Scored, as_estimator
+from .estimators import Location, PaperArgmax, Scored, as_estimator
 from .grid import Grid
 from .histograms import Layout
 from .ops.gauss_filter import gauss_taps
 from .paths import TimeAxis
+from .search import SEARCHES, CoarseToFine
 from .signals import Signals, as_signals
+
+# The width of a filtered signal in hidden-path metres, where the caller gives none: the
+# paper's filter, sigma = h / 3 (the 30 ps pulse adds 1 % in quadrature). It sets only the
+# coarse-to-fine search's speed, never its answer.
+PAPER_SIGNAL_WIDTH_M = SPEED_OF_LIGHT * PAPER_H_S / 3.0
 
 
 def _layout_of(value) -> Layout:
@@ -65,30 +72,78 @@ class Locator:
     `Locator(layout, grid)` where layout is a `Layout`, or histograms/signals to take it from;
     `locator(filtered_signals) -> Location`. log_mode scores by the sum of log-likelihoods
     (for many detectors); the estimator is a name ('paper') or an object (nlos_cl.estimators).
+
+    search: "coarse_to_fine" (default) scores a coarse grid, bounds every block of cells from
+    above and scores only the blocks that can hold the best cell (nlos_cl/search.py): the same
+    argmax cell, score and 3 x 3 x 3 neighbourhood as "exhaustive", which scores every cell.
+    It applies to the paper's estimator (and to estimators with `local = True`, which read only
+    the best cell's neighbourhood); others, and return_map=True, score every cell.
+    signal_width_m: the filtered signal's width in hidden-path metres (default: the paper's
+    filter, c h / 3 = 6.5 cm); it sets the coarse grid's step, i.e. only the speed.
     """
 
     def __init__(self, layout, grid: Grid | None = None, *, estimator=None,
-                 log_mode: bool = False, backend=None):
+                 log_mode: bool = False, backend=None, search: str = "coarse_to_fine",
+                 signal_width_m: float | None = None):
         layout = _layout_of(layout)
         grid = Grid() if grid is None else grid
         require(isinstance(grid, Grid), "grid", f"expected a nlos_cl.Grid, got "
                 f"{type(grid).__name__}", "build one with Grid.from_ranges(x=(0, 6), y=(0.01, 6), "
                 "step_m=0.01)")
+        require(search in SEARCHES, "search", f"unknown search {search!r}",
+                f"pass one of {list(SEARCHES)}")
+        width = PAPER_SIGNAL_WIDTH_M if signal_width_m is None else signal_width_m
+        require(isinstance(width, (int, float)) and math.isfinite(width) and width > 0,
+                "signal_width_m", f"must be a positive path length in metres, got {width!r}",
+                "pass e.g. 0.065 (c h / 3 for the paper's h)")
         self.layout, self.grid, self.log_mode = layout, grid, bool(log_mode)
         self.estimator = as_estimator(estimator)
         self.backend = backend
         axis = layout.path_axis()
         self._path0, self._inv_dpath = axis.centre0_m, 1.0 / axis.step_m
         self._scores = None  # the score buffer, reused frame after frame
+        local = getattr(self.estimator, "local", isinstance(self.estimator, PaperArgmax))
+        self.search = search if local else "exhaustive"
+        self._search = CoarseToFine(grid, self._inv_dpath, float(width))
+        self.last_search = None  # what the last frame's search did (search.Found)
 
-    def scores(self, signals: Signals):
+    def _args(self, signals: Signals):
+        stats = signals.backend.call("row_stats", signals.handle)
+        lay = self.layout
+        return (stats, lay.detector_spots, lay.laser_spot, self._path0, self._inv_dpath,
+                self.log_mode, LOG_FLOOR)
+
+    def scores(self, signals: Signals, args=None):
         """The grid's joint likelihood on the signals' backend (the plan's own buffer)."""
-        be, lay = signals.backend, self.layout
-        stats = be.call("row_stats", signals.handle)
-        self._scores = be.call("ellipse_score", signals.handle, stats, lay.detector_spots,
-                               lay.laser_spot, self._path0, self._inv_dpath, self.grid,
-                               self.log_mode, LOG_FLOOR, out=self._scores)
+        args = self._args(signals) if args is None else args
+        self._scores = signals.backend.call("ellipse_score", signals.handle, *args[:5],
+                                            self.grid, *args[5:], out=self._scores)
         return self._scores
+
+    def _scored(self, sig: Signals, raw, return_map: bool) -> Scored:
+        """Scores where the estimator looks: the whole grid, or (coarse to fine) the best
+        cell's neighbourhood on a sub-grid of the same cells."""
+        args = self._args(sig)
+        found = None
+        if self.search == "coarse_to_fine" and not return_map and self._search.useful:
+            found = self._search.run(sig.backend, sig.handle, args)
+        self.last_search = found
+        if found is None:
+            return Scored(sig.backend, self.scores(sig, args), self.grid, self.log_mode,
+                          sig.n_detectors, sig, raw)
+        sub, scores = self._search.neighbourhood(sig.backend, sig.handle, args, found.index)
+        return Scored(sig.backend, scores, sub, self.log_mode, sig.n_detectors, sig, raw)
+
+    def _in_grid(self, estimate):
+        """An estimate made on a sub-grid, with the best cell's centre as the whole grid
+        computes it (the sub-grid's origin differs from it by float64 rounding)."""
+        if self.last_search is None:
+            return estimate
+        g = self.grid
+        cell = np.array([o + s * i for o, s, i in zip(g.origin, g.step, self.last_search.index)])
+        shift = cell - estimate.cell_position
+        targets = [replace(t, position=t.position + shift) for t in estimate.targets]
+        return replace(estimate, cell_position=cell, targets=targets)
 
     def __call__(self, signals, *, raw=None, return_map: bool = False) -> Location:
         """Locate from filtered signals; `raw`: the same frame unfiltered, for estimators that
@@ -101,10 +156,8 @@ class Locator:
                     and sig.layout.time_axis == self.layout.time_axis, "signals",
                     "come from another wall layout or time axis than the plan's",
                     "build a Locator for this layout")
-        scores = self.scores(sig)
         raw = None if raw is None else as_signals(raw, sig.backend)
-        scored = Scored(sig.backend, scores, self.grid, self.log_mode, sig.n_detectors, sig, raw)
-        estimate = self.estimator.estimate(scored)
-        full = sig.backend.to_numpy(scores) if return_map else None
+        scored = self._scored(sig, raw, return_map)
+        estimate = self._in_grid(self.estimator.estimate(scored))
+        full = sig.backend.to_numpy(scored.scores) if return_map else None
         return Location.of(estimate, self.grid, sig.layout.truth, full, self.estimator.name)
-

@@ -4,6 +4,7 @@ line below. Backends call them by name (`backend.call("gauss_filter", ...)`, or
 `backend.gauss_filter(...)`); tests, self-check, bench and the oclgrind check walk this list."""
 from . import (add_awgn, argmax, ellipse_score, forward, gauss_filter, row_stats,
                subtract_background)
+from . import max_filter  # noqa: E402  (coarse-to-fine scoring's bound)
 from .base import Example, Operation
 
 OPERATIONS: dict[str, Operation] = {op.name: op for op in (
@@ -14,6 +15,7 @@ OPERATIONS: dict[str, Operation] = {op.name: op for op in (
     ellipse_score.OP,
     argmax.OP,
     subtract_background.OP,
+    max_filter.OP,
 )}
 
 __all__ = ["OPERATIONS", "Example", "Operation"]

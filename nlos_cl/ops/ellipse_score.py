@@ -17,6 +17,7 @@ from ..constants import LOG_FLOOR
 from .base import Example, Operation, relative_error
 
 CELLS_PER_ITEM = 8  # float8 arithmetic along x (ellipse_score.cl)
+DET_TILE = 16  # detectors per launch: their rows stay in cache while every cell reads them
 
 
 class ScoreMap:
@@ -57,9 +58,8 @@ class ScoreMap:
         return np.concatenate(parts).astype(np.float64)
 
 
-def numpy(signal, stats, spots, laser, path0, inv_dpath, grid, log_mode=False,
-          log_floor=LOG_FLOOR):
-    cells = grid.cell_centres().reshape(-1, 3)
+def _score_cells(cells, signal, stats, spots, laser, path0, inv_dpath, log_mode, log_floor):
+    """The joint likelihood of (n, 3) cell centres, float64."""
     r1 = np.linalg.norm(cells - laser, axis=1)
     signal, stats = np.asarray(signal, np.float64), np.asarray(stats, np.float64)
     n_bins = signal.shape[1]
@@ -74,20 +74,56 @@ def numpy(signal, stats, spots, laser, path0, inv_dpath, grid, log_mode=False,
         peak = stats[d, 0]
         v = np.maximum(v0 + t * (v1 - v0), 0.0) * (1.0 / peak) if peak > 0 else np.zeros_like(u)
         joint = joint + np.log(np.maximum(v, log_floor)) if log_mode else joint * v
-    return joint.reshape(grid.shape[2], grid.shape[1], grid.shape[0])
+    return joint
+
+
+def block_cells(grid, blocks, tile):
+    """Grid indices (n_blocks, tz, ty, tx, 3) of the tiles' cells, and whether each is inside."""
+    tx, ty, tz = tile
+    jz, jy, jx = np.meshgrid(np.arange(tz), np.arange(ty), np.arange(tx), indexing="ij")
+    idx = np.asarray(blocks, np.int64)[:, None, None, None, :] + np.stack([jx, jy, jz], -1)
+    return idx, np.all((idx >= 0) & (idx < np.asarray(grid.shape)), axis=-1)
+
+
+def numpy(signal, stats, spots, laser, path0, inv_dpath, grid, log_mode=False,
+          log_floor=LOG_FLOOR, blocks=None, tile=None):
+    """blocks, tile: score only tiles of tile = (tx, ty, tz) cells whose first cells are the
+    (n, 3) grid indices `blocks`, as (n, tz, ty, tx); cells outside the grid get -inf."""
+    args = (signal, stats, spots, laser, path0, inv_dpath, log_mode, log_floor)
+    if blocks is None:
+        joint = _score_cells(grid.cell_centres().reshape(-1, 3), *args)
+        return joint.reshape(grid.shape[2], grid.shape[1], grid.shape[0])
+    idx, inside = block_cells(grid, blocks, tile)
+    cells = np.asarray(grid.origin) + idx * np.asarray(grid.step)
+    joint = _score_cells(cells.reshape(-1, 3), *args).reshape(inside.shape)
+    return np.where(inside, joint, -np.inf)
+
+
+def detector_tiles(n_det: int) -> list[tuple[int, int]]:
+    """(first, stop) detectors per launch: one launch up to DET_TILE detectors, else tiles."""
+    return [(d, min(d + DET_TILE, n_det)) for d in range(0, n_det, DET_TILE)]
+
+
+def _tiled(rt, n_det, log_mode, log_floor, launch):
+    for d0, d1 in detector_tiles(n_det):
+        kern = rt.kernel("ellipse_score", launch.__name__, N_DET=d1 - d0,
+                         LOG_MODE=int(bool(log_mode)), LOG_FLOOR=f"{log_floor:.9e}f")
+        launch(kern, np.int32(d0), np.int32(d0 > 0))
 
 
 def opencl(rt, signal, stats, spots, laser, path0, inv_dpath, grid, log_mode=False,
-           log_floor=LOG_FLOOR, out=None):
+           log_floor=LOG_FLOOR, blocks=None, tile=None, out=None):
     """`out`: a ScoreMap from an earlier call on the same grid, reused (a plan's buffer)."""
     from ..runtime import float4, float4_rows
     nx, ny, nz = grid.shape
     n_det, n_bins = signal.shape
-    kern = rt.kernel("ellipse_score", "ellipse_score", N_DET=n_det,
-                     LOG_MODE=int(bool(log_mode)), LOG_FLOOR=f"{log_floor:.9e}f")
     # float32 path lengths of ~10 m round to ~1e-6 m: ~0.003 of a 1 ps (0.3 mm) bin.
     axis = rt.constant(np.stack([path0, inv_dpath], axis=1))
     spots_buf = rt.constant(float4_rows(spots))
+    common = (signal, stats, spots_buf, float4(laser), axis, np.int32(n_bins),
+              float4(grid.origin), float4(grid.step))
+    if blocks is not None:
+        return _blocks(rt, common, grid, blocks, tile, n_det, log_mode, log_floor)
     by_plane = nz > 1  # slabs of whole planes, or of rows of the single plane
     n, row_bytes = (nz, 4 * nx * ny) if by_plane else (ny, 4 * nx)
     groups = rt.groups(n, row_bytes, "a row of the score map")
@@ -97,10 +133,28 @@ def opencl(rt, signal, stats, spots, laser, path0, inv_dpath, grid, log_mode=Fal
             for a0, a1 in groups])
     for a0, score in out.slabs:
         planes, rows = score.shape[0], score.shape[1]
-        rt.run(kern, (-(-nx // CELLS_PER_ITEM), rows, planes), signal, stats, spots_buf,
-               float4(laser), axis, np.int32(n_bins), float4(grid.origin), float4(grid.step),
-               np.int32(nx), np.int32(rows), np.int32(0 if by_plane else a0),
-               np.int32(a0 if by_plane else 0), score)
+
+        def ellipse_score(kern, det0, acc):
+            rt.run(kern, (-(-nx // CELLS_PER_ITEM), rows, planes), *common, np.int32(nx),
+                   np.int32(rows), np.int32(0 if by_plane else a0),
+                   np.int32(a0 if by_plane else 0), det0, acc, score)
+        _tiled(rt, n_det, log_mode, log_floor, ellipse_score)
+    return out
+
+
+def _blocks(rt, common, grid, blocks, tile, n_det, log_mode, log_floor):
+    from pyopencl import cltypes
+    tx, ty, tz = (int(v) for v in tile)
+    first = np.zeros((len(blocks), 4), np.int32)
+    first[:, :3] = blocks
+    first_buf = rt.constant(first, np.int32)
+    out = rt.empty((len(blocks), tz, ty, tx))
+
+    def ellipse_score_blocks(kern, det0, acc):
+        rt.run(kern, (-(-tx // CELLS_PER_ITEM), ty, len(blocks) * tz), *common,
+               cltypes.make_int4(*grid.shape, 0), first_buf, cltypes.make_int4(tx, ty, tz, 0),
+               det0, acc, out)
+    _tiled(rt, n_det, log_mode, log_floor, ellipse_score_blocks)
     return out
 
 
@@ -156,9 +210,26 @@ def _bench_examples():
     return out
 
 
-def _both_modes(label, inputs, **kw):
-    return [Example(f"{label}, product", inputs, 1e-3, relative_error, **kw),
-            Example(f"{label}, log", lambda be: inputs(be, True), 3e-3, _log_error, **kw)]
+def _masked(error):
+    """Compare where the twin is finite; cells outside the grid must be -inf on both sides."""
+    def compare(device, twin):
+        inside = np.isfinite(twin)
+        if not np.array_equal(inside, np.isfinite(device)):
+            return float("inf")
+        return error(device[inside], twin[inside])
+    return compare
+
+
+def _both_modes(label, inputs, masked=False, **kw):
+    product, log = (_masked(relative_error), _masked(_log_error)) if masked else (
+        relative_error, _log_error)
+    return [Example(f"{label}, product", inputs, 1e-3, product, **kw),
+            Example(f"{label}, log", lambda be: inputs(be, True), 3e-3, log, **kw)]
+
+
+def _with_blocks(inputs, blocks, tile):
+    """The same inputs, scoring only tiles of cells (coarse-to-fine refinement)."""
+    return lambda be, log_mode=False: inputs(be, log_mode) + (np.asarray(blocks), tile)
 
 
 def examples(size):
@@ -168,24 +239,39 @@ def examples(size):
     if size == "check":
         plane = Grid.from_ranges(x=(0, 6), y=(0.01, 6), step_m=0.02)
         volume = Grid((3.0, 1.0, -0.5), (0.05, 0.05, 0.05), (41, 41, 21))
+        spad = Grid((3.0, 1.0, 0.0), (0.02, 0.02, 0.02), (101, 101, 1))
         return (_both_modes("plane 301x300", _point_target_inputs(plane))
-                + _both_modes("volume 41x41x21", _point_target_inputs(volume)))
+                + _both_modes("volume 41x41x21", _point_target_inputs(volume))
+                + _both_modes("100 detectors in tiles", _point_target_inputs(spad, n_det=100,
+                                                                          n_bins=1000))
+                + _both_modes("volume tiles of 11x11x11 cells", _with_blocks(
+                    _point_target_inputs(volume), [[0, 0, 0], [33, 33, 11], [16, 20, 5]],
+                    (11, 11, 11)), masked=True))
     plane = Grid((3.8, 1.92, 0.0), (0.02, 0.02, 0.02), (21, 5, 1))  # a partial 8-cell block
     volume = Grid((3.85, 1.94, -0.04), (0.02, 0.04, 0.04), (16, 4, 3))  # whole blocks only
     wide = Grid((2.0, 0.3, 0.0), (0.25, 0.25, 0.25), (19, 15, 1))  # paths past both record ends
     small = dict(n_bins=200)
+    # tiles: partial 8-cell rows, tiles past every grid edge, several detector tiles
+    tiles = _with_blocks(_point_target_inputs(volume, **small), [[-1, -1, -1], [10, 2, 1]],
+                         (9, 3, 2))
+    many = _point_target_inputs(plane, n_det=DET_TILE + 4, **small)
     return (_both_modes("plane 21x5", _point_target_inputs(plane, **small))
             + _both_modes("volume 16x4x3", _point_target_inputs(volume, **small))
             + _both_modes("wide 19x15 past the record", _point_target_inputs(wide, **small))
             + _both_modes("plane in 2-row slabs", _point_target_inputs(plane, **small),
                           max_alloc_bytes=2 * 4 * 21)
             + _both_modes("volume in 2-plane slabs", _point_target_inputs(volume, **small),
-                          max_alloc_bytes=2 * 4 * 16 * 4))
+                          max_alloc_bytes=2 * 4 * 16 * 4)
+            + _both_modes(f"{DET_TILE + 4} detectors: two detector tiles", many)
+            + _both_modes("tiles of 9x3x2 cells past the grid's edges", tiles, masked=True)
+            + _both_modes("tiles, two detector tiles", _with_blocks(
+                many, [[3, 1, 0], [16, 3, 0]], (8, 3, 1)), masked=True))
 
 
 OP = Operation(
     "ellipse_score", "ellipse_score", opencl, numpy, examples,
     tolerance_note="1e-3 of the peak (product) on smooth signals: a ~10 m path's fractional bin "
     "is off by ~0.003 bin in float32, times the slope per bin (< 0.05 of the peak): 1.5e-4 per "
-    "detector. Log mode 3e-3 absolute where every detector is above 1e-4 of its peak.",
+    "detector. Log mode 3e-3 absolute where every detector is above 1e-4 of its peak. Tiles "
+    "(blocks): the same, and cells outside the grid -inf on both sides.",
     bound="gathers (two 8-lane gathers of scalar loads per cell and detector)")

@@ -33,6 +33,7 @@ class Row:
     limit_spread: float = 0.0  # the probe's own spread
     note: str = ""
     limits: dict = field(default_factory=dict)
+    peers: dict = field(default_factory=dict)  # peer name -> seconds (median), same inputs
 
     @property
     def ratio(self) -> float:
@@ -55,11 +56,27 @@ def operation_rows(rt, smoke, say):
             frac, probe = fraction_of_limit(limits, ex.work, ex.unit, k)
             note = (f"twin timed on {ex.twin_fraction:.0%} of the work, scaled"
                     if ex.twin_inputs else "")
+            peers = filter_peers(twin_args) if op.name == "gauss_filter" else {}
             yield Row(op.name, ex.label, ex.work or 1.0, k,
                       statistics.median(twin_t) / ex.twin_fraction, build,
                       (ex.work or 1.0) / k, ex.unit or "calls", frac,
                       f"{op.bound}" + (f" (fraction: vs {probe} probe)" if probe else ""), mem,
-                      k_spread, limits.get(_probe_key(probe) + "_spread", 0.0), note, limits)
+                      k_spread, limits.get(_probe_key(probe) + "_spread", 0.0), note, limits,
+                      peers)
+
+
+def filter_peers(args, repeats=5) -> dict:
+    """SciPy on the host, same float32 rows and taps: overlap-add and plain FFT convolution."""
+    from scipy.signal import fftconvolve, oaconvolve
+    data = np.asarray(args[0], np.float32)
+    taps = np.asarray(args[1], np.float32)[None, ::-1]
+    times = {"scipy oaconvolve": [], "scipy fftconvolve": []}
+    for _ in range(repeats):  # interleaved
+        for name, fn in (("scipy oaconvolve", oaconvolve), ("scipy fftconvolve", fftconvolve)):
+            start = time.perf_counter()
+            fn(data, taps, mode="same", axes=1)
+            times[name].append(time.perf_counter() - start)
+    return {k: statistics.median(v) for k, v in times.items()}
 
 
 def _probe_key(probe):
@@ -129,6 +146,9 @@ def stream_rows(rt, smoke):
 def all_rows(rt, smoke=False, say=print):
     say("operations")
     rows = list(operation_rows(rt, smoke, say))
+    say("locate: coarse to fine against exhaustive and peers")
+    from .scoring import scoring_rows
+    rows.extend(scoring_rows(rt, smoke, Row))
     say("pipeline")
     rows.append(pipeline_row(rt, smoke))
     say("stream")

@@ -1,0 +1,106 @@
+"""Coarse-to-fine scoring (nlos_cl/search.py) finds the same argmax cell, with the same score and
+the same located position, as scoring every cell: on random scenes of one or two point targets
+(two targets' signals summed, near-tied included), noisy or clean, product or log scoring,
+planes and volumes, on the device and on the float64 twins."""
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import nlos_cl as nl
+from nlos_cl.plans import Locator
+from nlos_cl.search import CoarseToFine, coarse_factor
+
+SETTINGS = dict(deadline=None, derandomize=True,
+                suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+DT_S = 10e-12
+
+
+def histograms(targets, amplitudes, n_det, width_m, noise, seed, n_bins=3000):
+    """Filtered-looking rows: a Gaussian of `width_m` (path) per target at its hidden path,
+    summed, plus white noise of `noise` x the peak. The record (9 m of path) ends inside the
+    paths of the far targets: signals cut by the record's end are searched too."""
+    spots = np.array([[-0.4 - 0.35 * d, 0.0, 0.15 * (d % 3 - 1)] for d in range(n_det)])
+    axis = nl.TimeAxis(2 * 20 / nl.SPEED_OF_LIGHT, DT_S, n_bins)
+    cal = nl.PathCalibration(nl.SPEED_OF_LIGHT, np.full(n_det, -40.0))
+    centres = cal.a_m_per_s * axis.centres() - 40.0
+    data = np.zeros((n_det, n_bins))
+    for p, a in zip(targets, amplitudes):
+        path = np.linalg.norm(p) + np.linalg.norm(np.asarray(p) - spots, axis=1)
+        data += a * np.exp(-0.5 * ((centres[None, :] - path[:, None]) / width_m) ** 2)
+    rng = np.random.default_rng(seed)
+    data += noise * rng.standard_normal(data.shape)
+    return nl.HistogramSet(data, axis, spots, np.zeros(3), cal)
+
+
+def same_answer(hist, grid, backend, log_mode, width_m):
+    found = {}
+    for search in ("exhaustive", "coarse_to_fine"):
+        plan = Locator(hist.layout, grid, search=search, log_mode=log_mode, backend=backend,
+                       signal_width_m=width_m)
+        try:
+            found[search] = (plan(hist), plan.last_search)
+        except nl.InputError as exc:  # no signal reaches the grid: both must say so
+            found[search] = (str(exc), None)
+    if isinstance(found["exhaustive"][0], str):
+        assert found["exhaustive"][0] == found["coarse_to_fine"][0]
+        return None
+    (ex, _), (c2f, how) = found["exhaustive"], found["coarse_to_fine"]
+    assert np.array_equal(ex.cell_position, c2f.cell_position)
+    assert ex.score == c2f.score
+    assert np.allclose(ex.position, c2f.position, rtol=0, atol=1e-12)  # float64 rounding
+    return how
+
+
+targets = st.tuples(st.floats(2.3, 5.7), st.floats(0.6, 3.9), st.floats(-0.4, 0.4))
+
+
+@settings(max_examples=40, **SETTINGS)
+@given(first=targets, second=targets, tie=st.sampled_from([0.0, 1e-3, 0.02, 0.3, 1.0]),
+       n_det=st.integers(2, 5), width=st.floats(0.02, 0.15), noise=st.sampled_from([0.0, 0.1]),
+       log_mode=st.booleans(), volume=st.booleans(), seed=st.integers(0, 99))
+def test_coarse_to_fine_finds_the_exhaustive_argmax(runtime, first, second, tie, n_det, width,
+                                                    noise, log_mode, volume, seed):
+    """tie: the second target's amplitude is 1 - tie (0: exactly tied; 1: a single target)."""
+    hist = histograms([first, second], [1.0, 1.0 - tie], n_det, width, noise, seed)
+    grid = (nl.Grid((2.0, 0.5, -0.5), (0.03, 0.03, 0.05), (140, 120, 21)) if volume
+            else nl.Grid.from_ranges(x=(2.0, 6.0), y=(0.5, 4.0), step_m=0.01))
+    same_answer(hist, grid, runtime, log_mode, 0.065)
+
+
+@pytest.mark.parametrize("log_mode", [False, True])
+def test_on_the_twins_too(reference, log_mode):
+    hist = histograms([(4.0, 2.0, 0.0), (3.0, 3.0, 0.0)], [1.0, 0.999], 3, 0.065, 0.02, 1)
+    grid = nl.Grid.from_ranges(x=(2.5, 5.0), y=(1.0, 3.5), step_m=0.02)
+    how = same_answer(hist, grid, reference, log_mode, 0.065)
+    assert how is not None and how.cells_scored < grid.n_cells / 2
+
+
+def test_it_scores_a_small_share_of_a_fine_grid(runtime):
+    hist = histograms([(4.0, 2.0, 0.0)], [1.0], 3, 0.065, 0.02, 2, n_bins=5000)
+    grid = nl.Grid.from_ranges(x=(0.0, 6.0), y=(0.01, 6.0), step_m=6 / 2047)
+    how = same_answer(hist, grid, runtime, False, 0.065)
+    assert how.cells_scored < grid.n_cells / 50
+
+
+def test_the_coarse_step_follows_the_signal_width():
+    grid = nl.Grid.from_ranges(step_m=0.01)
+    assert coarse_factor(grid, 0.065) == 5  # (f - 1) |step| = 4 x 1.41 cm <= 6.5 cm
+    assert coarse_factor(grid, 0.02) == 1  # a narrower signal than two cells: score them all
+    assert coarse_factor(nl.Grid.from_ranges(x=(0, 0.3), y=(1, 1.3), step_m=0.01), 1.0) == 1
+    plan = CoarseToFine(grid, np.array([1 / 0.003]), 0.065)
+    assert plan.coarse.shape == (121, 120, 1)
+    # the dilation covers twice the block radius in path (bins of 3 mm), plus a bin
+    assert plan.half == int(np.ceil(2 * 2 * np.hypot(0.01, 0.01) / 0.003 + 0.01)) + 1
+
+
+def test_a_flat_map_falls_back_to_every_cell(runtime):
+    hist = histograms([(4.0, 2.0, 0.0)], [0.0], 3, 0.065, 1.0, 3)  # noise only
+    grid = nl.Grid.from_ranges(x=(2.0, 4.0), y=(1.0, 3.0), step_m=0.01)
+    same_answer(hist, grid, runtime, True, 0.065)
+
+
+def test_unknown_search_is_a_clear_error():
+    hist = histograms([(4.0, 2.0, 0.0)], [1.0], 3, 0.065, 0.0, 0)
+    with pytest.raises(nl.InputError, match="search"):
+        Locator(hist.layout, search="fast")
