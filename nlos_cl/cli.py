@@ -82,14 +82,19 @@ def _reproduce_args(p):
 
 
 def _simulate_args(p):
+    p.add_argument("scene", nargs="?", default=None,
+                   help="a scene file (YAML: docs/scene-files.md); default: the paper's scene, "
+                   "shaped by the options below")
     p.add_argument("--out", required=True, help="the .h5 file to write (atomically)")
     p.add_argument("--force", action="store_true", help="replace a file that is not a capture")
-    p.add_argument("--position", type=COORD, nargs=3, default=(4.0, 2.0, 0.0),
-                   metavar=("X", "Y", "Z"), help="target centre (m, nlos_cl's frame)")
+    p.add_argument("--position", type=COORD, nargs=3, default=None, metavar=("X", "Y", "Z"),
+                   help="the paper's target centre (m, nlos_cl's frame; default 4 2 0)")
     p.add_argument("--facet", type=_number("facet_size_m", "pass metres, e.g. 0.01",
-                                           positive=True), default=0.01, help="facet size (m)")
+                                           positive=True), default=None,
+                   help="facet size (m; default 0.01)")
     p.add_argument("--dt-ps", type=_number("time_axis.dt_s", "pass picoseconds, e.g. 10",
-                                           positive=True), default=10.0, help="bin width (ps)")
+                                           positive=True), default=None,
+                   help="bin width (ps; default 10)")
     p.add_argument("--snr-db", type=_number("snr_db", "pass decibels, e.g. 10"), default=None,
                    help="add white Gaussian noise")
     p.add_argument("--photons", action="store_true", help="photon-counting detector + TDC")
@@ -99,7 +104,7 @@ def _simulate_args(p):
     p.add_argument("--tdc-ps", type=_number("photon_counter.tdc_bin_s", "pass picoseconds, "
                                             "e.g. 50", positive=True), default=50.0,
                    help="TDC bin (ps)")
-    p.add_argument("--seed", type=SEED, default=0)
+    p.add_argument("--seed", type=SEED, default=None, help="noise seed (default 0)")
 
 
 def _locate_args(p):
@@ -148,7 +153,8 @@ COMMANDS = {
               False, "bench_cmd:main"),
     "reproduce": ("re-run an experiment of the paper (or all)", _reproduce_args, False, True,
                   "reproduce_cmd:main"),
-    "simulate": ("simulate the paper's scene into a y-tal capture", _simulate_args, True, False,
+    "simulate": ("simulate a scene file (or the paper's scene) into a y-tal capture",
+                 _simulate_args, True, False,
                  "files:simulate"),
     "locate": ("locate the target of a y-tal capture", _locate_args, True, True, "files:locate"),
     "calibrate": ("fit path = a t + b (paper Eq. 26) from pairs", _calibrate_args, False, True,

@@ -13,31 +13,55 @@ import json
 import sys
 
 
+def _paper_spec(args):
+    """The paper's scene from the command-line options, as a scene file would give it."""
+    from ..measured import PhotonCounter
+    from ..noise import AWGN
+    from ..paths import default_time_axis
+    from ..scene import paper_scene
+    from ..scenefile import SceneSpec
+    scene = paper_scene(position=tuple(args.position or (4.0, 2.0, 0.0)),
+                        facet_size_m=args.facet or 0.01)
+    noise = None
+    if args.photons:
+        noise = PhotonCounter(n_pulses=args.pulses, tdc_bin_s=args.tdc_ps * 1e-12)
+    elif args.snr_db is not None:
+        noise = AWGN(args.snr_db)
+    axis = default_time_axis(scene.setup, (args.dt_ps or 10.0) * 1e-12)
+    return SceneSpec(scene, axis, noise, args.seed or 0, "paper rectangle 0.3 m x 1.6 m")
+
+
+def _scene_spec(args):
+    from ..errors import require
+    if args.scene is None:
+        return _paper_spec(args)
+    clash = [f for f in ("position", "facet", "dt_ps", "snr_db", "seed") if getattr(args, f)
+             is not None] + (["photons"] if args.photons else [])
+    require(not clash, f"--{clash[0].replace('_', '-')}" if clash else "", "describes the "
+            "paper's scene, but a scene file was given", "put it in the scene file instead")
+    from ..scenefile import load_scene
+    return load_scene(args.scene)
+
+
 def simulate(args) -> int:
     from .. import pipeline as pl
     from ..backend import resolve_backend
     from ..capture import write_capture
-    from ..measured import PhotonCounter
-    from ..paths import default_time_axis
-    from ..scene import paper_scene
-
-    scene = paper_scene(position=tuple(args.position), facet_size_m=args.facet)
-    signals = pl.simulate(scene, default_time_axis(scene.setup, args.dt_ps * 1e-12),
-                          backend=resolve_backend(args.device))
-    if args.snr_db is not None:
-        signals = pl.add_noise(signals, args.snr_db, args.seed)
+    spec = _scene_spec(args)
+    scene = spec.scene
+    signals = pl.simulate(scene, spec.time_axis, backend=resolve_backend(args.device))
+    if spec.noise is not None:
+        signals = pl.add_noise(signals, model=spec.noise, seed=spec.seed)
     hist = signals.histograms()
-    noise = f"AWGN {args.snr_db} dB" if args.snr_db is not None else "none"
-    if args.photons:
-        counter = PhotonCounter(n_pulses=args.pulses, tdc_bin_s=args.tdc_ps * 1e-12)
-        hist = counter.counts(hist, args.seed)
-        noise = f"photon counting ({counter})"
+    noise = repr(spec.noise) if spec.noise is not None else "none"
+    truths = [[float(v) for v in t] for t in scene.truths]
     path = write_capture(args.out, hist, device_distance_m=scene.setup.device_distance_m,
-                         metadata={"scene": "paper rectangle 0.3 m x 1.6 m",
-                                   "noise": noise, "seed": args.seed}, force=args.force)
+                         metadata={"scene": spec.description or str(args.scene),
+                                   "targets": truths, "noise": noise, "seed": spec.seed},
+                         force=args.force)
     print(f"wrote {path}: {hist.n_detectors} detectors x {hist.time_axis.n_bins} bins of "
-          f"{hist.time_axis.dt_s * 1e12:g} ps, target at {[float(v) for v in scene.truth]}, "
-          f"noise: {noise}")
+          f"{hist.time_axis.dt_s * 1e12:g} ps, {len(truths)} target(s) at {truths} "
+          f"(nlos_cl's frame), noise: {noise}")
     return 0
 
 
