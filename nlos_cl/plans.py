@@ -115,6 +115,12 @@ class Locator:
 
     def scores(self, signals: Signals, args=None):
         """The grid's joint likelihood on the signals' backend (the plan's own buffer)."""
+        from .safe_io import require_memory
+        require(self.grid.n_cells < 2 ** 31, "grid", f"has {self.grid.n_cells:.3g} cells to score "
+                "as one map, more than the kernels index (2^31)", "search a smaller region or "
+                "a coarser step (search='coarse_to_fine' scores a fine grid in parts)")
+        require_memory("grid", 4.0 * self.grid.n_cells, f"scoring {self.grid.n_cells:.3g} "
+                       "cells as one map", "search a smaller region or a coarser step")
         args = self._args(signals) if args is None else args
         self._scores = signals.backend.call("ellipse_score", signals.handle, *args[:5],
                                             self.grid, *args[5:], out=self._scores)

@@ -63,7 +63,9 @@ class CoarseToFine:
         self.grid = grid
         self.factor = int(factor) if factor else coarse_factor(grid, width_m)
         f = self.factor
-        self.fa = tuple(f if n > 1 else 1 for n in grid.shape)  # per-axis factor
+        # per-axis factor; never more than the axis has cells, so every block's centre cell
+        # exists (a thin slab of a huge grid keeps its few planes)
+        self.fa = tuple(min(f, n) if n > 1 else 1 for n in grid.shape)
         shape = tuple(-(-n // fa) for n, fa in zip(grid.shape, self.fa))
         origin = tuple(o + (fa - 1) / 2 * s for o, s, fa in zip(grid.origin, grid.step, self.fa))
         self.coarse = Grid(origin, tuple(fa * s for s, fa in zip(grid.step, self.fa)), shape)
