@@ -1,26 +1,10 @@
 """Captures in y-tal's HDF5 layout (`tal.io.NLOSCaptureData`), read and written with h5py.
 
-y-tal itself is not a dependency (it pins numpy < 2); the layout is followed field by field:
-
-| y-tal field | dtype, shape | ours |
-|---|---|---|
-| H | float32, time axis first: (T, S) for H_format T_Si, (T, Sx, Sy) for T_Sx_Sy; (T, Lx, Ly, Sx, Sy) for T_Lx_Ly_Sx_Sy and (T, L, S) for T_Li_Si (several laser points; value 4, named T_Li_Si and read as (T, L, S) by y-tal 0.20's code, whose docstring still says T_Si_Li) | HistogramSet.data (detectors x bins), one set per laser point |
-| H_format | enum dataset (int32, shape (1,)): UNKNOWN 0, T_Sx_Sy 1, T_Lx_Ly_Sx_Sy 2, T_Si 3, T_Li_Si 4 | |
-| sensor_grid_xyz, sensor_grid_normals | float32 (S, 3) [N_3] or (Sx, Sy, 3) [X_Y_3] | detector_spots, flattened row-major |
-| laser_grid_xyz, laser_grid_normals | float32 (L, 3) / (3,) [N_3] or (Lx, Ly, 3) [X_Y_3] | laser_spot |
-| sensor_grid_format, laser_grid_format | enum: UNKNOWN 0, N_3 1, X_Y_3 2 | |
-| sensor_xyz, laser_xyz | float32 (3,): the devices themselves | written d metres in front of the wall |
-| delta_t, t_start | float32, metres of optical path | time_axis (seconds = metres / c); y-tal's sample k is our bin centre |
-| t_accounts_first_and_last_bounces | bool | if true, |laser_xyz - laser point| + |sensor point - sensor_xyz| is removed from the path |
-| scene_info | YAML string | kept; ours under the key `nlos_cl` (y-tal rejects unknown top-level fields, so extra metadata rides here) |
-
-Frames (nlos_cl.frames.YTAL): y-tal's wall is Z = 0, hidden space Z > 0; ours y = 0, y > 0, z up;
-(X, Y, Z) = (-x, z, y), back by (x, y, z) = (-X, Z, Y). `read_capture_with_frame` returns that
-frame with the sets, to give and report positions in the file's coordinates.
-
-Writes are atomic; reads check truncation, declared sizes against memory and the geometry.
-Several laser points give one HistogramSet each, located separately. Confocal captures are
-not supported: the ellipse model needs one laser spot per histogram set.
+The field-by-field mapping, the frames and the safety rules are in docs/captures.md. In short:
+H is time-first (T_Si, T_Sx_Sy, T_Lx_Ly_Sx_Sy, T_Li_Si), delta_t and t_start are metres of
+optical path, our metadata rides in scene_info['nlos_cl'], and y-tal's frame (wall Z = 0) maps
+to ours by (x, y, z) = (-X, Z, Y). Writes are atomic; reads check truncation, sizes and
+geometry; several laser points give one HistogramSet each; confocal captures are refused.
 """
 from __future__ import annotations
 
@@ -55,18 +39,23 @@ def write_capture(path, histograms: HistogramSet, *, device_distance_m: float = 
     from .safe_io import atomic_write
 
     h = histograms
-    offsets = h.calibration.offsets(h.n_detectors)
-    require(bool(np.allclose(offsets, offsets[0], rtol=0, atol=1e-9)), "calibration.b_m",
-            "differs between detectors, but a y-tal capture has a single t_start",
-            "write one file per group of detectors that share an offset")
-    require(isinstance(device_distance_m, (int, float)) and 0 < device_distance_m < math.inf,
-            "device_distance_m", f"must be a positive distance, got {device_distance_m!r}", "20.0")
+    check_writable(h, device_distance_m)
 
     def write(tmp):
         with h5py.File(tmp, "w") as f:
             _write_fields(f, h, device_distance_m, metadata, compression)
     return atomic_write(path, write, keep_unless=_is_capture, force=force, what="capture",
                         kind="an HDF5 capture (nlos_cl's or y-tal's)")
+
+
+def check_writable(h: HistogramSet, device_distance_m) -> None:
+    """What a y-tal capture can hold: one t_start for all detectors, a positive distance."""
+    offsets = h.calibration.offsets(h.n_detectors)
+    require(bool(np.allclose(offsets, offsets[0], rtol=0, atol=1e-9)), "calibration.b_m",
+            "differs between detectors, but a y-tal capture has a single t_start",
+            "write one file per group of detectors that share an offset")
+    require(isinstance(device_distance_m, (int, float)) and 0 < device_distance_m < math.inf,
+            "device_distance_m", f"must be a positive distance, got {device_distance_m!r}", "20.0")
 
 
 def _write_fields(f, h: HistogramSet, device_distance_m, metadata, compression):

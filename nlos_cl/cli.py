@@ -1,4 +1,4 @@
-"""The `nlos-cl` command: info, demo, bench, reproduce, simulate, locate, calibrate.
+"""The `nlos-cl` command: info, demo, bench, reproduce, simulate, locate, calibrate, track.
 
 A thin argparse layer: every command's work lives in nlos_cl/apps, imported only when that
 command runs, so `nlos-cl --help` and `nlos-cl locate` pay for no import they do not use.
@@ -139,6 +139,32 @@ def _estimator_args(p):
                    help="targets to fit (model estimator): a count, or 'auto' (by BIC)")
 
 
+def _track_args(p):
+    p.add_argument("file", help="a sequence (or capture) .h5 file: docs/tracking.md")
+    p.add_argument("--video", default=None, help="write an animation (.gif, or .mp4 with ffmpeg)")
+    p.add_argument("--estimator", choices=["paper", "model"], default="paper",
+                   help="per-frame estimator (paper: fast; model: centre and covariance)")
+    p.add_argument("--targets", type=_number("targets", "pass a count, e.g. 1", minimum=1,
+                                             integer=True), default=1, help="targets to follow")
+    p.add_argument("--region", type=_number("region", "pass finite ranges in metres"), nargs=6,
+                   default=None, metavar=("A0", "A1", "B0", "B1", "C0", "C1"),
+                   help="search ranges along the file's axes (default: what the capture sees)")
+    p.add_argument("--step", type=_number("grid.step", "pass metres, e.g. 0.01", positive=True),
+                   default=None, help="grid step (m) with --region")
+    p.add_argument("--h-ns", type=H_NS, default=0.65, help="Gauss filter window h (ns)")
+    p.add_argument("--background", default=None, help="a target-free capture to subtract")
+    p.add_argument("--running-mean", type=_number("running_mean", "pass a weight in (0, 1], "
+                                                  "e.g. 0.05", positive=True), default=None,
+                   metavar="ALPHA", help="subtract a running mean of past frames (weight ALPHA)")
+    p.add_argument("--accel", type=_number("accel", "pass m/s^2, e.g. 0.5", positive=True),
+                   default=0.5, help="motion noise of the constant-velocity model (m/s^2)")
+    p.add_argument("--max-frames", type=_number("max_frames", "pass a count", minimum=1,
+                                                integer=True), default=None,
+                   help="track the first N frames")
+    p.add_argument("--force", action="store_true", help="replace an existing --video file")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
 def _calibrate_args(p):
     p.add_argument("pairs", help="CSV rows: known free-space path (m), peak time (s)")
 
@@ -159,6 +185,8 @@ COMMANDS = {
     "locate": ("locate the target of a y-tal capture", _locate_args, True, True, "files:locate"),
     "calibrate": ("fit path = a t + b (paper Eq. 26) from pairs", _calibrate_args, False, True,
                   "files:calibrate"),
+    "track": ("track hidden objects through a sequence of frames (Kalman tracks)", _track_args,
+              True, True, "track:main"),
 }
 
 

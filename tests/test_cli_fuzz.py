@@ -26,6 +26,10 @@ FLAGS = [
     (["locate", "IN"], "--step", 1, "positive"),
     (["locate", "IN"], "--h-ns", 1, "positive"),
     (["locate", "IN"], "--region", 6, "finite"),
+    (["track", "IN"], "--accel", 1, "positive"),
+    (["track", "IN"], "--running-mean", 1, "positive"),
+    (["track", "IN"], "--max-frames", 1, "seed1"),
+    (["track", "IN"], "--region", 6, "finite"),
 ]
 NOT_NUMBERS = st.sampled_from(["nan", "inf", "-inf", "1e999", "abc", "", "0x", "1,5", "--"])
 REFUSED = {

@@ -1,0 +1,259 @@
+"""`Tracker`: hidden targets followed over frames, with identities.
+
+Per frame: (background removal) -> nl.GaussFilter -> nl.Locator (plans built once) -> the
+estimator's targets become measurements (nlos_cl.tracking.kalman.measurement) -> every live
+track is predicted to the frame's time with the constant-velocity model -> tracks and
+measurements are paired by SciPy's linear_sum_assignment on the squared Mahalanobis distance,
+pairs beyond the gate (chi-square quantile `gate_probability`) refused -> paired tracks are
+updated, the others coast on their prediction -> measurements left over start tentative tracks
+(while fewer than `max_tracks` are alive). A tentative track is confirmed after M hits in its
+first N frames (`confirm=(M, N)`) and deleted if it is not; a confirmed track is deleted after
+`max_misses` frames in a row without a measurement. Identities survive crossings because the
+assignment compares measurements with each track's *predicted* position and covariance.
+"""
+from __future__ import annotations
+
+import itertools
+import math
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..constants import PAPER_H_S
+from ..errors import InputError, require
+from . import kalman
+from .kalman import ConstantVelocity
+
+NO_SIGNAL = "no cell has a non-zero likelihood"
+
+
+@dataclass
+class Track:
+    """A followed target. state: (p, v) (2d,), covariance (2d, 2d); status 'tentative',
+    'confirmed' or 'deleted'; history: (frame, t_s, x, y, z, measured) per frame since birth."""
+
+    id: int
+    state: np.ndarray
+    covariance: np.ndarray
+    plane_z: float
+    status: str = "tentative"
+    hits: int = 1
+    misses: int = 0
+    age: int = 1
+    t_s: float = 0.0
+    history: deque = field(default_factory=deque)
+
+    @property
+    def dims(self) -> int:
+        return len(self.state) // 2
+
+    @property
+    def position(self) -> np.ndarray:
+        p = np.full(3, self.plane_z)
+        p[:self.dims] = self.state[:self.dims]
+        return p
+
+    @property
+    def velocity(self) -> np.ndarray:
+        v = np.zeros(3)
+        v[:self.dims] = self.state[self.dims:]
+        return v
+
+    @property
+    def position_covariance(self) -> np.ndarray:
+        """(3, 3) m^2; a 2D track's z is not estimated: infinite variance, no correlation."""
+        d, c = self.dims, np.zeros((3, 3))
+        c[:d, :d] = self.covariance[:d, :d]
+        if d == 2:
+            c[2, 2] = math.inf
+        return c
+
+
+class Tracker:
+    """`Tracker(layout, grid, estimator='paper'|'model'|object, motion=ConstantVelocity())`;
+    `update(frame, t_s=None) -> list[Track]` (the live tracks, confirmed and tentative).
+
+    layout: a nl.Layout or anything with `.layout` (HistogramSet, Signals, a read Sequence).
+    frame: a HistogramSet (uploaded) or Signals, unfiltered. t_s: the frame's time (default:
+    the previous one + frame_interval_s). background: a BackgroundRemover or None. max_tracks:
+    how many targets may be followed at once (the model estimator finds several with
+    estimator=ModelEstimator(targets=K)). See the module docstring for the rest."""
+
+    def __init__(self, layout, grid=None, *, estimator="paper", motion=None,
+                 h_s: float = PAPER_H_S, log_mode: bool | None = None, background=None,
+                 max_tracks: int = 1, gate_probability: float = 0.999,
+                 fallback_sigma_m: float = 0.05, min_sigma_m: float = 0.002,
+                 confirm=(2, 3), max_misses: int = 5, frame_interval_s: float = 0.1,
+                 max_history: int | None = None, backend=None, search="coarse_to_fine"):
+        from ..grid import Grid
+        from ..plans import GaussFilter, Locator
+        layout = getattr(layout, "layout", layout)
+        grid = Grid() if grid is None else grid
+        motion = ConstantVelocity() if motion is None else motion
+        require(isinstance(motion, ConstantVelocity), "motion", f"expected a ConstantVelocity,"
+                f" got {type(motion).__name__}", "pass ConstantVelocity(accel_sigma=0.5)")
+        _check_options(max_tracks, gate_probability, fallback_sigma_m, min_sigma_m, confirm,
+                       max_misses, frame_interval_s)
+        log_mode = layout.n_detectors > 4 if log_mode is None else bool(log_mode)
+        self.gauss = GaussFilter(h_s, layout.time_axis, backend=backend)
+        self.locator = Locator(layout, grid, estimator=estimator, log_mode=log_mode,
+                               backend=backend, search=search)
+        self.layout, self.grid, self.motion, self.background = layout, grid, motion, background
+        self.dims = motion.dims or (3 if grid.shape[2] > 1 else 2)
+        self.plane_z = float(grid.origin[2] + 0.5 * (grid.shape[2] - 1) * grid.step[2])
+        self.max_tracks, self.gate_probability = int(max_tracks), float(gate_probability)
+        self.fallback_sigma_m, self.min_sigma_m = float(fallback_sigma_m), float(min_sigma_m)
+        self.confirm, self.max_misses = (int(confirm[0]), int(confirm[1])), int(max_misses)
+        self.frame_interval_s, self.max_history = float(frame_interval_s), max_history
+        self.backend = backend
+        from ..layouts import height_observable
+        self.height_observable = height_observable(layout.laser_spot, layout.detector_spots)
+        self.tracks: list[Track] = []  # live
+        self.finished: list[Track] = []  # deleted, most recent last (at most 100 kept)
+        self.frame_index, self.t_s = -1, None
+        self.last_location, self.last_measurements = None, []
+        self._ids = itertools.count(1)
+
+    # ------------------------------------------------------------------ per frame
+    def update(self, frame, t_s: float | None = None) -> list[Track]:
+        """Locate in `frame` and advance every track to its time."""
+        t = self._next_time(t_s)
+        return self.step(self.measure(frame), t)
+
+    def step(self, measurements, t_s: float | None = None) -> list[Track]:
+        """Advance the tracks with given measurements: kalman.Measurements or LocatedTargets
+        (positions with or without covariance), e.g. from another localization pipeline."""
+        t = self._next_time(t_s)
+        measurements = [m if isinstance(m, kalman.Measurement) else kalman.measurement(
+            m, self.dims, fallback_sigma_m=self.fallback_sigma_m, min_sigma_m=self.min_sigma_m,
+            height_observable=self.height_observable) for m in measurements]
+        self.frame_index += 1
+        for track in self.tracks:
+            self._predict(track, t)
+        pairs, free = self._assign(measurements)
+        for track, m in pairs:
+            track.state, track.covariance = kalman.update(track.state, track.covariance, m)
+        paired = {id(tr) for tr, _ in pairs}
+        for track in list(self.tracks):
+            self._account(track, id(track) in paired)
+        for m in free:
+            if len(self.tracks) < self.max_tracks:
+                self.tracks.append(self._birth(m, t))
+        self.t_s = t
+        return list(self.tracks)
+
+    def measure(self, frame) -> list:
+        """The frame's located targets as Kalman measurements ([] if it holds no signal)."""
+        from ..signals import as_signals
+        sig = as_signals(frame, self.backend)
+        if self.background is not None:
+            sig = self.background(sig)
+            if getattr(self.background, "alpha", 0) > 0 and self.background.frames_seen == 1:
+                self.last_location, self.last_measurements = None, []
+                return []  # a running mean's first frame: nothing learnt to subtract yet
+        try:
+            location = self.locator(self.gauss(sig), raw=sig)
+        except InputError as exc:
+            if NO_SIGNAL not in str(exc):
+                raise
+            location = None
+        targets = [] if location is None else location.targets
+        self.last_location = location
+        self.last_measurements = [kalman.measurement(
+            tg, self.dims, fallback_sigma_m=self.fallback_sigma_m, min_sigma_m=self.min_sigma_m,
+            height_observable=self.height_observable) for tg in targets]
+        return self.last_measurements
+
+    # ------------------------------------------------------------------ pieces
+    def _next_time(self, t_s):
+        if t_s is None:
+            return 0.0 if self.t_s is None else self.t_s + self.frame_interval_s
+        require(isinstance(t_s, (int, float, np.floating)) and math.isfinite(float(t_s))
+                and (self.t_s is None or float(t_s) > self.t_s), "t_s",
+                f"must be a finite time after the previous frame's ({self.t_s}), got {t_s!r}",
+                "pass increasing frame timestamps in seconds")
+        return float(t_s)
+
+    def _predict(self, track: Track, t: float):
+        dt = t - track.t_s
+        d = track.dims
+        track.state, track.covariance = kalman.predict(
+            track.state, track.covariance, self.motion.transition(dt, d),
+            self.motion.process_noise(dt, d))
+        track.t_s = t
+
+    def _assign(self, measurements):
+        """(track, measurement) pairs inside the gate, and the measurements left over."""
+        if not self.tracks or not measurements:
+            return [], list(measurements)
+        from scipy.optimize import linear_sum_assignment
+        big = 1e12
+        cost = np.full((len(self.tracks), len(measurements)), big)
+        for i, tr in enumerate(self.tracks):
+            for j, m in enumerate(measurements):
+                d2 = kalman.mahalanobis2(tr.state, tr.covariance, m)
+                if d2 <= kalman.gate_threshold(self.gate_probability, len(m.axes)):
+                    cost[i, j] = d2
+        rows, cols = linear_sum_assignment(cost)
+        pairs = [(self.tracks[i], measurements[j]) for i, j in zip(rows, cols)
+                 if cost[i, j] < big]
+        used = {id(m) for _, m in pairs}
+        return pairs, [m for m in measurements if id(m) not in used]
+
+    def _account(self, track: Track, hit: bool):
+        """Hits and misses, confirmation and deletion; the history point."""
+        track.age += 1
+        track.hits += hit
+        track.misses = 0 if hit else track.misses + 1
+        m, n = self.confirm
+        if track.status == "tentative" and track.hits >= m:
+            track.status = "confirmed"
+        elif track.status == "tentative" and track.age >= n:
+            track.status = "deleted"
+        elif track.status == "confirmed" and track.misses > self.max_misses:
+            track.status = "deleted"
+        self._remember(track, hit)
+        if track.status == "deleted":
+            self.tracks.remove(track)
+            self.finished = (self.finished + [track])[-100:]
+
+    def _remember(self, track: Track, measured: bool):
+        p = track.position
+        track.history.append((self.frame_index, track.t_s, float(p[0]), float(p[1]),
+                              float(p[2]), bool(measured)))
+
+    def _birth(self, m, t) -> Track:
+        d = self.dims
+        x, P = np.zeros(2 * d), np.zeros((2 * d, 2 * d))
+        x[:d] = np.asarray(m.position[:d])
+        if d == 3 and 2 not in m.axes:  # height not measured: start on the grid's middle
+            x[2] = self.plane_z
+        P[:d, :d] = np.diag(np.full(d, 4.0))  # unmeasured axes: +-2 m, the scale of a room
+        P[np.ix_(m.axes, m.axes)] = m.R
+        P[d:, d:] = self.motion.initial_speed_sigma ** 2 * np.eye(d)
+        track = Track(next(self._ids), x, P, self.plane_z, t_s=t,
+                      history=deque(maxlen=self.max_history))
+        if self.confirm[0] <= 1:
+            track.status = "confirmed"
+        self._remember(track, True)
+        return track
+
+
+def _check_options(max_tracks, gate_probability, fallback_sigma_m, min_sigma_m, confirm,
+                   max_misses, frame_interval_s):
+    def positive(v, name, example, integer=False):
+        ok = isinstance(v, (int, np.integer)) if integer else isinstance(v, (int, float))
+        require(ok and not isinstance(v, bool) and math.isfinite(v) and v > 0, name,
+                f"must be a positive {'integer' if integer else 'number'}, got {v!r}",
+                f"pass e.g. {example}")
+    positive(max_tracks, "max_tracks", 1, integer=True)
+    positive(fallback_sigma_m, "fallback_sigma_m", 0.05)
+    positive(min_sigma_m, "min_sigma_m", 0.002)
+    positive(max_misses, "max_misses", 5, integer=True)
+    positive(frame_interval_s, "frame_interval_s", 0.1)
+    require(isinstance(gate_probability, float) and 0 < gate_probability < 1,
+            "gate_probability", f"must be in (0, 1), got {gate_probability!r}", "pass 0.999")
+    require(isinstance(confirm, (tuple, list)) and len(confirm) == 2
+            and all(isinstance(v, int) and v >= 1 for v in confirm) and confirm[0] <= confirm[1],
+            "confirm", f"must be (M, N) with 1 <= M <= N, got {confirm!r}", "pass (2, 3)")
