@@ -62,6 +62,8 @@ def _demo_args(p):
                    metavar=("X", "Y", "Z"), help="target centre (m)")
     p.add_argument("--estimator", choices=["model", "paper"], default="model",
                    help="whose answer heads the output (both are run and shown)")
+    p.add_argument("--track", action="store_true", help="a short tracking demonstration: the "
+                   "target walks a line over 30 frames, located per frame and Kalman-tracked")
 
 
 def _bench_args(p):

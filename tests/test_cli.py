@@ -30,3 +30,11 @@ def test_demo_json_locates_the_paper_target(tmp_path):
 def test_bad_argument_is_a_clear_error():
     out = run("demo", "--json", "--h-ns", "-1", "--png", "")
     assert out.returncode == 2 and "h_s" in out.stderr and "Fix:" in out.stderr
+
+
+def test_demo_track_json_tracks_the_walk():
+    out = run("demo", "--track", "--estimator", "paper", "--json")
+    assert out.returncode == 0, out.stderr
+    result = json.loads(out.stdout)
+    assert result["frames"] == 30 and result["tracked_rms_m"] < 0.10
+    assert abs(result["final_position"][0] - result["final_truth"][0]) < 0.15

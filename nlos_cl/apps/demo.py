@@ -81,6 +81,8 @@ def _check_png(path_text: str) -> None:
 def run(args) -> int:
     from ..backend import resolve_backend
     from ..grid import Grid
+    if args.track:
+        return run_track(args)
     if args.png:
         _check_png(args.png)
     backend = resolve_backend("reference" if args.reference else args.device)
@@ -107,4 +109,59 @@ def run(args) -> int:
         print(json.dumps(result))
     else:
         _print_text(args, result, scene, grid, cold, warm)
+    return 0
+
+
+def run_track(args) -> int:
+    """`nlos-cl demo --track`: the paper's target walking a straight line (30 frames at 10 Hz,
+    10 dB), simulated on the device, located per frame and tracked by a Kalman filter."""
+    import numpy as np
+
+    from ..constants import SPEED_OF_LIGHT
+    from ..grid import Grid
+    from ..meshes import rectangle
+    from ..noise import AWGN
+    from ..paths import TimeAxis
+    from ..scene import Target, paper_setup
+    from ..tracking import MovingTarget, Tracker, Trajectory, simulate_sequence
+    setup, n_frames = paper_setup(), 30
+    walk = MovingTarget(Target(rectangle(centre=(3.0, 1.5, 0.0), cell_m=0.02)),
+                        Trajectory([0.0, 2.9], [[3.0, 1.5, 0.0], [4.5, 3.0, 0.0]]))
+    axis = TimeAxis(40 / SPEED_OF_LIGHT, 10e-12, 4096)
+    frames = simulate_sequence(setup, [walk], n_frames=n_frames, fps=10, time_axis=axis,
+                               noise=AWGN(args.snr_db), seed=args.seed)
+    grid = Grid.from_ranges(x=(1.5, 6), y=(0.5, 4.5), step_m=0.01)
+    tracker = None  # built on the first frame's layout
+    raw, tracked, truth, start = [], [], [], time.perf_counter()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        for frame in frames:
+            if tracker is None:
+                tracker = Tracker(frame.signals.layout, grid, estimator=args.estimator,
+                                  frame_interval_s=0.1)
+            tracks = tracker.update(frame.signals, frame.t_s)
+            loc = tracker.last_location
+            raw.append(loc.position if loc is not None else np.full(3, np.nan))
+            live = [t for t in tracks if t.status == "confirmed"]
+            tracked.append(live[0].position if live else np.full(3, np.nan))
+            truth.append(frame.truths[0])
+    wall = time.perf_counter() - start
+    notes = sorted({str(w.message) for w in caught})
+    raw, tracked, truth = map(np.asarray, (raw, tracked, truth))
+    def rms(p):
+        return float(np.sqrt(np.nanmean(np.sum((p[5:] - truth[5:]) ** 2, axis=1))))
+    result = {"frames": n_frames, "estimator": args.estimator,
+              "per_frame_rms_m": round(rms(raw), 4), "tracked_rms_m": round(rms(tracked), 4),
+              "frames_per_s": round(n_frames / wall, 1),
+              "final_position": [round(float(v), 4) for v in tracked[-1]],
+              "final_truth": [round(float(v), 4) for v in truth[-1]], "warnings": notes}
+    if args.json:
+        print(json.dumps(result))
+    else:
+        print(f"tracked the paper's target over {n_frames} frames ({args.estimator} estimator, "
+              f"{args.snr_db} dB): per-frame RMS {result['per_frame_rms_m']:.3f} m, tracked RMS "
+              f"{result['tracked_rms_m']:.3f} m (after frame 5), {result['frames_per_s']} frames/s "
+              "including simulation")
+        for note in notes:
+            print(f"note: {note}")
     return 0
