@@ -22,6 +22,8 @@
 // order of the additions, so the result is bit-identical run after run.
 //
 // Build options: -D CHUNK=<facets per chunk> [-D REFLECTANCE_FACTOR(n, to_laser, to_detector)=...]
+// (with the GGX model also -D GGX_A2, GGX_KD, GGX_KS). Occlusion (nlos_cl/visibility.py) comes
+// as a per-(detector, facet) mask: a facet that does not see both spots sends nothing.
 
 #include "common.h"
 
@@ -31,12 +33,32 @@
 #define REFLECTANCE_FACTOR(n, to_laser, to_detector) 1.0f
 #endif
 
+#ifdef GGX_A2
+// GGX microfacet lobe over a diffuse base (nlos_cl.reflectance.GGX): f / scale =
+// KD + KS a^2 / ((n.h)^2 (a^2 - 1) + 1)^2 G1(l) G1(v) / (4 cos_l cos_v); called only where
+// both cosines are positive.
+inline float ggx_g1(const float c)
+{
+    return 2.0f / (1.0f + sqrt(1.0f + GGX_A2 * (1.0f - c * c) / (c * c)));
+}
+
+inline float ggx_factor(const float3 n, const float3 l, const float3 v)
+{
+    const float cl = dot(n, l), cv = dot(n, v);
+    const float ch = dot(n, normalize(l + v));
+    const float den = fma(ch * ch, GGX_A2 - 1.0f, 1.0f);
+    return GGX_KD + GGX_KS * GGX_A2 / (den * den) * ggx_g1(cl) * ggx_g1(cv) / (4.0f * cl * cv);
+}
+#endif
+
 __kernel void facet_paths(__global const float4 *centres,  // xyz of each facet
                           __global const float4 *normals,  // unit normal xyz, w = area (m^2)
                           const int n_facets,
                           __global const float4 *spots,    // detector spots on the wall
                           const float4 laser,              // laser spot O
                           const int det0,                  // first detector of this group
+                          __global const uchar *visible,   // [n_det][n_facets] if has_visible
+                          const int has_visible,           // 0: every facet sees both spots
                           __global float *path,            // [group][n_chunks * CHUNK]
                           __global float *weight,          // [group][n_chunks * CHUNK]
                           __global float4 *chunk_range)    // [group][n_chunks]: min, max path, weight sum
@@ -63,7 +85,8 @@ __kernel void facet_paths(__global const float4 *centres,  // xyz of each facet
             const float cos_a2 = dot(nw.xyz, v2) / r2;
             const float cos_a1 = fabs(v1.y) / r1;  // the wall's normal is +y
             const float cos_b2 = fabs(v2.y) / r2;
-            if (cos_b1 > 0.0f && cos_a2 > 0.0f) {
+            const int seen = !has_visible || visible[(det0 + det) * n_facets + f];
+            if (cos_b1 > 0.0f && cos_a2 > 0.0f && seen) {
                 g = cos_a1 * cos_b1 * cos_a2 * cos_b2 * nw.w / (r1 * r1 * r2 * r2)
                     * REFLECTANCE_FACTOR(nw.xyz, -v1 / r1, v2 / r2);
                 lo = fmin(lo, s);

@@ -82,11 +82,55 @@ def box(extents=(0.3, 0.3, 1.6), centre=(4.0, 2.0, 0.0), cell_m: float = 0.01) -
     return trimesh.util.concatenate(parts)
 
 
-def sphere(radius_m: float = 0.2, centre=(4.0, 2.0, 0.0), subdivisions: int = 4) -> trimesh.Trimesh:
+# an icosphere's longest edge / radius at level 0; projecting the midpoints onto the sphere
+# stretches the longest edges of level k to ~1.2 x this / 2^k: 1.25 bounds them
+ICOSAHEDRON_EDGE = 1.25 * 4.0 / math.sqrt(10.0 + 2.0 * math.sqrt(5.0))
+MAX_SPHERE_LEVEL = 9  # 5.2 M faces
+
+
+def sphere_level(radius_m: float, facet_size_m: float) -> int:
+    """The icosphere subdivision level whose longest edge is at most `facet_size_m`: its chord
+    error (sagitta, the flat faces' distance below the sphere) is then at most
+    facet_size_m^2 / (8 radius_m) (1 cm facets on a 0.2 m sphere: 0.06 mm)."""
+    level = math.ceil(math.log2(max(ICOSAHEDRON_EDGE * radius_m / facet_size_m, 1.0)) - 1e-9)
+    require(level <= MAX_SPHERE_LEVEL, "sphere.facet_size_m", f"{facet_size_m:.3g} m facets on "
+            f"a {radius_m:.3g} m sphere need subdivision level {level}",
+            f"use facet_size_m >= {ICOSAHEDRON_EDGE * radius_m / 2 ** MAX_SPHERE_LEVEL:.2g}")
+    return max(level, 0)
+
+
+def sphere(radius_m: float = 0.2, centre=(4.0, 2.0, 0.0), subdivisions: int | None = None,
+           facet_size_m: float = 0.01) -> trimesh.Trimesh:
+    """An icosphere whose edges are at most `facet_size_m` (vertices on the sphere, so the
+    chord error is bounded: see `sphere_level`); `subdivisions` fixes the level instead."""
     require(radius_m > 0, "sphere.radius_m", f"must be positive, got {radius_m}", "pass metres")
-    mesh = trimesh.creation.icosphere(subdivisions=subdivisions, radius=radius_m)
+    require(math.isfinite(facet_size_m) and facet_size_m > 0, "sphere.facet_size_m",
+            f"must be a positive length in metres, got {facet_size_m!r}", "pass e.g. 0.01")
+    level = sphere_level(radius_m, facet_size_m) if subdivisions is None else int(subdivisions)
+    mesh = trimesh.creation.icosphere(subdivisions=level, radius=radius_m)
     mesh.apply_translation(np.asarray(centre, float))
     return mesh
+
+
+def l_block(size_m=(0.6, 0.4, 0.6), notch_m=(0.3, 0.3), centre=(2.0, 2.0, 0.0)
+            ) -> trimesh.Trimesh:
+    """A concave L-shaped block: a box of `size_m` with a `notch_m` (x, y) corner cut away
+    over its full height (the notch at +x, -y: it opens towards the wall side), closed and
+    outward-facing (20 triangles: Target.facets cuts it); the test shape for self-occlusion."""
+    sx, sy, sz = (float(v) for v in size_m)
+    nx, ny = (float(v) for v in notch_m)
+    require(0 < nx < sx and 0 < ny < sy and sz > 0, "l_block", "the notch must be smaller than "
+            "the block", "pass e.g. size_m=(0.6, 0.4, 0.6), notch_m=(0.3, 0.3)")
+    c = np.asarray(centre, float)
+    ring = np.array([[0, 0], [sx - nx, 0], [sx - nx, ny], [sx, ny], [sx, sy], [0, sy]])
+    ring = ring - [sx / 2, sy / 2]
+    bottom = np.column_stack([ring, np.full(6, -sz / 2)])
+    top = np.column_stack([ring, np.full(6, sz / 2)])
+    cap = np.array([[0, 1, 2], [0, 2, 5], [2, 3, 4], [2, 4, 5]])  # the L, counter-clockwise
+    sides = [[i, (i + 1) % 6, 6 + (i + 1) % 6] for i in range(6)]
+    sides += [[i, 6 + (i + 1) % 6, 6 + i] for i in range(6)]
+    faces = np.concatenate([cap[:, ::-1], cap + 6, np.array(sides)])
+    return trimesh.Trimesh(np.concatenate([bottom, top]) + c, faces, process=True)
 
 
 def load_mesh(path, *, position=None) -> trimesh.Trimesh:

@@ -26,6 +26,8 @@ from .signals import Signals, as_signals
 def simulate(scene, time_axis: TimeAxis | None = None, *, backend=None) -> Signals:
     """Paper Eq. 19-21: each facet's Gaussian pulse, delayed by (2 d + r1 + r2) / c and
     attenuated by the BRDFs, four cosines and 1 / (r1^2 r2^2), integrated over every time bin.
+    Facets that do not see the laser spot and a detector spot (scene.visibility) send nothing
+    to it; with setup.finite_spots the signal is the mean over quadrature points of both disks.
     The result is the mean power per bin in watts (as `scale_w` * device values)."""
     from .scene import Scene  # trimesh: only when simulating
     require(isinstance(scene, Scene), "scene", f"expected a nlos_cl.Scene, got "
@@ -46,14 +48,18 @@ def simulate(scene, time_axis: TimeAxis | None = None, *, backend=None) -> Signa
     watts = 0.5 * setup.pulse.energy_j / axis.dt_s  # W per unit of kernel value and power scale
     total, scale = None, None
     for i, target in enumerate(scene.targets):  # third-order light: the targets' signals add
-        hist, span = backend.call("forward", scene.facets(i), setup.detector_spots,
-                                  setup.laser_spot, paths.start_m, paths.step_m, sigma_path,
-                                  axis.n_bins, target.reflectance)
+        hist, span = _target_signal(backend, scene, i, paths, sigma_path, axis.n_bins)
         field = "scene.target" if i == 0 else f"scene.more_targets[{i - 1}]"
-        if not np.all(np.isfinite(span)):
+        dark = ~np.all(np.isfinite(span), axis=1)
+        if dark.any() and scene.visibility(i) is None:
             raise InputError(f"{field}: no facet faces both the laser spot and a detector spot, "
                              "so nothing returns to the wall. Fix: turn the target towards the "
                              "wall (one-sided rectangles light only on their normal's side)")
+        if dark.any():  # shadowed by the scene for these detectors: nothing to check there
+            warnings.warn(f"{field} is hidden from detector(s) {np.flatnonzero(dark).tolist()}"
+                          " by the scene (occlusion): it sends them nothing", stacklevel=2)
+            mid = 0.5 * (paths.start_m + paths.stop_m)
+            span = np.where(dark[:, None], mid[:, None], span)
         _check_window(axis, paths, span, sigma_path)
         own = watts * setup.power_scale(target.reflectance.scale)
         if total is None:
@@ -61,6 +67,28 @@ def simulate(scene, time_axis: TimeAxis | None = None, *, backend=None) -> Signa
         else:  # in the first target's units (a device-side axpy on OpenCL)
             total = total + hist * (own / scale)
     return Signals(backend, total, scale, layout)
+
+
+def _target_signal(backend, scene, i, paths, sigma_path, n_bins):
+    """Target i's histograms: one forward call per pair of spot quadrature points (one call
+    for point spots), weighted and summed; the span is the union of the calls' spans."""
+    setup, target = scene.setup, scene.targets[i]
+    lasers, laser_w, offsets, spot_w = setup.spot_samples()
+    args = (paths.start_m, paths.step_m, sigma_path, n_bins, target.reflectance)
+    visible = scene.visibility(i)
+    total, spans = None, []
+    for laser, wl in zip(lasers, laser_w):
+        for offset, wd in zip(offsets, spot_w):
+            hist, span = backend.call("forward", scene.facets(i), setup.detector_spots + offset,
+                                      laser, *args, "deposit", visible)
+            spans.append(span)
+            w = float(wl * wd)
+            if total is None:
+                total = hist if w == 1.0 else hist * w
+            else:
+                total = total + hist * w
+    spans = np.stack(spans)
+    return total, np.stack([spans[..., 0].min(axis=0), spans[..., 1].max(axis=0)], axis=1)
 
 
 def _check_window(axis: TimeAxis, paths: PathAxis, span, sigma_path):

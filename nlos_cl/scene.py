@@ -72,6 +72,7 @@ class Setup:
     aperture_area_m2: float = _disc_area(0.0254)
     wall_brdf: float = 0.2579
     pulse: Pulse = field(default_factory=Pulse)
+    finite_spots: bool = False  # True: the spots are disks of the diameters above
 
     def __post_init__(self):
         laser = as_point(self.laser_spot, "setup.laser_spot")
@@ -101,6 +102,9 @@ class Setup:
             require(isinstance(value, (int, float)) and math.isfinite(value) and value > 0,
                     f"setup.{name}", f"must be a positive finite number, got {value!r}",
                     "pass a positive value in SI units")
+        require(isinstance(self.finite_spots, (bool, np.bool_)), "setup.finite_spots",
+                f"must be true or false, got {self.finite_spots!r}",
+                "pass True for disk spots, False for the paper's point spots")
         laser.flags.writeable = False
         spots.flags.writeable = False
         object.__setattr__(self, "laser_spot", laser)
@@ -109,6 +113,21 @@ class Setup:
     @property
     def n_detectors(self) -> int:
         return self.detector_spots.shape[0]
+
+    def spot_samples(self):
+        """The spots as quadrature points: (laser points (L, 3), laser weights (L,), detector
+        offsets (J, 3), detector weights (J,)). Point spots: one point of weight 1 each.
+        Finite spots: each disk (in the wall plane, x and z) by the 7-point rule exact for
+        polynomials of degree 5 over a disk (Stroud S2:5-2: the centre 1/4, six points at
+        sqrt(2/3) of the radius 1/8 each); the signal is the weighted mean over both disks."""
+        if not self.finite_spots:
+            return self.laser_spot[None], np.ones(1), np.zeros((1, 3)), np.ones(1)
+        angles = np.arange(6) * (np.pi / 3)
+        ring = np.stack([np.cos(angles), np.zeros(6), np.sin(angles)], axis=1) * math.sqrt(2 / 3)
+        unit = np.concatenate([np.zeros((1, 3)), ring])
+        weights = np.array([0.25] + [0.125] * 6)
+        laser = self.laser_spot + 0.5 * self.laser_spot_diameter_m * unit
+        return laser, weights, 0.5 * self.detected_spot_diameter_m * unit, weights
 
     @property
     def detected_spot_area_m2(self) -> float:
@@ -159,6 +178,10 @@ class Target:
     def facets(self, facet_size_m: float = 0.01) -> Facets:
         """Subdivide until every triangle edge is at most facet_size_m; drop zero-area faces.
 
+        Faces on the mesh's boundary or on a crease (the silhouette where the shortest path
+        lies) are cut 16-fold more (`_refine_edges`): their centres then sit within 1/12 of a
+        facet of the edge, so the signal's onset matches the continuous surface's.
+
         Facets are put in Morton (Z-curve) order of their centres so that neighbours in memory
         are neighbours in space: the forward kernel culls whole chunks of facets at once.
         """
@@ -179,7 +202,7 @@ class Target:
             iterations = int(math.ceil(math.log2(longest / facet_size_m))) + 2
             vertices, faces = trimesh.remesh.subdivide_to_size(
                 vertices, faces, max_edge=facet_size_m, max_iter=iterations)
-        tri = vertices[faces]
+        tri = _refine_edges(vertices, faces)
         cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
         doubled = np.linalg.norm(cross, axis=1)
         keep = doubled > 1e-12 * max(longest, 1e-9) ** 2
@@ -190,6 +213,37 @@ class Target:
         areas = 0.5 * doubled[keep]
         order = _morton_order(centres)
         return Facets(centres[order], normals[order], areas[order])
+
+
+EDGE_LEVELS = 2  # boundary and crease faces are cut into 4^2 pieces
+CREASE_RAD = math.radians(30.0)
+
+
+def _split4(tri: np.ndarray) -> np.ndarray:
+    """(M, 3, 3) triangles -> (4 M, 3, 3): the midpoint subdivision."""
+    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+    ab, bc, ca = (a + b) / 2, (b + c) / 2, (c + a) / 2
+    return np.concatenate([np.stack(t, axis=1) for t in
+                           ((a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca))])
+
+
+def _refine_edges(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(F', 3, 3) triangles: faces with an edge on the mesh's boundary or on a crease (dihedral
+    angle over 30 degrees) cut EDGE_LEVELS times in four, the others as they are. A facet's
+    centre sits a third of its height inside an edge; the onset comes from the edge."""
+    merged = trimesh.Trimesh(vertices, faces, process=False)
+    merged.merge_vertices()
+    edges = np.sort(merged.faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    codes = edges[:, 0].astype(np.int64) * (len(merged.vertices) + 1) + edges[:, 1]
+    _, inverse, counts = np.unique(codes, return_inverse=True, return_counts=True)
+    marked = (counts[inverse.ravel()] == 1).reshape(-1, 3).any(axis=1)
+    if len(merged.face_adjacency):
+        marked[merged.face_adjacency[merged.face_adjacency_angles > CREASE_RAD].ravel()] = True
+    tri = vertices[faces]
+    fine = tri[marked]
+    for _ in range(EDGE_LEVELS):
+        fine = _split4(fine)
+    return np.concatenate([tri[~marked], fine])
 
 
 def _morton_order(points: np.ndarray) -> np.ndarray:
@@ -207,8 +261,9 @@ class Scene:
     """A setup, the hidden target(s), and how finely they are cut into facets.
 
     `target` is the first target; `more_targets` are further ones (a second object, static
-    clutter). Light is third-order only (no occlusion between them), so each target's signal is
-    simulated on its own and the signals add. `truth` is the first target's centre (its
+    clutter). Light is third-order only (one bounce on a target), so each target's signal is
+    simulated on its own and the signals add; with `occlusion` (the default) a facet counts
+    only where no triangle of any target blocks its way to the laser or detector spot. `truth` is the first target's centre (its
     bounding-box centre unless given); `truths` has every target's, in order.
     """
 
@@ -217,6 +272,7 @@ class Scene:
     facet_size_m: float = 0.01
     truth: np.ndarray | None = None  # where the target "is" (its centre), for error reports
     more_targets: tuple = ()
+    occlusion: bool = True  # facets contribute only where they see both spots (visibility.py)
 
     def __post_init__(self):
         require(isinstance(self.setup, Setup), "scene.setup", "expected a nlos_cl.Setup",
@@ -250,6 +306,21 @@ class Scene:
         cache = self.__dict__.setdefault("_facets", {})
         if which not in cache:
             cache[which] = self.targets[which].facets(self.facet_size_m)
+        return cache[which]
+
+    def visibility(self, which: int = 0):
+        """(D, F) bool: facet f of target `which` sees the laser spot and detector spot d
+        through the whole scene (every target's triangles), computed once per scene; None when
+        occlusion is off or nothing can block (one planar or convex target). Finite spots are
+        tested from their centres."""
+        if not self.occlusion:
+            return None
+        cache = self.__dict__.setdefault("_visibility", {})
+        if which not in cache:
+            from .visibility import visibility
+            cache[which] = visibility(self.facets(which), self.setup.laser_spot,
+                                      self.setup.detector_spots,
+                                      [t.mesh for t in self.targets], which)
         return cache[which]
 
 

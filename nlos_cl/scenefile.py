@@ -19,6 +19,7 @@ Schema (SI units; every key optional unless marked; docs/scene-files.md has exam
       - shape: mesh             # file: person.obj (relative to the scene file)
         # every shape: position [x, y, z] (its bounding-box centre: the truth), rotation_deg
         # [rx, ry, rz] (about x, then y, then z, around the centre), scale, brdf (Lambertian)
+        # or reflectance: {model: ggx, specular: 0.5, roughness: 0.3, diffuse: 0.0}
     facet_size_m: 0.01
     time_axis: {dt_s: 10e-12, t0_s: .., n_bins: ..}  # default: first arrival to 18 m of path
     noise: {snr_db: 10, seed: 3}                      # or {photons: {n_pulses: 80e6, ...}, seed}
@@ -37,7 +38,7 @@ SETUP_KEYS = {"laser_spot", "detector_spots", "device_distance_m", "laser_spot_d
               "detected_spot_diameter_m", "aperture_area_m2", "wall_brdf", "pulse"}
 SHAPES = {"rectangle": {"size_m", "normal"}, "box": {"size_m"}, "sphere": {"radius_m"},
           "mesh": {"file"}}
-COMMON = {"shape", "position", "rotation_deg", "scale", "brdf"}
+COMMON = {"shape", "position", "rotation_deg", "scale", "brdf", "reflectance"}
 TOP = {"setup", "targets", "facet_size_m", "time_axis", "noise", "description"}
 
 
@@ -155,7 +156,13 @@ def _target(i: int, spec, base: Path, cell: float):
         vertices = vertices @ _rotation(f"{where}.rotation_deg", spec["rotation_deg"]).T
     mesh.vertices = vertices + _vector(f"{where}.position", spec.get("position", [4, 2, 0]))
     try:
-        return Target(mesh, brdf=spec.get("brdf", 0.1284))
+        brdf = spec.get("brdf", 0.1284)
+        if "reflectance" in spec:  # {model: ggx, specular: .., roughness: .., diffuse: ..}
+            from .reflectance import from_spec
+            require("brdf" not in spec, f"{where}.reflectance", "given together with brdf",
+                    "give one: brdf (a Lambertian number) or reflectance (a model)")
+            brdf = from_spec(spec["reflectance"])
+        return Target(mesh, brdf=brdf)
     except InputError as exc:  # say which target
         raise InputError(f"{where}: {exc}") from None
 

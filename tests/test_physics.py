@@ -114,3 +114,76 @@ def test_point_target_is_located_where_it_is(runtime, position):
                                step_m=0.005)
     loc = nl.locate(nl.gauss_filter(signals, 0.2e-9), grid)
     assert loc.error_m < 0.01
+
+
+# ------------------------------------------------------- at the default settings (issue 14)
+
+def surface_points(kind):
+    """Dense float64 samples of the continuous surface (points, outward normals, area each)."""
+    if kind == "sphere":
+        n = 400_000
+        i = np.arange(n) + 0.5
+        phi, cos_t = np.pi * (1 + 5 ** 0.5) * i, 1 - 2 * i / n
+        sin_t = np.sqrt(1 - cos_t ** 2)
+        u = np.stack([sin_t * np.cos(phi), sin_t * np.sin(phi), cos_t], 1)
+        return np.array([0.8, 1.0, 0.1]) + 0.2 * u, u, np.full(n, 4 * np.pi * 0.04 / n)
+    y, z = np.meshgrid(np.linspace(0.7, 1.0, 601), np.linspace(-0.15, 0.15, 601))
+    pts = np.stack([np.full(y.size, 0.6), y.ravel(), z.ravel()], 1)
+    return pts, np.tile([-1.0, 0, 0], (len(pts), 1)), np.full(len(pts), 0.09 / len(pts))
+
+
+DEFAULT_TARGETS = {
+    "rectangle": lambda: nl.rectangle(0.3, 0.3, centre=(0.6, 0.85, 0.0)),
+    "box": lambda: nl.box((0.3, 0.3, 0.3), (0.75, 0.85, 0.0)),  # front face = the rectangle
+    "sphere": lambda: nl.sphere(0.2, (0.8, 1.0, 0.1)),
+}
+
+
+@pytest.mark.parametrize("kind", sorted(DEFAULT_TARGETS))
+def test_onset_within_one_bin_at_the_default_facet_size(runtime, kind):
+    # Targets near the wall (steep path gradients), 2 mm bins, the default 1 cm facets.
+    setup = nl.paper_setup(pulse=nl.Pulse(fwhm_s=1e-12))
+    scene = nl.Scene(setup, nl.Target(DEFAULT_TARGETS[kind]()))
+    axis = window_around(setup, scene.target.mesh, 0.002 / C)
+    hist = nl.simulate(scene, axis, backend=runtime).histograms()
+    pts, normals, _ = surface_points("sphere" if kind == "sphere" else "rectangle")
+    r1 = np.linalg.norm(pts, axis=1)
+    for d, spot in enumerate(setup.detector_spots):
+        seen = (np.einsum("nk,nk->n", normals, -pts) > 0) & (
+            np.einsum("nk,nk->n", normals, spot - pts) > 0)
+        shortest = (r1 + np.linalg.norm(pts - spot, axis=1))[seen].min()
+        t_onset = (2 * setup.device_distance_m + shortest) / C + setup.pulse.peak_delay_s
+        expected_bin = int((t_onset - axis.t0_s) // axis.dt_s)
+        first_lit = int(np.argmax(hist.data[d] > 1e-6 * hist.data[d].max()))
+        assert abs(first_lit - expected_bin) <= 1, (kind, d, first_lit, expected_bin)
+
+
+@pytest.mark.parametrize("kind", ["rectangle", "sphere"])
+def test_energy_at_the_default_facet_size_matches_the_continuous_surface(runtime, kind):
+    # Eq. 19 integrated over the true surface (dense float64 samples) against the default
+    # nl.sphere / nl.rectangle at 1 cm facets: within 0.5 %.
+    setup = nl.paper_setup()
+    scene = nl.Scene(setup, nl.Target(DEFAULT_TARGETS[kind]()))
+    axis = window_around(setup, scene.target.mesh, 10e-12)
+    energy = nl.simulate(scene, axis, backend=runtime).histograms().data.sum(axis=1) * axis.dt_s
+    pts, n, area = surface_points(kind)
+    v1 = pts - setup.laser_spot
+    r1 = np.linalg.norm(v1, axis=1)
+    cos_b1 = np.maximum(-np.einsum("nk,nk->n", n, v1) / r1, 0)
+    for d, spot in enumerate(setup.detector_spots):
+        v2 = spot - pts
+        r2 = np.linalg.norm(v2, axis=1)
+        cos_a2 = np.maximum(np.einsum("nk,nk->n", n, v2) / r2, 0)
+        g = (v1[:, 1] / r1) * cos_b1 * cos_a2 * (-v2[:, 1] / r2) * area / (r1 * r2) ** 2
+        expected = setup.pulse.energy_j * setup.power_scale(scene.target.brdf) * g.sum()
+        assert energy[d] == pytest.approx(expected, rel=5e-3), (kind, d)
+
+
+def test_default_sphere_chord_error_is_bounded_by_the_facet_size():
+    for radius, facet in ((0.2, 0.01), (1.0, 0.01), (0.05, 0.02)):
+        mesh = nl.sphere(radius, (0, 1, 0), facet_size_m=facet)
+        assert mesh.edges_unique_length.max() <= facet
+        # vertices on the sphere, face centres at most facet^2 / (8 r) below it
+        np.testing.assert_allclose(np.linalg.norm(mesh.vertices - [0, 1, 0], axis=1), radius)
+        sag = radius - np.linalg.norm(mesh.triangles_center - [0, 1, 0], axis=1)
+        assert sag.max() <= facet ** 2 / (8 * radius) * 1.34  # centroid vs chord midpoint

@@ -7,7 +7,9 @@ g (erf(z_hi) - erf(z_lo)), z = (bin edge - s) / (sqrt(2) sigma): twice the pulse
 inside the bin. The host applies the physical constants in float64.
 
 Signature (both backends): forward(facets, spots, laser, edge0, dpath, sigma_path, n_bins,
-reflectance=None) -> (histograms (D, n_bins), path span (D, 2): min and max contributing path).
+reflectance=None, method=..., visible=None) -> (histograms (D, n_bins), path span (D, 2): min
+and max contributing path). `visible` (D, F) bool: occlusion, a facet sends nothing to a
+detector where it does not see the laser spot or that detector's spot.
 """
 from __future__ import annotations
 
@@ -26,7 +28,7 @@ SUB_BINS_PER_SIGMA = 24  # deposit: sub-bins of at most sigma / 24 (linear depos
 
 # ---------------------------------------------------------------------------- twin
 
-def facet_paths(centres, normals, areas, spots, laser, reflectance=None):
+def facet_paths(centres, normals, areas, spots, laser, reflectance=None, visible=None):
     """Hidden path r1 + r2 and geometric weight per (detector, facet), float64."""
     v1 = centres - laser  # (F, 3) O -> facet
     r1 = np.linalg.norm(v1, axis=1)
@@ -37,6 +39,8 @@ def facet_paths(centres, normals, areas, spots, laser, reflectance=None):
     cos_a1 = np.abs(v1[:, 1]) / r1  # the wall's normal is +y
     cos_b2 = np.abs(v2[:, :, 1]) / r2
     lit = (cos_b1 > 0)[None, :] & (cos_a2 > 0)
+    if visible is not None:  # occlusion: the facet must see the laser and the detector spot
+        lit = lit & np.asarray(visible, bool)
     weight = cos_a1 * cos_b1 * cos_a2 * cos_b2 * areas / (r1 ** 2 * r2 ** 2)
     if reflectance is not None:
         weight = weight * reflectance.factor(normals, -v1 / r1[:, None], v2 / r2[..., None])
@@ -75,19 +79,20 @@ def path_range(path, weight):
 
 
 def numpy(facets, spots, laser, edge0, dpath, sigma_path, n_bins, reflectance=None,
-          method=None):
+          method=None, visible=None):
     """The exact erf path, whatever `method` the device uses."""
     path, weight = facet_paths(facets.centres, facets.normals, facets.areas,
                                np.asarray(spots, np.float64), np.asarray(laser, np.float64),
-                               reflectance)
+                               reflectance, visible)
     return pulse_bins(path, weight, edge0, dpath, sigma_path, n_bins), path_range(path, weight)
 
 
 # ---------------------------------------------------------------------------- OpenCL
 
 def opencl(rt, facets, spots, laser, edge0, dpath, sigma_path, n_bins, reflectance=None,
-           method="deposit", out=None):
-    """method: "deposit" (deposit + convolve, the default) or "erf" (every bin's erf)."""
+           method="deposit", visible=None, out=None):
+    """method: "deposit" (deposit + convolve, the default) or "erf" (every bin's erf);
+    visible: None, or a (detectors, facets) bool mask (occlusion: nlos_cl/visibility.py)."""
     from ..runtime import float4, float4_rows
     n_det, n_facets = len(spots), facets.count
     n_chunks = -(-n_facets // FACET_CHUNK)
@@ -96,6 +101,8 @@ def opencl(rt, facets, spots, laser, edge0, dpath, sigma_path, n_bins, reflectan
     normals[:, 3] = facets.areas
     centres, normals = rt.from_numpy(centres), rt.from_numpy(normals)
     spots_buf = rt.constant(float4_rows(spots))
+    mask = rt.constant(np.ascontiguousarray(visible if visible is not None else np.ones(1),
+                                            np.uint8), np.uint8)
     defines = dict(CHUNK=FACET_CHUNK, **(reflectance.kernel_defines() if reflectance else {}))
     paths_kernel = rt.kernel("forward", "facet_paths", **defines)
     hist = out if out is not None else rt.empty((n_det, n_bins))
@@ -104,7 +111,8 @@ def opencl(rt, facets, spots, laser, edge0, dpath, sigma_path, n_bins, reflectan
         path, weight = rt.empty((d1 - d0, n_pad)), rt.empty((d1 - d0, n_pad))
         ranges = rt.empty((d1 - d0, n_chunks, 4))
         rt.run(paths_kernel, (n_chunks, d1 - d0), centres, normals, np.int32(n_facets),
-               spots_buf, float4(laser), np.int32(d0), path, weight, ranges)
+               spots_buf, float4(laser), np.int32(d0), mask, np.int32(visible is not None),
+               path, weight, ranges)
         r = rt.to_numpy(ranges)  # tiny (D, chunks, 4): the window check and the deposit's
         span = np.stack([r[..., 0].min(axis=1), r[..., 1].max(axis=1)], axis=1)
         spans.append(span)
@@ -261,10 +269,25 @@ def examples(size):
                    max_alloc_bytes=4 * n_pad),
            Example("one detector per group, erf", lambda be: args + ("erf",), 1e-3, hist_err,
                    max_alloc_bytes=4 * n_pad)]
+    out += _occlusion_examples(args, hist_err)
     if size == "check":  # 1 ps bins: one sub-bin per bin, 363 taps
         fine = scene_inputs(scene, _window(scene, 1e-12))
         out.append(Example("paper rectangle at 1 ps, deposit", lambda be: fine, 1e-3, hist_err))
     return out
+
+
+def _occlusion_examples(args, hist_err):
+    """A visibility mask (every third (detector, facet) pair hidden) with both methods, and a
+    glossy (GGX) target: the kernel's occlusion and reflectance branches."""
+    from ..reflectance import GGX
+    facets, n_det = args[0], len(args[1])
+    mask = (np.arange(n_det * facets.count).reshape(n_det, -1) % 3) != 0
+    glossy = args[:7] + (GGX(specular=0.6, roughness=0.3, diffuse=0.2),)
+    return [Example("occlusion mask, deposit", lambda be: args + ("deposit", mask), 1e-3,
+                    hist_err),
+            Example("occlusion mask, erf", lambda be: args + ("erf", mask), 1e-3, hist_err),
+            Example("glossy GGX target, deposit", lambda be: glossy, 1e-3, hist_err),
+            Example("glossy GGX target, erf", lambda be: glossy + ("erf",), 1e-3, hist_err)]
 
 
 OP = Operation(
