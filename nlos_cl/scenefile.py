@@ -21,6 +21,7 @@ Schema (SI units; every key optional unless marked; docs/scene-files.md has exam
         # [rx, ry, rz] (about x, then y, then z, around the centre), scale, brdf (Lambertian)
         # or reflectance: {model: ggx, specular: 0.5, roughness: 0.3, diffuse: 0.0}
     facet_size_m: 0.01
+    occlusion: true                                   # targets shadow each other (default)
     time_axis: {dt_s: 10e-12, t0_s: .., n_bins: ..}  # default: first arrival to 18 m of path
     noise: {snr_db: 10, seed: 3}                      # or {photons: {n_pulses: 80e6, ...}, seed}
 """
@@ -35,11 +36,11 @@ import numpy as np
 from .errors import InputError, require
 
 SETUP_KEYS = {"laser_spot", "detector_spots", "device_distance_m", "laser_spot_diameter_m",
-              "detected_spot_diameter_m", "aperture_area_m2", "wall_brdf", "pulse"}
+              "detected_spot_diameter_m", "aperture_area_m2", "wall_brdf", "pulse", "finite_spots"}
 SHAPES = {"rectangle": {"size_m", "normal"}, "box": {"size_m"}, "sphere": {"radius_m"},
           "mesh": {"file"}}
 COMMON = {"shape", "position", "rotation_deg", "scale", "brdf", "reflectance"}
-TOP = {"setup", "targets", "facet_size_m", "time_axis", "noise", "description"}
+TOP = {"setup", "targets", "facet_size_m", "time_axis", "noise", "description", "occlusion"}
 
 
 @dataclass(frozen=True)
@@ -136,7 +137,7 @@ def _mesh(where: str, spec: dict, base: Path, cell: float):
                           centre=(0, 1, 0), cell_m=cell)
     if shape == "sphere":
         return meshes.sphere(_number(f"{where}.radius_m", spec.get("radius_m", 0.2)),
-                             centre=(0, 1, 0))
+                             centre=(0, 1, 0), facet_size_m=cell)
     require(isinstance(spec.get("file"), str), f"{where}.file", "is missing or not a path",
             "write the mesh file's path (relative to the scene file)")
     return meshes.load_mesh(base / spec["file"])
@@ -212,7 +213,10 @@ def load_scene(source) -> SceneSpec:
     require(isinstance(targets, list) and len(targets) >= 1, "targets", "needs at least one "
             "target", "add e.g. `targets: [{shape: rectangle, position: [4, 2, 0]}]`")
     placed = [_target(i, t, base, cell) for i, t in enumerate(targets)]
-    scene = Scene(setup, placed[0], cell, more_targets=tuple(placed[1:]))
+    occlusion = raw.get("occlusion", True)
+    require(isinstance(occlusion, bool), "occlusion", f"must be true or false, got {occlusion!r}",
+            "write occlusion: true (the default) or false")
+    scene = Scene(setup, placed[0], cell, more_targets=tuple(placed[1:]), occlusion=occlusion)
     noise, seed = _noise(raw.get("noise"))
     return SceneSpec(scene, _time_axis(raw.get("time_axis"), setup), noise, seed,
                      str(raw.get("description", "")))
