@@ -29,6 +29,7 @@ _EXPORTS = {
     ".geometry": ("Facets",),
     ".scene": ("Pulse", "Scene", "Setup", "Target", "paper_scene", "paper_setup"),
     ".signals": ("Signals", "upload"),
+    ".sweep": ("sweep",),
 }
 _WHERE = {name: module for module, names in _EXPORTS.items() for name in names}
 __all__ = sorted(_WHERE)

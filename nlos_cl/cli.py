@@ -1,4 +1,5 @@
-"""The `nlos-cl` command: info, demo, bench, reproduce, simulate, locate, calibrate, track.
+"""The `nlos-cl` command: info, demo, bench, reproduce, simulate, locate, calibrate, track,
+sweep.
 
 A thin argparse layer: every command's work lives in nlos_cl/apps, imported only when that
 command runs, so `nlos-cl --help` and `nlos-cl locate` pay for no import they do not use.
@@ -167,6 +168,11 @@ def _track_args(p):
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
+def _sweep_args(p):
+    from .apps.sweep_cmd import add_arguments  # argparse only: light
+    add_arguments(p)
+
+
 def _calibrate_args(p):
     p.add_argument("pairs", help="CSV rows: known free-space path (m), peak time (s)")
 
@@ -189,6 +195,8 @@ COMMANDS = {
                   "files:calibrate"),
     "track": ("track hidden objects through a sequence of frames (Kalman tracks)", _track_args,
               True, True, "track:main"),
+    "sweep": ("run a parameter study (YAML) as Dask tasks: runs.parquet, summary, plots",
+              _sweep_args, False, False, "sweep_cmd:main"),
 }
 
 

@@ -203,7 +203,7 @@ def load_scene(source) -> SceneSpec:
     from .scene import Scene
     base = Path(".")
     if not isinstance(source, dict):
-        base, raw = Path(source).parent, _read_yaml(Path(source))
+        base, raw = Path(source).parent, read_yaml(Path(source))
     else:
         raw = source
     raw = _keys("scene", raw, TOP)
@@ -222,16 +222,32 @@ def load_scene(source) -> SceneSpec:
                      str(raw.get("description", "")))
 
 
-def _read_yaml(path: Path) -> dict:
+def yaml_loader():
+    """PyYAML's SafeLoader, but `1e-11` is a number (YAML 1.2) rather than the text '1e-11'
+    (YAML 1.1 wants a dot in the mantissa: `10e-12` would silently be a string)."""
+    import re
+
     import yaml
-    require(path.is_file(), f"scene file {path}", "does not exist", "pass a .yaml scene file")
-    require(path.stat().st_size < 1 << 20, f"scene file {path}", "is larger than 1 MiB",
-            "a scene file is a short description; meshes go in their own files")
+
+    class Loader(yaml.SafeLoader):
+        pass
+    Loader.add_implicit_resolver("tag:yaml.org,2002:float", re.compile(
+        r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"), list("-+0123456789."))
+    return Loader
+
+
+def read_yaml(path: Path, what: str = "scene file") -> dict:
+    """A short YAML file (scene, study) as a mapping, with clear errors."""
+    import yaml
+    path = Path(path)
+    require(path.is_file(), f"{what} {path}", "does not exist", "pass a .yaml file")
+    require(path.stat().st_size < 1 << 20, f"{what} {path}", "is larger than 1 MiB",
+            "it is a short description; meshes go in their own files")
     try:
-        raw = yaml.safe_load(path.read_text(encoding="utf-8"))
+        raw = yaml.load(path.read_text(encoding="utf-8"), Loader=yaml_loader())
     except (yaml.YAMLError, UnicodeDecodeError) as exc:
-        raise InputError(f"scene file {path}: is not valid YAML ({str(exc).splitlines()[0]}). "
+        raise InputError(f"{what} {path}: is not valid YAML ({str(exc).splitlines()[0]}). "
                          "Fix: check the indentation and brackets near that line") from None
-    require(isinstance(raw, dict), f"scene file {path}", "is not a mapping of keys",
-            "start with `setup:` and `targets:` (docs/scene-files.md)")
+    require(isinstance(raw, dict), f"{what} {path}", "is not a mapping of keys",
+            "write `key: value` lines (docs/scene-files.md, docs/sweeps.md)")
     return raw

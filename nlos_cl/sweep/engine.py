@@ -1,0 +1,200 @@
+"""The study on Dask: batches of runs as tasks, results written as they finish.
+
+By default a LocalCluster of worker processes (one thread each, one OpenCL runtime each) sized
+to the machine; with `scheduler` an existing cluster (a `tcp://HOST:PORT` address or a
+scheduler file). The client (this process) writes the table, so workers need no shared disk.
+"""
+from __future__ import annotations
+
+import json
+import logging
+import math
+import os
+import sys
+import time
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..errors import InputError, require
+from . import results
+from .runs import run_batch, worker_info
+from .study import SPECIAL, Study, check_scenes, load_study
+
+STUDY_FILE = "study.json"
+
+
+@dataclass
+class SweepResult:
+    """Where a study's results are, and how its run went."""
+
+    out: Path
+    n_runs: int
+    n_skipped: int  # done before (resume)
+    n_failed: int
+    wall_s: float
+    workers: int
+    tasks: int
+    run_s: float = 0.0  # first task submitted to last result written (cluster start excluded)
+    summary: Path | None = None
+    figures: list = field(default_factory=list)
+
+    def table(self):
+        """The whole table (pyarrow.Table, sorted by run_id)."""
+        return results.read_table(self.out)
+
+
+def sweep(study, out, *, workers: int | None = None, scheduler: str | None = None,
+          resume: bool = False, batch_size: int | None = None, progress: bool = True,
+          report: bool = True, log=None) -> SweepResult:
+    """Run every run of `study` (a study file, dict or Study) not yet in OUT/runs.parquet, on
+    `workers` local processes (default: one per core) or on the cluster at `scheduler`; then
+    write OUT/summary.csv and the plots (report=True). Status lines go to `log` (default:
+    stderr, so a --json on stdout stays parseable)."""
+    log = log or _to_stderr
+    study = load_study(study)
+    out = Path(out)
+    done = _prepare(out, study, resume)
+    check_scenes(study)
+    pending = [(rid, v) for rid, v in study.runs() if rid not in done]
+    start = time.perf_counter()
+    n_workers, n_tasks, run_s = 0, 0, 0.0
+    if pending:
+        with open_client(workers, scheduler, log) as client:
+            n_workers = len(client.scheduler_info(n_workers=-1)["workers"])
+            batches = make_batches(study, pending, batch_size or study.batch_size, n_workers)
+            n_tasks = len(batches)
+            run_start = time.perf_counter()
+            _run(client, study, out, batches, len(done), progress)
+            run_s = time.perf_counter() - run_start
+    wall = time.perf_counter() - start
+    table = results.read_table(out)
+    failed = 0 if table is None else sum(1 for f in table.column("failure").to_pylist() if f)
+    result = SweepResult(out, study.n_runs, len(done), failed, wall, n_workers, n_tasks, run_s)
+    if report and table is not None:
+        from .plots import plot_all
+        result.summary = results.write_summary(study, table, out)
+        result.figures = plot_all(study, table, out)
+    return result
+
+
+def _prepare(out: Path, study: Study, resume: bool) -> set:
+    """Create OUT, record the study; with resume, the run_ids already done (same study only)."""
+    out.mkdir(parents=True, exist_ok=True)
+    record = out / STUDY_FILE
+    done = results.done_ids(out)
+    if done or record.exists():
+        require(resume, f"--out {out}", "already holds a study's results",
+                "pass --resume (resume=True) to finish it, or pick another folder")
+        if record.exists():
+            old = json.loads(record.read_text(encoding="utf-8")).get("fingerprint")
+            require(old == study.fingerprint(), f"--out {out}", "holds a different study "
+                    "(its axes, scene or settings differ)", "resume with the same study file, "
+                    "or pick another folder")
+    tmp = record.with_suffix(".tmp")
+    tmp.write_text(json.dumps({"fingerprint": study.fingerprint(), "n_runs": study.n_runs,
+                               "study": study.as_dict()}, indent=1, default=str), "utf-8")
+    os.replace(tmp, record)
+    return done
+
+
+def make_batches(study: Study, pending, batch_size: int | None, n_workers: int) -> list:
+    """Runs grouped by simulated scene (the axes that change the scene, not its noise), in
+    run_id order within a scene, then packed into batches of at most `batch_size`: whole scenes
+    together while they fit (a worker simulates each scene once), a larger scene cut into equal
+    parts. The default size gives each worker >= 8 tasks and at most 32 runs a task."""
+    if not batch_size:
+        batch_size = max(1, min(32, math.ceil(len(pending) / (8 * max(n_workers, 1)))))
+    scene_axes = [a.name for a in study.axes
+                  if a.path not in SPECIAL and not a.path.startswith(("noise", "description"))]
+    scenes: dict = {}
+    for run in sorted(pending, key=lambda r: r[0]):
+        key = json.dumps([run[1][n] for n in scene_axes], default=str)
+        scenes.setdefault(key, []).append(run)
+    batches, current = [], []
+    for runs in scenes.values():
+        if len(current) + len(runs) > batch_size and current:
+            batches.append(current)
+            current = []
+        if len(runs) > batch_size:
+            parts = math.ceil(len(runs) / batch_size)
+            size = math.ceil(len(runs) / parts)
+            batches.extend(runs[i:i + size] for i in range(0, len(runs), size))
+        else:
+            current = current + runs
+    return batches + ([current] if current else [])
+
+
+def _run(client, study: Study, out: Path, batches, n_done: int, progress: bool) -> None:
+    from dask.distributed import as_completed
+    from tqdm import tqdm
+    values = dict(r for batch in batches for r in batch)
+    plan = client.scatter(study.plan(), broadcast=True)
+    futures = [client.submit(run_batch, plan, batch, pure=False) for batch in batches]
+    bar = tqdm(total=study.n_runs, initial=n_done, unit="run", desc="sweep", disable=not progress,
+               dynamic_ncols=True, smoothing=0.1, file=sys.stderr)
+    try:
+        for future in as_completed(futures):
+            rows = future.result()
+            results.write_part(out, results.to_table(study, rows, values.__getitem__))
+            future.release()
+            bar.update(len(rows))
+    except BaseException:
+        client.cancel(futures)
+        raise
+    finally:
+        bar.close()
+
+
+def _to_stderr(text: str) -> None:
+    import sys
+    print(text, file=sys.stderr)
+
+
+@contextmanager
+def open_client(workers: int | None, scheduler: str | None, log=_to_stderr):
+    """A dask.distributed Client: on the cluster at `scheduler` (address or scheduler file), or
+    on a LocalCluster of `workers` processes with one thread each."""
+    from dask.distributed import Client
+    logging.getLogger("distributed").setLevel(logging.ERROR)
+    cluster = None
+    if scheduler:
+        require(workers is None, "--workers", "does not go with --scheduler",
+                "size the cluster where it is started")
+        client = (Client(scheduler_file=scheduler) if Path(scheduler).is_file()
+                  else Client(scheduler, timeout="30s"))
+        client.wait_for_workers(1, timeout=120)
+    else:
+        cluster = local_cluster(workers)
+        client = Client(cluster)
+    try:
+        info = client.run(worker_info)  # builds each worker's OpenCL runtime, once
+        devices = sorted({i["device"] for i in info.values()})
+        log(f"sweep: {len(info)} worker(s) at {client.scheduler.address}, device {', '.join(devices)}")
+        dash = client.scheduler_info(n_workers=0).get("services", {}).get("dashboard")
+        if dash:
+            log(f"sweep: Dask dashboard at {client.dashboard_link}")
+        yield client
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def local_cluster(workers: int | None):
+    """Processes, one thread each; on a CPU OpenCL device (PoCL) each worker's runtime gets
+    cores / workers threads (POCL_CPU_MAX_CU_NUM) so workers do not fight over cores."""
+    from dask.distributed import LocalCluster
+    cores = os.cpu_count() or 1
+    n = workers or cores
+    require(isinstance(n, int) and n >= 1, "--workers", f"must be >= 1, got {n}", "pass e.g. 2")
+    env = {"POCL_CPU_MAX_CU_NUM": str(max(1, cores // n))}
+    env = {k: v for k, v in env.items() if k not in os.environ}
+    from importlib.util import find_spec
+    dashboard = ":0" if find_spec("bokeh") else None  # the dashboard needs bokeh
+    try:
+        return LocalCluster(n_workers=n, threads_per_worker=1, processes=True, env=env,
+                            dashboard_address=dashboard, silence_logs=logging.ERROR)
+    except OSError as exc:
+        raise InputError(f"--workers: could not start {n} local worker processes ({exc}). "
+                         "Fix: pass fewer --workers, or start a cluster and pass --scheduler")

@@ -1,0 +1,130 @@
+"""The study's table: one row per run, written as Parquet one file per finished batch into
+DIR/runs.parquet/ (a dataset folder, read back as one table), and the summary made from it.
+
+Each part file is written under a hidden name and renamed into place, so a crash or Ctrl-C
+leaves only whole parts behind; `--resume` reads the run_ids already there and skips them.
+"""
+from __future__ import annotations
+
+import json
+import os
+import uuid
+from pathlib import Path
+
+import pyarrow as pa
+
+from .runs import record_columns
+from .study import Study
+
+TABLE = "runs.parquet"
+
+
+def axis_type(values) -> pa.DataType:
+    """int64 for whole numbers, float64 for numbers, string for text; anything else (lists,
+    mappings) is written as its JSON text."""
+    if all(isinstance(v, int) and not isinstance(v, bool) for v in values):
+        return pa.int64()
+    if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
+        return pa.float64()
+    return pa.string()
+
+
+def axis_cell(value, kind: pa.DataType):
+    if kind == pa.string() and not isinstance(value, str):
+        return json.dumps(value, separators=(",", ":"))
+    return float(value) if kind == pa.float64() else value
+
+
+def schema(study: Study) -> pa.Schema:
+    fields = [pa.field("run_id", pa.int64())]
+    fields += [pa.field(a.name, axis_type(a.values)) for a in study.axes]
+    fields += [pa.field(c, pa.float64()) for c in record_columns(study.settings["record"])]
+    return pa.schema(fields + [pa.field("failure", pa.string())])
+
+
+def to_table(study: Study, rows, values_of) -> pa.Table:
+    """A batch's rows (from the workers) with the axis values of each run_id added."""
+    sch = schema(study)
+    kinds = {a.name: axis_type(a.values) for a in study.axes}
+    columns = {name: [] for name in sch.names}
+    for row in rows:
+        values = values_of(row["run_id"])
+        for name in sch.names:
+            if name in kinds:
+                columns[name].append(axis_cell(values[name], kinds[name]))
+            else:
+                columns[name].append(row[name])
+    return pa.table(columns, schema=sch)
+
+
+def table_dir(out) -> Path:
+    out = Path(out)
+    return out if out.name == TABLE else out / TABLE
+
+
+def write_part(out, table: pa.Table) -> Path:
+    """One part file, atomically (hidden name, then renamed): readers never see half a part."""
+    import pyarrow.parquet as pq
+    folder = table_dir(out)
+    folder.mkdir(parents=True, exist_ok=True)
+    first = int(min(table.column("run_id").to_pylist()))
+    final = folder / f"part-{first:09d}-{uuid.uuid4().hex[:8]}.parquet"
+    hidden = folder / f".{final.name}.tmp"
+    pq.write_table(table, hidden)
+    with open(hidden, "rb") as f:
+        os.fsync(f.fileno())
+    os.replace(hidden, final)
+    return final
+
+
+def read_table(out, columns=None) -> pa.Table:
+    """DIR/runs.parquet (a dataset folder or a single file) as one table, sorted by run_id,
+    each run once."""
+    import pyarrow.dataset as ds
+    path = table_dir(out)
+    if not path.exists():
+        return None
+    table = ds.dataset(path, format="parquet").to_table(columns=columns)
+    if table.num_rows == 0:
+        return table
+    table = table.sort_by("run_id")
+    ids = table.column("run_id").to_numpy()
+    if len(ids) > 1 and (ids[1:] == ids[:-1]).any():  # a run written twice: keep one
+        keep = [True] + list(ids[1:] != ids[:-1])
+        table = table.filter(pa.array(keep))
+    return table
+
+
+def done_ids(out) -> set:
+    """run_ids already in the table (for --resume)."""
+    table = read_table(out, columns=["run_id"])
+    return set() if table is None else set(table.column("run_id").to_pylist())
+
+
+def summary(study: Study, table: pa.Table) -> pa.Table | None:
+    """Mean, std (population), max and count of error_m per combination of the axes other than
+    the seed, over the runs that did not fail; rows in the study's order."""
+    import pyarrow.compute as pc
+    if table is None or "error_m" not in table.column_names:
+        return None
+    ok = table.filter(pc.equal(table.column("failure"), ""))
+    keys = [a.name for a in study.axes if a.name != "seed"]
+    aggs = [("error_m", "mean"), ("error_m", "stddev"), ("error_m", "max"), ("error_m", "count"),
+            ("run_id", "min")]
+    if "t_run_s" in ok.column_names:
+        aggs.append(("t_run_s", "mean"))
+    grouped = ok.group_by(keys, use_threads=False).aggregate(aggs).sort_by("run_id_min")
+    names = {"error_m_mean": "error_mean_m", "error_m_stddev": "error_std_m",
+             "error_m_max": "error_max_m", "error_m_count": "runs", "t_run_s_mean": "t_run_mean_s"}
+    grouped = grouped.drop_columns(["run_id_min"])
+    return grouped.rename_columns([names.get(c, c) for c in grouped.column_names])
+
+
+def write_summary(study: Study, table: pa.Table, out) -> Path | None:
+    import pyarrow.csv as pcsv
+    table = summary(study, table)
+    if table is None:
+        return None
+    path = Path(out) / "summary.csv"
+    pcsv.write_csv(table, path)
+    return path

@@ -1,0 +1,160 @@
+"""What a worker does: a batch of runs, each simulate -> noise -> filter -> locate.
+
+A worker process builds its OpenCL runtime once (nlos_cl.runtime.get_runtime caches it per
+process) and keeps the clean simulation of the last few scenes, so the runs of one scene (seeds,
+SNRs, filters, estimators) simulate it once. Nothing here depends on which worker runs a batch
+or on what it ran before: a run's noise seed is its `seed` value from the study, and the
+simulation is deterministic (integer atomics), so a cached scene equals a fresh one.
+"""
+from __future__ import annotations
+
+import json
+import math
+import time
+import warnings
+from collections import OrderedDict
+from dataclasses import replace
+
+import numpy as np
+
+from .study import SPECIAL, scene_of
+
+_SCENES: OrderedDict = OrderedDict()  # scene key -> (spec, clean Signals, signal photons)
+_GRIDS: dict = {}
+KEEP_SCENES = 3
+
+RECORD_COLUMNS = {
+    "position": ("x_m", "y_m", "z_m", "truth_x_m", "truth_y_m", "truth_z_m"),
+    "error": ("error_m",),
+    "covariance": ("cov_xx_m2", "cov_xy_m2", "cov_xz_m2", "cov_yy_m2", "cov_yz_m2", "cov_zz_m2"),
+    "timings": ("t_simulate_s", "t_noise_s", "t_filter_s", "t_locate_s", "t_run_s", "t_cpu_s"),
+    "photons": ("photons", "signal_photons"),
+}
+TIMING_COLUMNS = RECORD_COLUMNS["timings"]
+
+
+def record_columns(record) -> list[str]:
+    """The measured columns of a study's table, in order (all float64), then `failure`."""
+    return [c for r in record for c in RECORD_COLUMNS[r]]
+
+
+def run_batch(plan: dict, runs) -> list[dict]:
+    """Measure every (run_id, values) of `runs`; one dict per run: run_id, the measured
+    columns (NaN where a run failed) and `failure` ('' or the error)."""
+    with warnings.catch_warnings():  # e.g. 'z is unobservable' once per run: not news here
+        warnings.simplefilter("ignore")
+        return [run_one(plan, run_id, values) for run_id, values in runs]
+
+
+def run_one(plan: dict, run_id: int, values: dict) -> dict:
+    row = dict.fromkeys(record_columns(plan["record"]), math.nan)
+    start, cpu = time.perf_counter(), time.process_time()
+    try:
+        _measure(plan, values, row)
+        failure = ""
+    except Exception as exc:  # noqa: BLE001 - one bad run must not end a 10^5-run study
+        failure = f"{type(exc).__name__}: {exc}"[:500]
+    if "t_run_s" in row:  # wall time, and CPU time of the whole process (all its threads)
+        row["t_run_s"] = time.perf_counter() - start
+        row["t_cpu_s"] = time.process_time() - cpu
+    return {"run_id": run_id, **{k: row[k] for k in record_columns(plan["record"])},
+            "failure": failure}
+
+
+class _Clock:
+    """Stage times; the device queue is drained before each reading, so time is charged to
+    the stage that spent it."""
+
+    def __init__(self, backend):
+        self.finish = getattr(backend, "finish", lambda: None)
+        self.last = time.perf_counter()
+
+    def lap(self) -> float:
+        self.finish()
+        now = time.perf_counter()
+        spent, self.last = now - self.last, now
+        return spent
+
+
+def _measure(plan: dict, values: dict, row: dict) -> None:
+    import nlos_cl as nl
+    own = {plan["paths"][n]: v for n, v in values.items() if plan["paths"][n] in SPECIAL}
+    h_s, how = float(own.get("h_s", plan["h_s"])), own.get("filter", plan["filter"])
+    start = time.perf_counter()
+    spec, clean, signal_photons, cached = _clean(plan, values)
+    clock = _Clock(clean.backend)
+    t_sim = 0.0 if cached else time.perf_counter() - start
+    noisy = clean if spec.noise is None else nl.add_noise(clean, model=spec.noise,
+                                                          seed=int(own["seed"]))
+    t_noise = clock.lap()
+    if how == "gauss":
+        filtered = nl.gauss_filter(noisy, h_s)
+    else:
+        filtered = nl.gauss_fit(noisy)[0] if how == "gauss_fit" else noisy
+    t_filter = clock.lap()
+    loc = nl.locate(filtered, _grid(plan, filtered.layout, h_s), estimator=own["estimator"],
+                    raw=noisy)
+    t_locate = clock.lap()
+    measured = {"t_simulate_s": t_sim, "t_noise_s": t_noise, "t_filter_s": t_filter,
+                "t_locate_s": t_locate, "error_m": _float(loc.error_m)}
+    measured.update(zip(RECORD_COLUMNS["position"], [*loc.position, *_truth(loc)]))
+    if loc.covariance is not None:
+        c = np.asarray(loc.covariance, dtype=np.float64)
+        measured.update(zip(RECORD_COLUMNS["covariance"],
+                            (c[0, 0], c[0, 1], c[0, 2], c[1, 1], c[1, 2], c[2, 2])))
+    if "photons" in row and signal_photons is not None:
+        measured["photons"] = float(noisy.histograms().data.sum(axis=1).mean())
+        measured["signal_photons"] = signal_photons
+    row.update({k: float(v) for k, v in measured.items() if k in row})
+
+
+def _float(value) -> float:
+    return math.nan if value is None else float(value)
+
+
+def _truth(loc) -> list:
+    return [math.nan] * 3 if loc.truth is None else list(loc.truth)
+
+
+def _clean(plan: dict, values: dict):
+    """(scene spec, clean Signals, mean signal photons per detector or None, was cached)."""
+    from nlos_cl import PhotonCounter, simulate
+    from nlos_cl.scenefile import load_scene
+    scene = scene_of(plan, values)
+    key = json.dumps(scene, sort_keys=True, default=str)
+    if key in _SCENES:
+        _SCENES.move_to_end(key)
+        return (*_SCENES[key], True)
+    spec = load_scene(scene)
+    clean = simulate(spec.scene, spec.time_axis)
+    photons = None
+    if isinstance(spec.noise, PhotonCounter):  # expected signal counts: no dark, no ambient
+        quiet = replace(spec.noise, dark_count_rate_hz=0.0, ambient_rate_hz=0.0, jitter_s=0.0)
+        photons = float(quiet.expected_counts(clean.histograms()).data.sum(axis=1).mean())
+    _SCENES[key] = (spec, clean, photons)
+    while len(_SCENES) > KEEP_SCENES:
+        _SCENES.popitem(last=False)
+    return spec, clean, photons, False
+
+
+def _grid(plan: dict, layout, h_s: float):
+    """The study's grid, or the region this layout can see (frames.default_region)."""
+    from nlos_cl import Grid, HistogramSet
+    from nlos_cl.frames import default_region
+    if plan["grid"] is not None:
+        return Grid.from_ranges(**plan["grid"])
+    cal = layout.calibration
+    key = (layout.time_axis, layout.detector_spots.tobytes(), layout.laser_spot.tobytes(),
+           cal.a_m_per_s, np.asarray(cal.b_m).tobytes(), h_s)
+    if key not in _GRIDS:
+        empty = HistogramSet.from_layout(np.zeros(layout.shape), layout)
+        _GRIDS[key] = default_region(empty, h_s)
+    return _GRIDS[key]
+
+
+def worker_info() -> dict:
+    """Build this process's OpenCL runtime (once) and say which device it chose."""
+    import os
+
+    from nlos_cl.runtime import get_runtime
+    return {"pid": os.getpid(), "device": get_runtime().name}

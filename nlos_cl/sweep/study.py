@@ -1,0 +1,314 @@
+"""A study: a base scene, the axes that vary it, and the runs they make (docs/sweeps.md).
+
+Schema (YAML or dict; every key but `scene` optional)::
+
+    scene: docs/scenes/two_targets.yaml   # a scene file (relative to the study) or a scene dict
+    axes:                                 # crossed in this order (the last varies fastest)
+      - {path: noise.snr_db, values: [0, 5, 10, 20]}
+      - {path: targets[0].position[0], name: x, range: {start: 1, stop: 5, step: 1}}
+      - zip:                              # zipped: these advance together
+          - {path: h_s, values: [0.3e-9, 0.65e-9]}
+          - {path: setup.pulse.fwhm_s, range: {start: 35e-12, stop: 70e-12, num: 2}}
+    estimators: [paper, model]            # the `estimator` axis, crossed after `axes`
+    seeds: 10                             # the noise seeds 0..9 (or a list, or {start, count})
+    h_s: 0.65e-9                          # Gauss filter window (an axis may vary `h_s`)
+    filter: gauss                         # gauss | gauss_fit | none (an axis may vary it)
+    grid: {x: [0, 6], y: [0.01, 6], z: [0, 0], step_m: 0.01}   # default: frames.default_region
+    record: [position, error, covariance, timings, photons]
+    batch_size: 16                        # runs per Dask task (default: from the study's size)
+
+A path addresses a scene-file key (`noise.snr_db`, `setup.detector_spots`,
+`targets[0].position[1]`) or one of the run's own settings (`estimator`, `seed`, `h_s`,
+`filter`). Run i's values are the i-th element of the axes' cross product (seed fastest):
+`run_id` is stable for a given study.
+"""
+from __future__ import annotations
+
+import copy
+import hashlib
+import itertools
+import json
+import math
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..scenefile import read_yaml, yaml_loader  # noqa: F401  (yaml_loader: re-exported)
+from ..errors import InputError, require
+
+TOP = {"description", "scene", "axes", "estimators", "seeds", "h_s", "filter", "grid", "record",
+       "batch_size"}
+SPECIAL = {"estimator", "seed", "h_s", "filter"}  # not scene keys: the run's own settings
+RECORDS = ("position", "error", "covariance", "timings", "photons")
+FILTERS = ("gauss", "gauss_fit", "none")
+ESTIMATORS = ("paper", "model")
+_STEP = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)|\[(\d+)\]|\.")
+
+
+@dataclass(frozen=True)
+class Axis:
+    """One varied key: its column name, the path it sets, and its values in order."""
+
+    name: str
+    path: str
+    values: tuple
+
+
+@dataclass(frozen=True)
+class Study:
+    """A parsed study: the base scene dict, the axis groups (zipped inside, crossed between)
+    and the run settings. `runs()` lists every run's values; `plan()` is what workers get."""
+
+    description: str
+    base: dict
+    groups: tuple  # of tuples of Axis (a zip group; a plain axis is a group of one)
+    settings: dict  # h_s, filter, grid, record
+    batch_size: int | None
+
+    @property
+    def axes(self) -> tuple:
+        return tuple(a for g in self.groups for a in g)
+
+    @property
+    def n_runs(self) -> int:
+        return math.prod(len(g[0].values) for g in self.groups)
+
+    def runs(self):
+        """(run_id, {axis name: value}) for every run, in run_id order."""
+        names = [[a.name for a in g] for g in self.groups]
+        rows = [list(zip(*(a.values for a in g))) for g in self.groups]
+        for run_id, combo in enumerate(itertools.product(*rows)):
+            yield run_id, {n: v for ns, vs in zip(names, combo) for n, v in zip(ns, vs)}
+
+    def plan(self) -> dict:
+        """Everything a worker needs, as plain data (cheap to send)."""
+        return {"base": self.base, "paths": {a.name: a.path for a in self.axes},
+                **self.settings}
+
+    def as_dict(self) -> dict:
+        """The study written out in full (scene inline, ranges expanded): what --resume checks."""
+        def axis(a):
+            return {"name": a.name, "path": a.path, "values": list(a.values)}
+        *groups, estimators, seeds = self.groups
+        axes = [axis(g[0]) if len(g) == 1 else {"zip": [axis(a) for a in g]} for g in groups]
+        return {"description": self.description, "scene": self.base, "axes": axes,
+                "estimators": list(estimators[0].values), "seeds": list(seeds[0].values),
+                **self.settings, "batch_size": self.batch_size}
+
+    def fingerprint(self) -> str:
+        text = json.dumps({k: v for k, v in self.as_dict().items() if k != "batch_size"},
+                          sort_keys=True, default=str)
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def parse_path(path) -> list:
+    """'targets[0].position[1]' -> ['targets', 0, 'position', 1]."""
+    require(isinstance(path, str) and path, "axes[].path", f"expected a key path, got {path!r}",
+            "write e.g. noise.snr_db or targets[0].position[0]")
+    steps, pos = [], 0
+    while pos < len(path):
+        m = _STEP.match(path, pos)
+        require(m is not None and m.end() > pos, f"axes[].path {path!r}",
+                f"cannot read it at character {pos}", "write keys with dots, indices as [0]")
+        if m.group(1):
+            steps.append(m.group(1))
+        elif m.group(2):
+            steps.append(int(m.group(2)))
+        pos = m.end()
+    require(bool(steps), f"axes[].path {path!r}", "is empty", "write e.g. noise.snr_db")
+    return steps
+
+
+def substitute(base: dict, assignments) -> dict:
+    """A copy of the scene dict `base` with each (path, value) set; dicts on the way are made
+    when missing, list elements must exist."""
+    scene = copy.deepcopy(base)
+    for path, value in assignments:
+        steps, node = parse_path(path), scene
+        for i, (step, nxt) in enumerate(zip(steps, steps[1:] + [None])):
+            where = _where(steps[:i + 1])
+            if isinstance(step, int):
+                require(isinstance(node, list) and step < len(node), f"scene {where}",
+                        "does not exist in the base scene", "write the whole list in the base "
+                        "scene, so the axis can set one element")
+            else:
+                require(isinstance(node, dict), f"scene {where}", "is not under a mapping",
+                        "check the path against docs/scene-files.md")
+            if nxt is None:
+                node[step] = copy.deepcopy(value)
+            else:
+                if isinstance(step, str) and step not in node:
+                    node[step] = {}
+                node = node[step]
+    return scene
+
+
+def _where(steps) -> str:
+    return "".join(f"[{s}]" if isinstance(s, int) else (f".{s}" if i else s)
+                   for i, s in enumerate(steps))
+
+
+def _values(where: str, spec: dict) -> tuple:
+    require(("values" in spec) != ("range" in spec), where, "needs exactly one of values, range",
+            "write values: [...] or range: {start, stop, step} / {start, stop, num}")
+    if "values" in spec:
+        values = spec["values"]
+        require(isinstance(values, list) and values, f"{where}.values",
+                f"expected a non-empty list, got {values!r}", "write e.g. values: [0, 5, 10]")
+        return tuple(values)
+    r = spec["range"]
+    require(isinstance(r, dict) and set(r) in ({"start", "stop", "step"}, {"start", "stop", "num"}),
+            f"{where}.range", f"expected {{start, stop, step}} or {{start, stop, num}}, got {r!r}",
+            "write e.g. range: {start: 1, stop: 5, step: 1}")
+    start, stop = float(r["start"]), float(r["stop"])
+    if "num" in r:
+        n = int(r["num"])
+        require(n >= 1, f"{where}.range.num", f"must be >= 1, got {n}", "pass a count")
+        return tuple(start if n == 1 else start + (stop - start) * k / (n - 1) for k in range(n))
+    step = float(r["step"])
+    require(step > 0 and stop >= start, f"{where}.range", "needs step > 0 and stop >= start",
+            "write e.g. {start: 1, stop: 5, step: 1}")
+    n = int(math.floor((stop - start) / step + 1e-9)) + 1
+    return tuple(round(start + k * step, 12) for k in range(n))
+
+
+def _axis(where: str, spec) -> Axis:
+    require(isinstance(spec, dict) and "path" in spec, where, f"expected {{path, values}} or "
+            f"{{path, range}}, got {spec!r}", "write e.g. {path: noise.snr_db, values: [0, 10]}")
+    unknown = sorted(set(spec) - {"path", "name", "values", "range"})
+    require(not unknown, f"{where}.{unknown[0] if unknown else ''}", "is not a known key",
+            "use path, name, values or range")
+    parse_path(spec["path"])
+    values = _values(where, spec)
+    path = spec["path"]
+    if path in ("estimator", "filter"):
+        allowed = ESTIMATORS if path == "estimator" else FILTERS
+        bad = [v for v in values if v not in allowed]
+        require(not bad, f"{where}.values", f"unknown {path} {bad[:1]}", f"use {list(allowed)}")
+    return Axis(str(spec.get("name", path)), path, values)
+
+
+def _group(i: int, spec) -> tuple:
+    if isinstance(spec, dict) and set(spec) == {"zip"}:
+        require(isinstance(spec["zip"], list) and spec["zip"], f"axes[{i}].zip",
+                "expected a list of axes", "write zip: [{path: .., values: ..}, ...]")
+        group = tuple(_axis(f"axes[{i}].zip[{j}]", s) for j, s in enumerate(spec["zip"]))
+        lengths = {len(a.values) for a in group}
+        require(len(lengths) == 1, f"axes[{i}].zip", f"zipped axes differ in length "
+                f"({sorted(lengths)})", "give every zipped axis the same number of values")
+        return group
+    return (_axis(f"axes[{i}]", spec),)
+
+
+def _seeds(value) -> tuple:
+    if isinstance(value, int) and not isinstance(value, bool):
+        require(value >= 1, "seeds", f"must be >= 1, got {value}", "pass a count, e.g. 10")
+        return tuple(range(value))
+    if isinstance(value, dict):
+        require(set(value) == {"start", "count"}, "seeds", f"expected {{start, count}}, got "
+                f"{value!r}", "write e.g. seeds: {start: 100, count: 10}")
+        return tuple(range(int(value["start"]), int(value["start"]) + int(value["count"])))
+    ok = isinstance(value, list) and value and all(
+        isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in value)
+    require(ok, "seeds", f"expected a count, a list of non-negative integers or {{start, count}},"
+            f" got {value!r}", "write e.g. seeds: 10")
+    return tuple(value)
+
+
+def _grid(value):
+    if value is None:
+        return None
+    require(isinstance(value, dict) and "step_m" in value and set(value) <= {"x", "y", "z",
+            "step_m"}, "grid", f"expected {{x, y, z, step_m}}, got {value!r}",
+            "write e.g. grid: {x: [0, 6], y: [0.01, 6], step_m: 0.01}, or leave it out")
+    from ..grid import Grid
+    Grid.from_ranges(**value)  # checks it
+    return dict(value)
+
+
+def _settings(raw: dict) -> dict:
+    record = raw.get("record", list(RECORDS))
+    require(isinstance(record, list) and set(record) <= set(RECORDS), "record",
+            f"expected a list from {list(RECORDS)}, got {record!r}", f"write e.g. {list(RECORDS)}")
+    h_s = raw.get("h_s", 0.65e-9)
+    require(isinstance(h_s, (int, float)) and h_s > 0, "h_s", f"must be a positive time in "
+            f"seconds, got {h_s!r}", "write e.g. 0.65e-9")
+    filt = raw.get("filter", "gauss")
+    require(filt in FILTERS, "filter", f"unknown filter {filt!r}", f"use one of {list(FILTERS)}")
+    return {"h_s": float(h_s), "filter": filt, "grid": _grid(raw.get("grid")),
+            "record": [r for r in RECORDS if r in record]}
+
+
+def _scene(value, base_dir: Path) -> dict:
+    if isinstance(value, (str, Path)):
+        path = Path(value) if Path(value).is_absolute() else base_dir / value
+        value, base_dir = read_yaml(path, "scene file"), path.parent
+    require(isinstance(value, dict), "scene", f"expected a scene file path or a scene mapping, "
+            f"got {value!r}", "write scene: my_scene.yaml, or the scene's keys inline")
+    value = copy.deepcopy(value)
+    for target in value.get("targets") or []:  # mesh files: relative to where they were named
+        if isinstance(target, dict) and isinstance(target.get("file"), str):
+            target["file"] = str((base_dir / target["file"]).resolve())
+    return value
+
+
+def load_study(source, base_dir=None) -> Study:
+    """A Study from a YAML file path or a dict (scene paths relative to the file, or to
+    `base_dir`, default the working folder)."""
+    if isinstance(source, Study):
+        return source
+    if not isinstance(source, dict):
+        path = Path(source)
+        raw = read_yaml(path, "study file")
+        base_dir = path.parent if base_dir is None else Path(base_dir)
+    else:
+        raw, base_dir = source, Path(base_dir or ".")
+    require(isinstance(raw, dict) and "scene" in raw, "study", "needs a `scene`",
+            "write scene: a scene file path, or the scene's keys inline")
+    unknown = sorted(set(raw) - TOP)
+    require(not unknown, f"study.{unknown[0] if unknown else ''}", "is not a known key",
+            f"use one of {sorted(TOP)}")
+    axes = raw.get("axes") or []
+    require(isinstance(axes, list), "axes", "expected a list", "write axes: [{path, values}]")
+    groups = [_group(i, spec) for i, spec in enumerate(axes)]
+    groups.append((Axis("estimator", "estimator", tuple(raw.get("estimators", ["paper"]))),))
+    _axis("estimators", {"path": "estimator", "values": list(groups[-1][0].values)})
+    groups.append((Axis("seed", "seed", _seeds(raw.get("seeds", 1))),))
+    names = [a.name for g in groups for a in g]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    require(not dup, f"axes: name {dup[0] if dup else ''!r}", "is used twice",
+            "give one of them another `name:` (estimator and seed are taken)")
+    batch = raw.get("batch_size")
+    require(batch is None or (isinstance(batch, int) and batch >= 1), "batch_size",
+            f"must be a positive integer, got {batch!r}", "write e.g. batch_size: 16")
+    return Study(str(raw.get("description", "")), _scene(raw["scene"], base_dir), tuple(groups),
+                 _settings(raw), batch)
+
+
+def scene_of(plan: dict, values: dict) -> dict:
+    """The scene dict of one run: the base with the run's scene-key axes substituted."""
+    paths = plan["paths"]
+    return substitute(plan["base"], [(paths[n], v) for n, v in values.items()
+                                     if paths[n] not in SPECIAL])
+
+
+def check_scenes(study: Study) -> int:
+    """Load the scene of every axis value once (the other axes at their first values), so a bad
+    value fails here, before any work is sent. Returns the number of scenes checked."""
+    from ..scenefile import load_scene
+    plan, first = study.plan(), {a.name: a.values[0] for a in study.axes}
+    seen = set()
+    for group in study.groups:
+        for k in range(len(group[0].values)):
+            values = {**first, **{a.name: a.values[k] for a in group}}
+            scene = scene_of(plan, values)
+            key = json.dumps(scene, sort_keys=True, default=str)
+            if key in seen:
+                continue
+            seen.add(key)
+            try:
+                load_scene(scene)
+            except InputError as exc:
+                shown = {a.name: a.values[k] for a in group}
+                raise InputError(f"study axes {shown}: {exc}") from None
+    return len(seen)
