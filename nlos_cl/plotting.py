@@ -196,3 +196,48 @@ def performance_figure(rows, path):
         ax.legend()
     fig.savefig(path, dpi=100)
     plt.close(fig)
+
+
+# ----------------------------------------------------------------------------- beyond the paper
+
+def _beyond_bars(ax, rows):
+    """Mean error of both estimators per case (bars), max as a dot; log scale."""
+    y = np.arange(len(rows))
+    for off, key, colour, label in ((-0.2, "paper", "0.55", "paper (argmax)"),
+                                    (0.2, "model", "C3", "model fit")):
+        mean = np.array([r[f"{key}_mean_m"] for r in rows], float)
+        worst = np.array([r[f"{key}_max_m"] for r in rows], float)
+        ax.barh(y + off, np.maximum(mean, 1e-4), height=0.4, color=colour, label=label + " mean")
+        ax.plot(np.maximum(worst, 1e-4), y + off, "k.", ms=3)
+    ax.set_yticks(y, [f"{r['section']}: {r['case'][:48]} [{r['measure']}]" for r in rows],
+                  fontsize=6)
+    ax.invert_yaxis()
+    ax.set_xscale("log")
+    ax.set_xlabel("error (m); dot = max over frames")
+    ax.axvline(0.1, color="C0", lw=0.8, ls="--")
+    ax.legend(loc="lower right", fontsize=7)
+
+
+def beyond_figure(summary, out: Path, name: str) -> str:
+    """`reproduce beyond`: every case's mean/max error for both estimators, and the photon
+    curve (error against signal photons per detector) where the run has one."""
+    plt = pyplot()
+    photons = [r for r in summary if r["section"] == "photons"]
+    fig, axes = plt.subplots(1, 2 if photons else 1, figsize=(13, 2 + 0.22 * len(summary)),
+                             gridspec_kw={"width_ratios": [3, 1]} if photons else None,
+                             squeeze=False)
+    _beyond_bars(axes[0, 0], summary)
+    if photons:
+        ax = axes[0, 1]
+        n = [float(r["value"]) for r in photons]
+        for key, style in (("paper", "o--"), ("model", "s-")):
+            ax.plot(n, [r[f"{key}_mean_m"] for r in photons], style, label=f"{key} mean")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("signal photons per detector")
+        ax.set_ylabel("error (m)")
+        ax.set_title("photon counts", fontsize=9)
+        ax.legend(fontsize=7)
+    fig.suptitle("paper's argmax vs model-based estimator (this run)")
+    fig.tight_layout()
+    return save(fig, out, name)
