@@ -108,6 +108,12 @@ def _simulate_args(p):
                                             "e.g. 50", positive=True), default=50.0,
                    help="TDC bin (ps)")
     p.add_argument("--seed", type=SEED, default=None, help="noise seed (default 0)")
+    p.add_argument("--frames", type=_number("frames", "pass a count, e.g. 50", minimum=1,
+                                            integer=True), default=None,
+                   help="write a sequence of N frames (scene file with trajectories)")
+    p.add_argument("--fps", type=_number("fps", "pass a frame rate in Hz, e.g. 10",
+                                         positive=True), default=10.0,
+                   help="frame rate of --frames (frame k at t = k / fps)")
 
 
 def _locate_args(p):

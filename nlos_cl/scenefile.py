@@ -17,6 +17,7 @@ Schema (SI units; every key optional unless marked; docs/scene-files.md has exam
       - shape: box              # size_m: [sx, sy, sz]
       - shape: sphere           # radius_m
       - shape: mesh             # file: person.obj (relative to the scene file)
+        # trajectory: {t_s: [0, 5], positions: [[2, 4, 0], [5, 1, 0]]}  in place of position
         # every shape: position [x, y, z] (its bounding-box centre: the truth), rotation_deg
         # [rx, ry, rz] (about x, then y, then z, around the centre), scale, brdf (Lambertian)
         # or reflectance: {model: ggx, specular: 0.5, roughness: 0.3, diffuse: 0.0}
@@ -39,7 +40,7 @@ SETUP_KEYS = {"laser_spot", "detector_spots", "device_distance_m", "laser_spot_d
               "detected_spot_diameter_m", "aperture_area_m2", "wall_brdf", "pulse", "finite_spots"}
 SHAPES = {"rectangle": {"size_m", "normal"}, "box": {"size_m"}, "sphere": {"radius_m"},
           "mesh": {"file"}}
-COMMON = {"shape", "position", "rotation_deg", "scale", "brdf", "reflectance"}
+COMMON = {"shape", "position", "trajectory", "rotation_deg", "scale", "brdf", "reflectance"}
 TOP = {"setup", "targets", "facet_size_m", "time_axis", "noise", "description", "occlusion"}
 
 
@@ -52,6 +53,25 @@ class SceneSpec:
     noise: object | None  # nlos_cl.AWGN, nlos_cl.PhotonCounter or None
     seed: int
     description: str
+    trajectories: tuple = ()  # per target: a nlos_cl.tracking.Trajectory, or None (static)
+
+    @property
+    def moving(self) -> bool:
+        return any(t is not None for t in self.trajectories)
+
+
+def _trajectory(where: str, spec):
+    """`trajectory: {t_s: [...], positions: [[x, y, z], ...]}` in place of `position`."""
+    if "trajectory" not in spec:
+        return None
+    from .tracking.trajectory import Trajectory
+    require("position" not in spec, f"{where}.trajectory", "given together with position",
+            "give one: position (a static target) or trajectory (a moving one)")
+    raw = _keys(f"{where}.trajectory", spec["trajectory"], {"t_s", "positions"})
+    try:
+        return Trajectory(raw.get("t_s"), raw.get("positions"))
+    except InputError as exc:
+        raise InputError(f"{where}: {exc}") from None
 
 
 def _keys(where: str, mapping, allowed: set) -> dict:
@@ -144,8 +164,8 @@ def _mesh(where: str, spec: dict, base: Path, cell: float):
 
 
 def _target(i: int, spec, base: Path, cell: float):
-    """A Target placed as the spec says: scaled and rotated about its centre, then its
-    bounding-box centre moved to `position`."""
+    """(Target, Trajectory or None): the mesh scaled and rotated about its centre, then its
+    bounding-box centre moved to `position` (or to where its trajectory starts)."""
     from .scene import Target
     where = f"targets[{i}]"
     require(isinstance(spec, dict), where, f"expected a mapping, got {spec!r}",
@@ -155,7 +175,9 @@ def _target(i: int, spec, base: Path, cell: float):
     vertices = (mesh.vertices - centre) * _number(f"{where}.scale", spec.get("scale", 1.0))
     if "rotation_deg" in spec:
         vertices = vertices @ _rotation(f"{where}.rotation_deg", spec["rotation_deg"]).T
-    mesh.vertices = vertices + _vector(f"{where}.position", spec.get("position", [4, 2, 0]))
+    path = _trajectory(where, spec)
+    start = path.at(0.0) if path is not None else spec.get("position", [4, 2, 0])
+    mesh.vertices = vertices + _vector(f"{where}.position", start)
     try:
         brdf = spec.get("brdf", 0.1284)
         if "reflectance" in spec:  # {model: ggx, specular: .., roughness: .., diffuse: ..}
@@ -163,7 +185,7 @@ def _target(i: int, spec, base: Path, cell: float):
             require("brdf" not in spec, f"{where}.reflectance", "given together with brdf",
                     "give one: brdf (a Lambertian number) or reflectance (a model)")
             brdf = from_spec(spec["reflectance"])
-        return Target(mesh, brdf=brdf)
+        return Target(mesh, brdf=brdf), path
     except InputError as exc:  # say which target
         raise InputError(f"{where}: {exc}") from None
 
@@ -212,14 +234,14 @@ def load_scene(source) -> SceneSpec:
     targets = raw.get("targets")
     require(isinstance(targets, list) and len(targets) >= 1, "targets", "needs at least one "
             "target", "add e.g. `targets: [{shape: rectangle, position: [4, 2, 0]}]`")
-    placed = [_target(i, t, base, cell) for i, t in enumerate(targets)]
+    placed, paths = zip(*[_target(i, t, base, cell) for i, t in enumerate(targets)])
     occlusion = raw.get("occlusion", True)
     require(isinstance(occlusion, bool), "occlusion", f"must be true or false, got {occlusion!r}",
             "write occlusion: true (the default) or false")
     scene = Scene(setup, placed[0], cell, more_targets=tuple(placed[1:]), occlusion=occlusion)
     noise, seed = _noise(raw.get("noise"))
     return SceneSpec(scene, _time_axis(raw.get("time_axis"), setup), noise, seed,
-                     str(raw.get("description", "")))
+                     str(raw.get("description", "")), tuple(paths))
 
 
 def yaml_loader():

@@ -68,3 +68,29 @@ def test_simulate_a_scene_file_then_locate_it(tmp_path):
     assert result["truth"] == truth_file and len(result["targets"]) == 2
     errors = [np.linalg.norm(np.subtract(t["position"], truth_file)) for t in result["targets"]]
     assert min(errors) < 0.10  # the rectangle; the sphere is seen by its front surface
+
+
+def test_a_moving_scene_file_simulates_a_sequence(tmp_path):
+    spec = load_scene(DOCS / "walk.yaml")
+    assert spec.moving and spec.trajectories[1] is None
+    np.testing.assert_allclose(spec.scene.truths[0], [3, 1.5, 0], atol=1e-9)  # where it starts
+    out = tmp_path / "walk.h5"
+    made = subprocess.run([sys.executable, "-m", "nlos_cl.cli", "simulate", str(DOCS / "walk.yaml"),
+                           "--frames", "4", "--fps", "2", "--out", str(out)],
+                          capture_output=True, text=True, timeout=600)
+    assert made.returncode == 0, made.stderr
+    from nlos_cl.tracking import read_sequence
+    seq = read_sequence(out)
+    assert len(seq) == 4 and np.allclose(seq.t_s, [0, 0.5, 1.0, 1.5])
+    np.testing.assert_allclose(seq[3].truths[0], [3, 3, 0], atol=1e-6)  # the waypoint at 1.5 s
+
+
+@pytest.mark.parametrize("target, field", [
+    ({"shape": "sphere", "position": [2, 3, 0], "trajectory": {"t_s": [0], "positions": [[2, 3, 0]]}},
+     "targets[0].trajectory"),
+    ({"shape": "sphere", "trajectory": {"t_s": [1, 0], "positions": [[2, 3, 0], [3, 3, 0]]}},
+     "trajectory.t_s"),
+])
+def test_bad_trajectories_name_the_key(target, field):
+    with pytest.raises(nl.InputError, match=field.replace("[", r"\[").replace("]", r"\]")):
+        load_scene({"targets": [target]})
