@@ -65,11 +65,9 @@ print(json.dumps(out))
 
 
 def plate_histograms(centre, sensors, laser, delta_t, t_start, n_t, legs, seed,
-                     size=0.15, cell=0.01, sigma_m=0.01):
-    """A square Lambertian plate facing the sensors' centre (0.15 m: this checks the files and
-    frames; the paper's estimator finds a plate's near surface, ~0.2 x its size from the
-    centre, and estimator accuracy on wide targets is measured elsewhere, see
-    docs/beyond-the-paper.md): each cell adds a Gaussian pulse
+                     size=0.3, cell=0.01, sigma_m=0.01):
+    """A square Lambertian plate (0.3 m) facing the sensors' centre: each cell adds a Gaussian
+    pulse
     (path sigma_m) at laser leg + |p - laser| + |p - sensor| + sensor leg, weighted by the four
     cosines and 1 / (r1^2 r2^2), integrated over each sample's [k - 1/2, k + 1/2) interval;
     2 % white noise. Independent of nlos_cl's code."""
