@@ -91,22 +91,35 @@ class PaperArgmax:
     def estimate(self, scored: Scored):
         be, grid = scored.backend, scored.grid
         flat, best = be.call("argmax", scored.scores)
-        # Below these the joint likelihood is numerically zero: every detector at its log floor,
-        # or a product beyond float32's range (the float64 twin would otherwise "locate" on 1e-67).
-        floor = scored.n_detectors * math.log(LOG_FLOOR) if scored.log_mode else PRODUCT_FLOOR
-        if flat < 0 or not best > floor:
-            raise InputError("grid: no cell has a non-zero likelihood from every detector: the "
-                             "signals do not reach the grid. Fix: check that the grid covers "
-                             "the hidden area the time axis sees, and the calibration; with many "
-                             "detectors use log_mode=True")
+        check_signal(flat >= 0, best, scored.log_mode, scored.n_detectors)
         nx, ny, _ = grid.shape
         iz, rem = divmod(flat, nx * ny)
         iy, ix = divmod(rem, nx)
         patch = neighbourhood(be, scored.scores, grid.shape, ix, iy, iz)
-        cell = np.array([o + s * i for o, s, i in zip(grid.origin, grid.step, (ix, iy, iz))])
-        logp = patch if scored.log_mode else np.log(np.maximum(patch, 1e-300))
+        return self.from_patch((ix, iy, iz), best, patch, grid, scored.log_mode,
+                               scored.n_detectors)
+
+    def from_patch(self, index, best, patch, grid: Grid, log_mode: bool, n_detectors: int):
+        """The estimate from the best cell's index (ix, iy, iz) on `grid` (None: no cell), its
+        score and the 3 x 3 x 3 scores around it (NaN outside the grid), as the device's fused
+        searches return them (nlos_cl/ops/fused_search.py, argmax_patch.py): no launch."""
+        check_signal(index is not None, best, log_mode, n_detectors)
+        cell = np.array([o + s * i for o, s, i in zip(grid.origin, grid.step, index)])
+        logp = patch if log_mode else np.log(np.maximum(patch, 1e-300))
         position = cell + parabolic_offsets(logp) * np.asarray(grid.step)
         return Estimate([LocatedTarget(position)], cell, best)
+
+
+def check_signal(found: bool, best: float, log_mode: bool, n_detectors: int) -> None:
+    """Raise unless a cell was found with a likelihood above the numerical zero: every detector
+    at its log floor, or a product beyond float32's range (the float64 twin would otherwise
+    "locate" on 1e-67)."""
+    floor = n_detectors * math.log(LOG_FLOOR) if log_mode else PRODUCT_FLOOR
+    if not found or not best > floor:
+        raise InputError("grid: no cell has a non-zero likelihood from every detector: the "
+                         "signals do not reach the grid. Fix: check that the grid covers "
+                         "the hidden area the time axis sees, and the calibration; with many "
+                         "detectors use log_mode=True")
 
 
 def neighbourhood(be, score, shape, ix, iy, iz):

@@ -6,6 +6,8 @@ only for the frame: its upload (if it comes from the host), the kernels, and the
 from __future__ import annotations
 
 import math
+import statistics
+import time
 from dataclasses import replace
 
 import numpy as np
@@ -15,6 +17,7 @@ from .errors import require
 from .estimators import Location, PaperArgmax, Scored, as_estimator
 from .grid import Grid
 from .histograms import Layout
+from .ops.argmax_patch import decode
 from .ops.gauss_filter import gauss_taps
 from .paths import TimeAxis
 from .search import SEARCHES, CoarseToFine
@@ -24,6 +27,8 @@ from .signals import Signals, as_signals
 # paper's filter, sigma = h / 3 (the 30 ps pulse adds 1 % in quadrature). It sets only the
 # coarse-to-fine search's speed, never its answer.
 PAPER_SIGNAL_WIDTH_M = SPEED_OF_LIGHT * PAPER_H_S / 3.0
+AUTO_TRIALS = 3  # search="auto": frames timed per search before it keeps the faster
+SEARCHES_TRIED = ("coarse_to_fine", "exhaustive")
 
 
 def _layout_of(value) -> Layout:
@@ -73,17 +78,20 @@ class Locator:
     `locator(filtered_signals) -> Location`. log_mode scores by the sum of log-likelihoods
     (for many detectors); the estimator is a name ('paper') or an object (nlos_cl.estimators).
 
-    search: "coarse_to_fine" (default) scores a coarse grid, bounds every block of cells from
-    above and scores only the blocks that can hold the best cell (nlos_cl/search.py): the same
-    argmax cell, score and 3 x 3 x 3 neighbourhood as "exhaustive", which scores every cell.
-    It applies to the paper's estimator (and to estimators with `local = True`, which read only
-    the best cell's neighbourhood); others, and return_map=True, score every cell.
+    search: "coarse_to_fine" scores a coarse grid, bounds every block of cells from above and
+    scores only the blocks that can hold the best cell (nlos_cl/search.py): the same argmax
+    cell, score and 3 x 3 x 3 neighbourhood as "exhaustive", which scores every cell. "auto"
+    (default) times both on the first frames (AUTO_TRIALS each, after a warm-up) and keeps the
+    faster for this grid: the answer is the same either way. It applies to the paper's estimator
+    (and to estimators with `local = True`, which read only the best cell's neighbourhood);
+    others, and return_map=True, score every cell. With the paper's estimator a frame costs
+    one small read: the search (or the argmax) and the neighbourhood stay on the device.
     signal_width_m: the filtered signal's width in hidden-path metres (default: the paper's
     filter, c h / 3 = 6.5 cm); it sets the coarse grid's step, i.e. only the speed.
     """
 
     def __init__(self, layout, grid: Grid | None = None, *, estimator=None,
-                 log_mode: bool = False, backend=None, search: str = "coarse_to_fine",
+                 log_mode: bool = False, backend=None, search: str = "auto",
                  signal_width_m: float | None = None):
         layout = _layout_of(layout)
         grid = Grid() if grid is None else grid
@@ -102,16 +110,22 @@ class Locator:
         axis = layout.path_axis()
         self._path0, self._inv_dpath = axis.centre0_m, 1.0 / axis.step_m
         self._scores = None  # the score buffer, reused frame after frame
+        self._stats = self._result = None  # row stats and the fused searches' result, reused
+        self._geometry = (layout.detector_spots, layout.laser_spot, self._path0,
+                          self._inv_dpath, self.log_mode, LOG_FLOOR)
         local = getattr(self.estimator, "local", isinstance(self.estimator, PaperArgmax))
         self.search = search if local else "exhaustive"
         self._search = CoarseToFine(grid, self._inv_dpath, float(width))
+        self._trials = []  # "auto": (search, seconds) of the first frames
+        self.chosen = None if self.search == "auto" else self.search
+        if self.search == "auto" and not self._search.useful:
+            self.chosen = "exhaustive"  # no coarse grid to search
         self.last_search = None  # what the last frame's search did (search.Found)
 
     def _args(self, signals: Signals):
-        stats = signals.backend.call("row_stats", signals.handle)
-        lay = self.layout
-        return (stats, lay.detector_spots, lay.laser_spot, self._path0, self._inv_dpath,
-                self.log_mode, LOG_FLOOR)
+        stats = signals.backend.call("row_stats", signals.handle, out=self._stats)
+        self._stats = stats
+        return (stats,) + self._geometry
 
     def scores(self, signals: Signals, args=None):
         """The grid's joint likelihood on the signals' backend (the plan's own buffer)."""
@@ -126,12 +140,12 @@ class Locator:
                                             self.grid, *args[5:], out=self._scores)
         return self._scores
 
-    def _scored(self, sig: Signals, raw, return_map: bool) -> Scored:
+    def _scored(self, sig: Signals, raw, return_map: bool, mode: str) -> Scored:
         """Scores where the estimator looks: the whole grid, or (coarse to fine) the best
         cell's neighbourhood on a sub-grid of the same cells."""
         args = self._args(sig)
         found = None
-        if self.search == "coarse_to_fine" and not return_map and self._search.useful:
+        if mode == "coarse_to_fine" and not return_map and self._search.useful:
             found = self._search.run(sig.backend, sig.handle, args)
         self.last_search = found
         if found is None:
@@ -162,8 +176,50 @@ class Locator:
                     and sig.layout.time_axis == self.layout.time_axis, "signals",
                     "come from another wall layout or time axis than the plan's",
                     "build a Locator for this layout")
-        raw = None if raw is None else as_signals(raw, sig.backend)
-        scored = self._scored(sig, raw, return_map)
-        estimate = self._in_grid(self.estimator.estimate(scored))
-        full = sig.backend.to_numpy(scored.scores) if return_map else None
+        mode = self._mode() if self._search.useful else "exhaustive"  # (no coarse grid)
+        start = time.perf_counter()
+        if not return_map and type(self.estimator) is PaperArgmax and (
+                mode == "exhaustive" or self._search.fusable(sig.n_detectors)):
+            estimate, full = self._fused(sig, mode), None
+        else:
+            raw = None if raw is None else as_signals(raw, sig.backend)
+            scored = self._scored(sig, raw, return_map, mode)
+            estimate = self._in_grid(self.estimator.estimate(scored))
+            full = sig.backend.to_numpy(scored.scores) if return_map else None
+        if self.chosen is None and not return_map:
+            self._learn(mode, time.perf_counter() - start)
         return Location.of(estimate, self.grid, sig.layout.truth, full, self.estimator.name)
+
+    # ------------------------------------------------------------ the paper's argmax, fused
+    def _fused(self, sig: Signals, mode: str):
+        """The paper's estimate with one read: the fused search (coarse to fine) or the whole
+        map's argmax with its neighbourhood (exhaustive), both on the device."""
+        be, found = sig.backend, None
+        if mode == "coarse_to_fine":
+            found, patch, self._result = self._search.fused(be, sig.handle, self._geometry,
+                                                            self._result)
+        if found is None:  # exhaustive (or no candidate block: score every cell)
+            scores = self.scores(sig, self._args(sig))
+            self._result = be.call("argmax_patch", scores, out=self._result)
+            index, best, _, patch = decode(be.to_numpy(self._result))
+        else:
+            index, best = found.index, found.score
+        self.last_search = found
+        return self.estimator.from_patch(index, best, patch, self.grid, self.log_mode,
+                                         sig.n_detectors)
+
+    # ------------------------------------------------------------ "auto": measured choice
+    def _mode(self) -> str:
+        if self.chosen is not None:
+            return self.chosen
+        return SEARCHES_TRIED[len(self._trials) % 2]
+
+    def _learn(self, mode: str, seconds: float) -> None:
+        """Record a trial frame; after AUTO_TRIALS each (the first of each dropped: it builds
+        the programs), keep the search with the lower median."""
+        self._trials.append((mode, seconds))
+        if len(self._trials) < 2 * (AUTO_TRIALS + 1):
+            return
+        med = {m: statistics.median([t for k, t in self._trials[2:] if k == m])
+               for m in SEARCHES_TRIED}
+        self.chosen = min(SEARCHES_TRIED, key=lambda m: med[m])

@@ -21,6 +21,14 @@ pulse in path metres) only sets the speed: f is the largest odd factor with
 `blocks` form of ellipse_score), so the scores, the argmax and the estimator's neighbourhood are
 bit-identical to exhaustive scoring. Where the bound rules little out (a flat map), the whole
 grid is scored instead.
+
+`fused` runs steps 1-3 on the device (nlos_cl/ops/fused_search.py): the row stats and the
+dilation (one launch: stats_dilate), one launch
+scoring the coarse cells on both kinds of rows, one launch that selects, refines, takes the
+argmax and scores the best cell's 3 x 3 x 3 neighbours, and ONE read of 35 floats per frame.
+`run` (the host picks the blocks: two reads of the coarse maps, one of the fine scores) stays
+for more detectors than one scoring pass takes and for coarse grids too large for one work
+group.
 """
 from __future__ import annotations
 
@@ -30,8 +38,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from .grid import Grid
+from .ops.argmax_patch import decode
+from .ops.ellipse_score import DET_TILE
+from .ops.fused_search import MAX_COARSE, centre_inside, coarse_grid
+from .ops.max_filter import DIRECT_MAX_WINDOW
 
-SEARCHES = ("exhaustive", "coarse_to_fine")
+SEARCHES = ("exhaustive", "coarse_to_fine", "auto")  # auto: nlos_cl/plans.py (Locator)
 MIN_CELLS = 4096  # smaller grids are scored exhaustively
 SLACK = 1e-4  # relative: float32 rounding between a bound and a fine score
 MAX_SHARE = 0.5  # refine at most this share of the grid, else score it all
@@ -66,12 +78,8 @@ class CoarseToFine:
         # per-axis factor; never more than the axis has cells, so every block's centre cell
         # exists (a thin slab of a huge grid keeps its few planes)
         self.fa = tuple(min(f, n) if n > 1 else 1 for n in grid.shape)
-        shape = tuple(-(-n // fa) for n, fa in zip(grid.shape, self.fa))
-        origin = tuple(o + (fa - 1) / 2 * s for o, s, fa in zip(grid.origin, grid.step, self.fa))
-        self.coarse = Grid(origin, tuple(fa * s for s, fa in zip(grid.step, self.fa)), shape)
-        centre = [np.arange(n) * fa + (fa - 1) // 2 for n, fa in zip(shape, self.fa)]
-        inside = [c < n for c, n in zip(centre, grid.shape)]  # centres that are fine cells
-        self.valid = inside[2][:, None, None] & inside[1][None, :, None] & inside[0][None, None, :]
+        self.coarse = coarse_grid(grid, self.fa)
+        self.valid = centre_inside(grid, self.fa)  # coarse cells whose centre is a fine cell
         radius = 0.5 * math.sqrt(sum(((fa - 1) * s) ** 2 for s, fa in zip(grid.step, self.fa)))
         self.half = int(math.ceil(2.0 * radius * float(np.max(inv_dpath)) + 0.01)) + 1
         self._bufs = {}
@@ -79,6 +87,31 @@ class CoarseToFine:
     @property
     def useful(self) -> bool:
         return self.factor > 1
+
+    def fusable(self, n_detectors: int) -> bool:
+        """Whether `fused` takes this search (one scoring pass, one work group's coarse grid)."""
+        return self.useful and n_detectors <= DET_TILE and self.coarse.n_cells <= MAX_COARSE
+
+    def fused(self, be, signal, geometry, out=None):
+        """(Found, 3 x 3 x 3 scores around it (NaN outside the grid), the result handle), or
+        (None, None, handle) when no block was a candidate; one read. geometry: (spots,
+        laser, path0, inv_dpath, log_mode, log_floor). Row stats and dilation in one launch
+        where the window is short (stats_dilate), else row_stats and max_filter."""
+        if 2 * self.half + 1 <= DIRECT_MAX_WINDOW:
+            stats, dilated = be.call("stats_dilate", signal, self.half,
+                                     out=self._bufs.get("prepared"))
+            self._bufs["prepared"] = (stats, dilated)
+        else:
+            stats = be.call("row_stats", signal, out=self._bufs.get("stats"))
+            dilated = be.call("max_filter", signal, self.half, out=self._bufs.get("dilated"))
+            self._bufs["stats"], self._bufs["dilated"] = stats, dilated
+        result = be.call("fused_search", signal, dilated, stats, *geometry[:4], self.grid,
+                         self.fa, self.half, *geometry[4:], out=out)
+        index, score, count, patch = decode(be.to_numpy(result))
+        if index is None:
+            return None, None, result
+        n = int(count)
+        return Found(index, score, n, n * int(np.prod(self.fa))), patch, result
 
     def _score(self, be, key, signal, args, grid, *blocks):
         self._bufs[key] = be.call("ellipse_score", signal, *args[:5], grid, *args[5:],

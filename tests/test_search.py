@@ -8,6 +8,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import nlos_cl as nl
+from nlos_cl.estimators import PaperArgmax
 from nlos_cl.plans import Locator
 from nlos_cl.search import CoarseToFine, coarse_factor
 
@@ -104,3 +105,61 @@ def test_unknown_search_is_a_clear_error():
     hist = histograms([(4.0, 2.0, 0.0)], [1.0], 3, 0.065, 0.0, 0)
     with pytest.raises(nl.InputError, match="search"):
         Locator(hist.layout, search="fast")
+
+
+class HostSideArgmax(PaperArgmax):
+    """The paper's argmax through the general estimator seam (local): the host-side search
+    (nlos_cl/search.py `run`) and the argmax op with the neighbourhood read row by row."""
+
+    local = True
+
+
+@pytest.mark.parametrize("log_mode", [False, True])
+@pytest.mark.parametrize("volume", [False, True])
+def test_fused_device_search_matches_the_host_side_search(runtime, log_mode, volume):
+    """One read per frame (fused_search, argmax_patch) against the host-side paths: the same
+    cell, score and position, coarse to fine and exhaustive."""
+    hist = histograms([(4.0, 2.0, 0.1), (3.0, 3.0, -0.1)], [1.0, 0.98], 3, 0.065, 0.05, 4)
+    grid = (nl.Grid((2.5, 1.0, -0.3), (0.03, 0.03, 0.05), (90, 90, 13)) if volume
+            else nl.Grid.from_ranges(x=(2.5, 5.0), y=(1.0, 3.5), step_m=0.01))
+    for search in ("coarse_to_fine", "exhaustive"):
+        fused = Locator(hist.layout, grid, search=search, log_mode=log_mode, backend=runtime)
+        host = Locator(hist.layout, grid, search=search, log_mode=log_mode, backend=runtime,
+                       estimator=HostSideArgmax())
+        a, b = fused(hist), host(hist)
+        assert np.array_equal(a.cell_position, b.cell_position)
+        assert a.score == b.score
+        assert np.allclose(a.position, b.position, rtol=0, atol=1e-12)
+
+
+def test_auto_keeps_one_search_after_its_trials(runtime):
+    from nlos_cl.plans import AUTO_TRIALS
+    hist = histograms([(4.0, 2.0, 0.0)], [1.0], 3, 0.065, 0.02, 5)
+    grid = nl.Grid.from_ranges(x=(2.5, 5.0), y=(1.0, 3.5), step_m=0.01)
+    plan, exhaustive = Locator(hist.layout, grid, backend=runtime), Locator(
+        hist.layout, grid, backend=runtime, search="exhaustive")
+    expected = exhaustive(hist)
+    for _ in range(2 * (AUTO_TRIALS + 1)):
+        assert plan.chosen is None
+        found = plan(hist)
+        assert np.array_equal(found.cell_position, expected.cell_position)
+        assert found.score == expected.score
+    assert plan.chosen in ("coarse_to_fine", "exhaustive")
+
+
+@pytest.mark.parametrize("grid", [nl.Grid((2.0, 0.5, 0.0), (0.01, 0.01, 0.01), (601, 60, 1)),
+                                  nl.Grid((3.0, 1.0, -0.3), (0.03, 0.03, 0.03), (30, 30, 20))],
+                         ids=["rows", "planes"])
+def test_exhaustive_score_map_in_slabs(runtime, grid):
+    """A map in several slabs (a device's allocation limit): argmax_patch reads the
+    neighbourhood on the host, with the same answer as one slab."""
+    from nlos_cl.runtime import Runtime
+    tiny = Runtime(max_alloc_bytes=24_000)
+    hist = histograms([(3.5, 1.2, 0.0)], [1.0], 3, 0.065, 0.02, 8)
+    a = Locator(hist.layout, grid, search="exhaustive", backend=runtime)(hist)
+    plan = Locator(hist.layout, grid, search="exhaustive", backend=tiny)
+    for _ in range(2):  # the second frame reuses the plan's buffers
+        b = plan(hist)
+        assert np.array_equal(a.cell_position, b.cell_position) and a.score == b.score
+        assert np.array_equal(a.position, b.position)
+    assert len(plan._scores.slabs) > 1

@@ -5,6 +5,7 @@ line below. Backends call them by name (`backend.call("gauss_filter", ...)`, or
 from . import (add_awgn, argmax, ellipse_score, forward, gauss_filter, row_stats,
                subtract_background)
 from . import max_filter  # noqa: E402  (coarse-to-fine scoring's bound)
+from . import argmax_patch, fused_search, stats_dilate  # noqa: E402  (one read per frame)
 from .base import Example, Operation
 
 OPERATIONS: dict[str, Operation] = {op.name: op for op in (
@@ -16,6 +17,9 @@ OPERATIONS: dict[str, Operation] = {op.name: op for op in (
     argmax.OP,
     subtract_background.OP,
     max_filter.OP,
+    argmax_patch.OP,
+    fused_search.OP,
+    stats_dilate.OP,
 )}
 
 __all__ = ["OPERATIONS", "Example", "Operation"]

@@ -85,7 +85,7 @@ class Tracker:
                  max_tracks: int = 1, gate_probability: float = 0.999,
                  fallback_sigma_m: float = 0.05, min_sigma_m: float = 0.002,
                  confirm=(2, 3), max_misses: int = 5, frame_interval_s: float = 0.1,
-                 max_history: int | None = None, backend=None, search="coarse_to_fine"):
+                 max_history: int | None = None, backend=None, search="auto"):
         from ..grid import Grid
         from ..plans import GaussFilter, Locator
         layout = getattr(layout, "layout", layout)

@@ -1,5 +1,5 @@
 """The benchmark's cases: every registered operation's "bench" examples (kernel against twin),
-then the whole pipeline and a tracking-style stream (per-frame functional calls against plans).
+then the whole pipeline and a frame stream (functional calls, plans and the Tracker: stream.py).
 """
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ import numpy as np
 from ... import pipeline as pl
 from ...backend import NumpyBackend
 from ...ops import OPERATIONS
-from .harness import fraction_of_limit, measure_limits, spread, time_pair, timed
+from .harness import fraction_of_limit, measure_limits, spread, time_pair
 
 
 @dataclass
@@ -103,46 +103,6 @@ def pipeline_row(rt, smoke):
                k_spread)
 
 
-def stream_rows(rt, smoke):
-    """1,000 host frames (3 x 4,096 bins, 10 dB) located on a 512^2 grid: per-frame functional
-    calls (upload, filter, locate, each building its plan) against plans built once."""
-    from ...grid import Grid
-    from ...paths import TimeAxis
-    from ...plans import GaussFilter, Locator
-    from ...scene import paper_scene
-    from ...signals import upload
-    n_frames, n = (20, 64) if smoke else (1000, 512)
-    grid = Grid((2.0, 0.5, 0.0), (4 / n, 4 / n, 0.01), (n, n, 1))
-    clean = pl.simulate(paper_scene(facet_size_m=0.02), TimeAxis(40 / 299_792_458.0, 10e-12, 4096),
-                        backend=rt).histograms()
-    rng = np.random.default_rng(0)
-    power = np.sqrt(np.mean(clean.data ** 2, axis=1, keepdims=True) / 10.0)
-    frames = [clean.with_data(clean.data + power * rng.standard_normal(clean.data.shape))
-              for _ in range(8)]  # cycled: the noise draws are not what is timed
-    gauss, locator = GaussFilter(time_axis=clean.time_axis), Locator(clean.layout, grid)
-
-    def functional(i):
-        return pl.locate(pl.gauss_filter(frames[i % 8], backend=rt), grid)
-
-    def planned(i):
-        return locator(gauss(upload(frames[i % 8], rt)))
-    rows = []
-    for label, step in (("functional: nl.gauss_filter + nl.locate per frame", functional),
-                        ("plans: GaussFilter + Locator built once", planned)):
-        step(0)
-        rt.finish()
-        per_frame = [t / n_frames for t in timed(lambda: [step(i) for i in range(n_frames)],
-                                                 3 if smoke else 2, rt.finish)]
-        k, k_spread = spread(per_frame)
-        twin = NumpyBackend()
-        t0 = time.perf_counter()
-        pl.locate(pl.gauss_filter(frames[0], backend=twin), grid)
-        rows.append(Row("stream", f"{label}: {n_frames} frames, 3 x 4096 bins, {n}x{n} cells",
-                        n_frames, k, time.perf_counter() - t0, 0.0, 1 / k, "localizations",
-                        math.nan, "-", 0.0, k_spread, note="per frame; twin: one frame"))
-    return rows
-
-
 def all_rows(rt, smoke=False, say=print):
     say("operations")
     rows = list(operation_rows(rt, smoke, say))
@@ -151,6 +111,7 @@ def all_rows(rt, smoke=False, say=print):
     rows.extend(scoring_rows(rt, smoke, Row))
     say("pipeline")
     rows.append(pipeline_row(rt, smoke))
-    say("stream")
-    rows.extend(stream_rows(rt, smoke))
+    say("stream: plans and the tracker, host frames to track states")
+    from .stream import stream_rows
+    rows.extend(stream_rows(rt, smoke, Row))
     return rows

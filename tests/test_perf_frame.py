@@ -1,0 +1,56 @@
+"""What one frame costs in launches and host round trips (counted, never timed): with the paper's
+estimator a located frame is a handful of launches and ONE blocking read, coarse to fine and
+exhaustive alike (nlos_cl/ops/fused_search.py, argmax_patch.py); the Tracker adds only the
+frame's upload and the Gauss filter."""
+import numpy as np
+import pyopencl as cl
+import pytest
+
+import nlos_cl as nl
+from nlos_cl.plans import GaussFilter, Locator
+from nlos_cl.tracking import Tracker
+
+from test_search import histograms
+
+
+class Counter:
+    def __init__(self, monkeypatch):
+        self.launches = self.reads = self.writes = 0
+        launch, copy = cl.enqueue_nd_range_kernel, cl.enqueue_copy
+
+        def counted_launch(*args, **kw):
+            self.launches += 1
+            return launch(*args, **kw)
+
+        def counted_copy(queue, dest, src, **kw):
+            if isinstance(dest, np.ndarray):
+                self.reads += 1
+            else:
+                self.writes += 1
+            return copy(queue, dest, src, **kw)
+        monkeypatch.setattr(cl, "enqueue_nd_range_kernel", counted_launch)
+        monkeypatch.setattr(cl, "enqueue_copy", counted_copy)
+
+
+@pytest.mark.parametrize("search, launches", [("coarse_to_fine", 3), ("exhaustive", 4)])
+def test_a_located_frame_is_one_read(runtime, monkeypatch, search, launches):
+    hist = histograms([(4.0, 2.0, 0.0)], [1.0], 3, 0.065, 0.05, 6)
+    grid = nl.Grid.from_ranges(x=(2.0, 6.0), y=(0.5, 4.0), step_m=0.01)
+    signals = GaussFilter(time_axis=hist.time_axis)(nl.upload(hist, runtime))
+    plan = Locator(hist.layout, grid, search=search, backend=runtime)
+    plan(signals)  # builds the programs, allocates the plan's buffers
+    runtime.finish()
+    count = Counter(monkeypatch)
+    plan(signals)
+    assert (count.launches, count.reads, count.writes) == (launches, 1, 0)
+
+
+def test_a_tracked_frame_is_one_upload_and_one_read(runtime, monkeypatch):
+    hist = histograms([(4.0, 2.0, 0.0)], [1.0], 3, 0.065, 0.05, 7)
+    grid = nl.Grid.from_ranges(x=(2.0, 6.0), y=(0.5, 4.0), step_m=0.01)
+    tracker = Tracker(hist.layout, grid, search="coarse_to_fine", backend=runtime)
+    tracker.update(hist)
+    count = Counter(monkeypatch)
+    tracker.update(hist)
+    assert (count.reads, count.writes) == (1, 1)
+    assert count.launches <= 6  # Gauss filter (2), row stats + dilation, coarse, refinement
