@@ -19,6 +19,7 @@ import numpy as np
 
 import nlos_cl as nl
 from nlos_cl.model import ModelEstimator
+from nlos_cl.model.estimator import GAUSS_LATTICE
 from nlos_cl.model.plate import plate_facets
 
 PAPER_SPOTS = [[-0.5, 0, 0], [-1.0, 0, 0], [-1.5, 0, 0]]
@@ -31,10 +32,10 @@ GRID = nl.Grid.from_ranges(x=(0, 6), y=(0.01, 6), step_m=0.01)
 def scene(position, size=(0.3, 1.6), spots=PAPER_SPOTS, normal=(-1, 0, 0), same_model=False):
     mesh = nl.rectangle(size[0], size[1], centre=position, normal=normal, cell_m=0.01)
     sc = nl.Scene(nl.paper_setup(detector_spots=spots), nl.Target(mesh), 0.01, truth=position)
-    if same_model:  # the fit's own 10 x 20 lattice instead of 1 cm facets
+    if same_model:  # the fit's own cell lattice instead of 1 cm facets
         yaw = math.atan2(normal[1], normal[0])
         p = [*position, size[0], size[1], yaw]
-        object.__setattr__(sc, "_facets", plate_facets(p, (10, 20)))
+        object.__setattr__(sc, "_facets", plate_facets(p, GAUSS_LATTICE))
     return sc
 
 

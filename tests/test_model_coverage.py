@@ -1,62 +1,67 @@
-"""The model estimator's covariance is calibrated: over 200 noise seeds the true centre lies
-inside the reported 95 % region 90-98 % of the time (a fast setting: data from 1 cm facets
-(30 x 160 on the paper's plate; the fit uses 10 x 20) on a short 1 ps record, white noise at
-the paper's 10 dB level, each fit started at the truth so that only the local fit and its
-covariance are tested)."""
+"""The model estimator's covariance is calibrated on data it did not make: over 200 noise seeds
+the true centre lies inside the reported 95 % region 90-98 % of the time.
+
+The data come from `nl.simulate` at the library's defaults (trimesh rectangles cut into 1 cm
+facets, the OpenCL forward kernel, 1 ps bins, the full 60,000-bin record) with `nl.add_noise`
+at the paper's 10 dB; the fit uses its own coarse plate (16 x 24 cells) on the filtered samples,
+exactly as `ModelEstimator` does. Two cases, 100 seeds each: the paper's 0.3 x 1.6 m plate on
+its collinear spots (region: an ellipse in x, y) and a 0.7 m square seen from 8 spots on a
+circle (an ellipsoid in x, y, z). Each fit starts at the truth, so the test measures the local
+fit and its covariance, not the search for a start (that is docs/beyond-the-paper.md's
+coverage table, with the whole estimator)."""
 import math
 
 import numpy as np
-from scipy.ndimage import correlate1d
+from scipy.stats import chi2
 
 import nlos_cl as nl
-from nlos_cl.backend import NumpyBackend
-from nlos_cl.model import data, plate
+from nlos_cl import layouts
+from nlos_cl.model import data, height_observable
+from nlos_cl.model.estimator import GAUSS_LATTICE
 from nlos_cl.model.fit import centre_covariance, covariance, fit
 from nlos_cl.model.likelihood import Problem
-from nlos_cl.ops.gauss_filter import gauss_taps
 
-CHI2_95_2DOF = 5.991  # z is fixed (collinear spots): the region is an ellipse in (x, y)
-
-
-def clean_frame(truth_params, lattice=(30, 160), dt_s=1e-12):
-    """Noise-free 1 ps histograms of a plate cut into `lattice` facets, and their layout."""
-    setup = nl.paper_setup()
-    facets = plate.plate_facets(truth_params, lattice)
-    paths = (np.linalg.norm(facets.centres - setup.laser_spot, axis=1)[None]
-             + np.linalg.norm(facets.centres[None] - setup.detector_spots[:, None], axis=2))
-    lo, hi = paths.min() - 1.0, paths.max() + 1.0
-    c = nl.SPEED_OF_LIGHT
-    axis = nl.TimeAxis((2 * setup.device_distance_m + lo) / c + setup.pulse.peak_delay_s, dt_s,
-                       int(math.ceil((hi - lo) / (c * dt_s))))
-    layout = nl.Layout(axis, setup.detector_spots, setup.laser_spot,
-                       nl.PathCalibration.for_setup(setup))
-    pa = layout.path_axis()
-    hist, _ = NumpyBackend().call("forward", facets, setup.detector_spots, setup.laser_spot,
-                                  pa.start_m, pa.step_m, nl.SPEED_OF_LIGHT * setup.pulse.sigma_s,
-                                  axis.n_bins, None)
-    return layout, hist
+PAPER_SPOTS = [[-0.5, 0, 0], [-1.0, 0, 0], [-1.5, 0, 0]]
+CIRCLE8 = layouts.circle(centre=[-1.0, 0, 0], radius_m=0.5, count=8)
+CASES = (((3.0, 2.0, 0.0), (0.3, 1.6), PAPER_SPOTS),
+         ((2.0, 4.0, 0.0), (0.7, 0.7), CIRCLE8))
 
 
-def coverage(n_seeds=200, truth=(4.0, 2.0, 0.0, 0.3, 1.6, math.pi)):
-    layout, clean = clean_frame(np.array(truth))
-    # 10 dB below the power of the paper's default 60,000-bin record (18 m of hidden path)
-    power = (clean ** 2).sum(axis=1) / 60000
-    sigma = np.sqrt(power / 10.0)
-    taps = gauss_taps(nl.PAPER_H_S, layout.time_axis.dt_s)
-    free = np.array([True, True, False, True, True, True])
-    inside, rng = [], np.random.default_rng(12345)
-    for _ in range(n_seeds):
-        raw = clean + sigma[:, None] * rng.standard_normal(clean.shape)
-        filtered = correlate1d(raw, taps, axis=1, mode="constant")
-        obs = data.gaussian_observation(layout, filtered, raw)
-        problem = Problem(obs, NumpyBackend())
-        result = fit(problem, np.array([truth]), free, max_nfev=15)
-        cov = centre_covariance(covariance(problem, result, free)[0], 0)[:2, :2]
-        d = result.params[0, :2] - np.array(truth[:2])
-        inside.append(float(d @ np.linalg.solve(cov, d)) <= CHI2_95_2DOF)
+def clean_frame(position, size, spots):
+    mesh = nl.rectangle(size[0], size[1], centre=position, normal=(-1, 0, 0), cell_m=0.01)
+    scene = nl.Scene(nl.paper_setup(detector_spots=spots), nl.Target(mesh), 0.01,
+                     truth=position)
+    return nl.simulate(scene, nl.default_time_axis(scene.setup, 1e-12))
+
+
+def inside_95(position, size, spots, seeds):
+    """Per seed: is the truth inside the fitted target's 95 % region (observable axes)?"""
+    clean = clean_frame(position, size, spots)
+    observable = height_observable(np.asarray(spots, float), clean.layout.laser_spot)
+    free = np.array([True, True, observable, True, True, True])
+    truth = np.array([*position, *size, math.pi])
+    axes = slice(0, 3 if observable else 2)
+    out = []
+    for seed in seeds:
+        noisy = nl.add_noise(clean, 10, seed)
+        raw = noisy.histograms().data
+        filtered = nl.gauss_filter(noisy).histograms().data
+        obs = data.gaussian_observation(clean.layout, filtered, raw)
+        problem = Problem(obs, clean.backend, GAUSS_LATTICE)
+        result = fit(problem, truth[None], free, max_nfev=15)
+        cov = centre_covariance(covariance(problem, result, free)[0], 0)[axes, axes]
+        d = result.params[0, axes] - truth[axes]
+        out.append(float(d @ np.linalg.solve(cov, d)) <= chi2.ppf(0.95, len(d)))
+    return out
+
+
+def coverage(seeds_per_case=100):
+    inside = []
+    for i, case in enumerate(CASES):
+        inside += inside_95(*case, range(1000 * i, 1000 * i + seeds_per_case))
     return float(np.mean(inside))
 
 
 def test_95_percent_region_covers_the_truth_90_to_98_percent_of_the_time():
-    rate = coverage(200)
+    rate = coverage(100)
     assert 0.90 <= rate <= 0.98, rate

@@ -131,6 +131,14 @@ def _correlated_terms(obs, j):
     return meat, trace
 
 
+def _scaled_pinv(a) -> np.ndarray:
+    """Pseudo-inverse of a normal matrix whose columns differ by many orders of magnitude
+    (metres, radians, amplitudes in any unit): equilibrated first, so that pinv's relative
+    cut-off drops only real degeneracies, not small units."""
+    s = np.sqrt(np.maximum(np.diag(a), 1e-300))
+    return np.linalg.pinv(a / np.outer(s, s)) / np.outer(s, s)
+
+
 def covariance(problem, result: FitResult, free) -> tuple[np.ndarray, dict]:
     """Covariance of every plate parameter (K*6 square; inf on fixed ones) and diagnostics."""
     obs, params = problem.obs, result.params
@@ -140,7 +148,7 @@ def covariance(problem, result: FitResult, free) -> tuple[np.ndarray, dict]:
     if obs.mode == "gauss":
         j = (jmu / obs.noise[:, None, None])[obs.valid]
         meat, trace = _correlated_terms(obs, j)
-        inv = np.linalg.pinv(j.T @ j)
+        inv = _scaled_pinv(j.T @ j)
         cov = inv @ meat @ inv
         r = ((obs.y - mu) / obs.noise[:, None])[obs.valid]
         expected = float(trace - np.trace(inv @ meat))
@@ -150,7 +158,7 @@ def covariance(problem, result: FitResult, free) -> tuple[np.ndarray, dict]:
     else:
         lam = np.maximum(mu, 1e-12)[obs.valid]
         j = jmu[obs.valid]
-        cov = np.linalg.pinv(j.T @ (j / lam[:, None]))
+        cov = _scaled_pinv(j.T @ (j / lam[:, None]))
         info = {"deviance": result.cost, "n_bins": int(obs.valid.sum())}
     full = np.full((params.size, params.size), np.inf)
     mask = np.tile(np.asarray(free, bool), len(params))

@@ -8,6 +8,8 @@ residual = signed deviance residual, so the sum of squares is the deviance.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from . import plate
@@ -16,7 +18,7 @@ from . import plate
 class Problem:
     """Evaluates the forward model for parameter rows (K, 6) on `backend`."""
 
-    def __init__(self, obs, backend, lattice=(10, 20)):
+    def __init__(self, obs, backend, lattice=(16, 24)):
         self.obs, self.backend, self.lattice = obs, backend, tuple(lattice)
         self.calls = 0
         self.model_s = 0.0
@@ -26,10 +28,9 @@ class Problem:
         import time
         t = time.perf_counter()
         obs = self.obs
-        facets = plate.plate_facets(p, self.lattice)
-        blur = plate.blur_m(p, self.lattice, facets, obs.spots, obs.laser)
-        sigma = float(np.hypot(obs.sigma0_m, blur))
-        hist, _ = self.backend.call("forward", facets, obs.spots, obs.laser, obs.edge0,
+        facets, blur, shift = plate.model_facets(p, self.lattice, obs.spots, obs.laser)
+        sigma = math.sqrt(obs.sigma0_m ** 2 + blur ** 2 - obs.box_excess_m2)
+        hist, _ = self.backend.call("forward", facets, obs.spots, obs.laser, obs.edge0 - shift,
                                     obs.dpath, sigma, obs.n, None)
         out = np.asarray(self.backend.to_numpy(hist), dtype=np.float64)
         self.calls += 1

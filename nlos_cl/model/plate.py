@@ -8,9 +8,10 @@ family whose histograms have the right onset, width and decay. Its centre is the
 the visible surface: for a closed object (a box, a person) that lies in front of the object's
 own centre by up to half its depth (docs/model-estimator.md).
 
-The plate is cut into a fixed nu x nv lattice of facets (the count does not change with the
-size, so the model is continuous in w and h); each facet's spread of path lengths is carried
-by widening the pulse in the forward call (`blur_m`), so coarse facets leave no comb.
+The plate is cut into a fixed nu x nv lattice of cells (the count does not change with the
+size, so the model is continuous in w and h); each cell's spread of path lengths is carried
+by Gauss points and a widened pulse in the forward call (`model_facets`), so coarse cells
+leave no comb and no bias.
 """
 from __future__ import annotations
 
@@ -46,19 +47,73 @@ def several_facets(params, lattice=(10, 20)) -> list[Facets]:
     return [plate_facets(p, lattice) for p in np.reshape(params, (-1, N_PARAMS))]
 
 
-def blur_m(p, lattice, facets, spots, laser) -> float:
-    """Standard deviation (m of path) of the paths inside one facet: the path's gradient
-    (r1 + r2)' = (c - O) / r1 + (c - spot) / r2 times the facet's size along each edge, as a
-    uniform spread (size / sqrt 12), in quadrature, averaged over facets and detectors."""
+GAUSS_2 = 0.5 / math.sqrt(3.0)  # 2-point Gauss-Legendre nodes on a unit edge, +-0.2887
+BLUR_SHARE = 0.5  # share of a cell's mean path variance carried by the shared pulse blur
+STAT_SPOTS = 32  # the cells' path statistics from at most this many spots (an affine fit over
+# the spots carries the shift to the others: it varies smoothly, by ~10 % of its ~0.1 mm
+# across a 0.9 m SPAD patch, so the fit's error is ~1e-3 mm; 1,024 spots cost 150 ms a call)
+
+
+def _gauss_points(p, lattice, cells, scale):
+    """Each cell's 2 x 2 Gauss points, their offsets from the centre times `scale` (F,)."""
     yaw = float(p[5])
     across = np.array([-math.sin(yaw), math.cos(yaw), 0.0])
-    c = facets.centres
-    g1 = (c - laser) / np.linalg.norm(c - laser, axis=1, keepdims=True)
-    to_spots = c[None] - np.asarray(spots)[:, None]
-    g = g1[None] + to_spots / np.linalg.norm(to_spots, axis=2, keepdims=True)
-    du, dv = p[3] / lattice[0], p[4] / lattice[1]
-    var = ((g @ across) * du) ** 2 + (g[..., 2] * dv) ** 2
-    return math.sqrt(float(var.mean()) / 12.0)
+    du, dv = float(p[3]) / lattice[0], float(p[4]) / lattice[1]
+    scale = np.asarray(scale, float)[:, None]
+    pts = [cells.centres + scale * ((su * du * GAUSS_2) * across + (sv * dv * GAUSS_2) * UP)
+           for su in (-1.0, 1.0) for sv in (-1.0, 1.0)]
+    return Facets(np.concatenate(pts), np.ascontiguousarray(np.tile(cells.normals, (4, 1))),
+                  np.tile(cells.areas, 4) / 4.0)
+
+
+def model_facets(p, lattice, spots, laser):
+    """What the forward call sees of plate p: point facets, the pulse blur (m of path) they
+    share, and a path shift per detector (D,) to add to every facet's path.
+
+    The forward call puts each facet's pulse at its path and spreads it by one width for all
+    facets, but a lattice cell spans a range of paths, and that range differs from cell to
+    cell (the path's gradient along the plate varies) and its mean is not the centre's path
+    (the path is convex, the weight 1 / r^2 x cosines varies across the cell). On the 10 x 20
+    lattice of a 1.6 m plate the mean is ~0.1 mm of path off, as large as a 10 dB frame's range
+    error; a single width for every cell biases a 1 m square by ~1 cm. So: from each cell's
+    2 x 2 Gauss points (exact for the first and second order over a uniform cell; float64
+    twin ops.forward.facet_paths) its weighted mean path m_df and variance v_df; the shared
+    blur carries BLUR_SHARE of the mean cell variance (it keeps the sum smooth where cells are
+    large); each cell is then 4 points at its Gauss points pulled in by s_f = sqrt(1 - blur^2
+    / v_f) so that points + blur have the cell's own variance; the shift restores the part
+    (1 - s_f^2) of the cell's mean-path offset that the pulled-in points no longer carry."""
+    spots, laser = np.asarray(spots, float), np.asarray(laser, float)
+    cells = plate_facets(p, lattice)
+    some = np.unique(np.linspace(0, len(spots) - 1, min(len(spots), STAT_SPOTS)).round()
+                     ).astype(int)
+    mean, centre, var_df, wsum = _cell_stats(p, lattice, cells, spots[some], laser)
+    var_f = (var_df * wsum).sum(axis=0) / np.maximum(wsum.sum(axis=0), 1e-300)  # (F,)
+    lit = wsum.sum(axis=0) > 0
+    blur2 = BLUR_SHARE * float(np.mean(var_f[lit])) if lit.any() else 0.0
+    keep = np.sqrt(np.clip(1.0 - blur2 / np.maximum(var_f, 1e-300), 0.0, 1.0))
+    lost = (1.0 - keep ** 2)[None] * (mean - centre) * wsum
+    shift = lost.sum(axis=1) / np.maximum(wsum.sum(axis=1), 1e-300)
+    if len(some) < len(spots):  # affine in the spot's position, least squares over `some`
+        basis = np.hstack([np.ones((len(spots), 1)), spots - spots.mean(axis=0)])
+        coef, *_ = np.linalg.lstsq(basis[some], shift, rcond=None)
+        shift = basis @ coef
+    return _gauss_points(p, lattice, cells, keep), math.sqrt(blur2), shift
+
+
+def _cell_stats(p, lattice, cells, spots, laser):
+    """Per (spot, cell): weighted mean path over the cell's Gauss points, the centre's path,
+    the weighted variance, and the summed weight."""
+    from ..ops.forward import facet_paths
+    n_f = len(cells.centres)
+    full = _gauss_points(p, lattice, cells, np.ones(n_f))
+    path, weight = facet_paths(full.centres, full.normals, full.areas, spots, laser)
+    path, weight = path.reshape(len(path), 4, n_f), weight.reshape(len(weight), 4, n_f)
+    wsum = weight.sum(axis=1)  # (D, F)
+    safe = np.maximum(wsum, 1e-300)
+    mean = (weight * path).sum(axis=1) / safe
+    var_df = (weight * (path - mean[:, None]) ** 2).sum(axis=1) / safe
+    centre, _ = facet_paths(cells.centres, cells.normals, cells.areas, spots, laser)
+    return mean, centre, var_df, wsum
 
 
 def facing(centre, laser) -> float:
