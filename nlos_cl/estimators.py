@@ -15,6 +15,7 @@ import numpy as np
 from .constants import LOG_FLOOR, PRODUCT_FLOOR
 from .errors import InputError
 from .grid import Grid
+from .ops.argmax_patch import neighbourhood
 
 
 @dataclass(frozen=True)
@@ -46,15 +47,18 @@ class Location:
     grid: Grid
     truth: np.ndarray | None = None
     score_map: np.ndarray | None = field(default=None, repr=False)  # (nz, ny, nx) if asked
-    covariance: np.ndarray | None = None  # (3, 3) m^2 of the first target, if known
     estimator: str = "paper"
     targets: list = field(default_factory=list)  # every LocatedTarget, best first
 
     @classmethod
     def of(cls, estimate: Estimate, grid: Grid, truth, score_map, estimator: str) -> "Location":
-        first = estimate.targets[0]
-        return cls(first.position, estimate.cell_position, estimate.score, grid, truth,
-                   score_map, first.covariance, estimator, list(estimate.targets))
+        return cls(estimate.targets[0].position, estimate.cell_position, estimate.score, grid,
+                   truth, score_map, estimator, list(estimate.targets))
+
+    @property
+    def covariance(self) -> np.ndarray | None:
+        """(3, 3) m^2 of the first target, where the estimator provides one."""
+        return self.targets[0].covariance if self.targets else None
 
     @property
     def error_m(self) -> float | None:
@@ -95,7 +99,8 @@ class PaperArgmax:
         nx, ny, _ = grid.shape
         iz, rem = divmod(flat, nx * ny)
         iy, ix = divmod(rem, nx)
-        patch = neighbourhood(be, scored.scores, grid.shape, ix, iy, iz)
+        patch = neighbourhood(lambda z, a, b: be.read_rows(scored.scores, z, a, b), grid.shape,
+                              (ix, iy, iz))
         return self.from_patch((ix, iy, iz), best, patch, grid, scored.log_mode,
                                scored.n_detectors)
 
@@ -120,21 +125,6 @@ def check_signal(found: bool, best: float, log_mode: bool, n_detectors: int) -> 
                          "signals do not reach the grid. Fix: check that the grid covers "
                          "the hidden area the time axis sees, and the calibration; with many "
                          "detectors use log_mode=True")
-
-
-def neighbourhood(be, score, shape, ix, iy, iz):
-    """3 x 3 x 3 scores around the best cell (NaN outside the grid), read row by row."""
-    nx, ny, nz = shape
-    patch = np.full((3, 3, 3), np.nan)
-    y0, y1 = max(iy - 1, 0), min(iy + 2, ny)
-    x0, x1 = max(ix - 1, 0), min(ix + 2, nx)
-    for dz in (-1, 0, 1):
-        z = iz + dz
-        if 0 <= z < nz:
-            rows = be.read_rows(score, z, y0, y1)[:, x0:x1]
-            patch[dz + 1, y0 - iy + 1:y1 - iy + 1, x0 - ix + 1:x1 - ix + 1] = rows
-    return patch
-
 
 def parabolic_offsets(logp):
     """Per axis (x, y, z), the vertex of the parabola through (-1, 0, +1) cells, in cells."""

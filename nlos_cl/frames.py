@@ -33,7 +33,9 @@ import numpy as np
 
 from .constants import PAPER_H_S
 from .errors import require
-from .histograms import Grid, HistogramSet
+from .geometry import coincident_pair
+from .grid import Grid
+from .histograms import HistogramSet
 
 WALL_TOLERANCE_M = 0.01  # a spot this far off the wall biases the ellipse path by <= 1 cm
 SAME_SPOT_M = 1e-4  # spots closer than this are one spot (float32 files resolve ~1e-6 m)
@@ -127,7 +129,7 @@ def check_wall_spots(laser, spots, frame: CaptureFrame = INTERNAL, *, laser_fiel
                 f"relay wall {wall} = 0 (tolerance {WALL_TOLERANCE_M} m), but the ellipse model "
                 "puts every spot on the wall", f"store wall points with {wall} = 0 (shift the "
                 f"file's frame so that the relay wall is the plane {wall} = 0)")
-    pair = _coincident_pair(spots)
+    pair = coincident_pair(spots, SAME_SPOT_M)
     require(pair is None, f"{prefix}{spots_field}",
             "points {} and {} are the same spot {}, so their ellipses carry the same "
             "information".format(*(pair or (0, 0)), _fmt(frame.from_internal(spots[pair[0]]))
@@ -138,23 +140,6 @@ def check_wall_spots(laser, spots, frame: CaptureFrame = INTERNAL, *, laser_fiel
             f"a detector spot coincides with the laser spot {_fmt(frame.from_internal(laser[0]))}"
             " (the direct wall return would swamp it)", "move that sensor point off the laser "
             "point, or drop it")
-
-
-def _coincident_pair(spots):
-    """The first pair (i, j) of spots closer than SAME_SPOT_M, or None, in O(n log n): sorted
-    along x, a spot can only coincide with the few that follow it within SAME_SPOT_M in x.
-    (SciPy's k-d tree would do, but importing it costs ~0.2 s of every `nlos-cl locate`.)"""
-    order = np.argsort(spots[:, 0], kind="stable")
-    ordered = spots[order]
-    for k in range(1, len(spots)):
-        near_in_x = ordered[k:, 0] - ordered[:-k, 0] <= SAME_SPOT_M
-        if not near_in_x.any():
-            return None
-        close = near_in_x & (np.linalg.norm(ordered[k:] - ordered[:-k], axis=1) <= SAME_SPOT_M)
-        if close.any():
-            i = int(np.argmax(close))
-            return tuple(sorted((int(order[i]), int(order[i + k]))))
-    return None
 
 
 def require_locatable(histograms: HistogramSet, field: str = "histograms.detector_spots"
@@ -201,7 +186,7 @@ def region_step(histograms: HistogramSet, h_s: float = PAPER_H_S) -> float:
 def visible_box(histograms: HistogramSet) -> tuple[np.ndarray, np.ndarray]:
     """(low, high) corners of the box around every point all detectors' windows reach."""
     h = histograms
-    reach = h.hidden_path_axis()[:, -1] + 0.5 * h.calibration.a_m_per_s * h.time_axis.dt_s
+    reach = h.path_axis().stop_m  # the hidden path at the end of the last bin
     baseline = np.linalg.norm(h.detector_spots - h.laser_spot, axis=1)
     i = int(np.argmin(reach - baseline))
     require(reach[i] > baseline[i], "time_axis",

@@ -9,6 +9,24 @@ import numpy as np
 from .errors import require
 
 
+def coincident_pair(points, tolerance_m: float):
+    """The first pair (i, j), i < j, of points closer than `tolerance_m`, or None, without the
+    n x n distance matrix (a 128 x 128 SPAD patch would need 2 GiB): sorted along x, a point can
+    only coincide with the few that follow it within the tolerance in x."""
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    order = np.argsort(points[:, 0], kind="stable")
+    ordered = points[order]
+    for k in range(1, len(points)):
+        near_in_x = ordered[k:, 0] - ordered[:-k, 0] <= tolerance_m
+        if not near_in_x.any():
+            return None
+        close = near_in_x & (np.linalg.norm(ordered[k:] - ordered[:-k], axis=1) <= tolerance_m)
+        if close.any():
+            i = int(np.argmax(close))
+            return tuple(sorted((int(order[i]), int(order[i + k]))))
+    return None
+
+
 def as_point(value, field_name: str) -> np.ndarray:
     """A finite [x, y, z] as our own float64 copy (the caller's array is never aliased)."""
     arr = np.array(value, dtype=np.float64)

@@ -8,8 +8,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .errors import require
-from .grid import Grid  # noqa: F401  (re-exported: nlos_cl.histograms.Grid)
-from .paths import PathAxis, PathCalibration, TimeAxis, default_time_axis  # noqa: F401
+from .paths import PathAxis, PathCalibration, TimeAxis
 
 
 def _frozen(value, shape=None) -> np.ndarray:
@@ -115,8 +114,3 @@ class HistogramSet:
     def hidden_path_axis(self) -> np.ndarray:
         """(n_detectors, n_bins) hidden path length r1 + r2 at each bin centre."""
         return self.path_axis().centres()
-
-    def score_axis(self) -> tuple[np.ndarray, np.ndarray]:
-        """Per detector: hidden path at the centre of bin 0, and path per bin (m)."""
-        axis = self.path_axis()
-        return axis.centre0_m, axis.step_m

@@ -132,8 +132,10 @@ def _path_gap(signal: HistogramSet, background: HistogramSet) -> float:
     """How far (m of hidden path) the two sets' first and last bin centres differ beyond what
     float32 files can resolve: 1 % of a bin plus 4 float32 steps of the larger of 64 m (t_start
     with the device legs is ~40 m) and the paths themselves. <= 0: the same bins."""
-    ends = [0, -1]
-    p, q = signal.hidden_path_axis()[:, ends], background.hidden_path_axis()[:, ends]
+    def ends(h):  # the hidden path at the first and last bin centres, per detector
+        axis = h.path_axis()
+        return np.stack([axis.centre0_m, axis.centre0_m + (axis.n_bins - 1) * axis.step_m], 1)
+    p, q = ends(signal), ends(background)
     bin_m = signal.calibration.a_m_per_s * signal.time_axis.dt_s
     scale = max(64.0, float(np.abs(p).max()), float(np.abs(q).max()))
     tol = 0.01 * bin_m + 4 * float(np.finfo(np.float32).eps) * scale

@@ -20,6 +20,21 @@ def memory_limit() -> int:
         return 4 << 30
 
 
+def require_writable(path, *, keep_unless=None, force: bool = False, what: str = "file",
+                     kind: str = "a file of this kind") -> None:
+    """What atomic_write checks before it writes, for callers that check before any work: the
+    folder exists, the path is not a folder, and an existing file for which keep_unless(path)
+    is False is replaced only with force=True."""
+    path = Path(path)
+    where = f"{what} {path}"
+    require(path.parent.is_dir(), where, f"the folder {path.parent} does not exist",
+            "create the folder first, or pick another path")
+    require(not path.is_dir(), where, "is a folder", "pass a file path")
+    if path.exists() and not force and keep_unless is not None:
+        require(keep_unless(path), where, f"exists and is not {kind}, so writing would destroy "
+                "it", "pick another path, or pass force=True (nlos-cl: --force) to replace it")
+
+
 def atomic_write(path, write, *, keep_unless=None, force: bool = False, what: str = "file",
                  kind: str = "a file of this kind") -> Path:
     """Call write(tmp) on a temporary file beside `path`, fsync it, then os.replace it onto
@@ -32,13 +47,8 @@ def atomic_write(path, write, *, keep_unless=None, force: bool = False, what: st
     result is ever lost without notice. The old file's permissions carry over."""
     path = Path(path)
     where = f"{what} {path}"
-    require(path.parent.is_dir(), where, f"the folder {path.parent} does not exist",
-            "create the folder first, or pick another path")
-    require(not path.is_dir(), where, "is a folder", "pass a file path")
+    require_writable(path, keep_unless=keep_unless, force=force, what=what, kind=kind)
     before = _identity(path)
-    if before is not None and not force and keep_unless is not None:
-        require(keep_unless(path), where, f"exists and is not {kind}, so writing would destroy "
-                "it", "pick another path, or pass force=True (nlos-cl: --force) to replace it")
     tmp = None
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)

@@ -13,7 +13,7 @@ import trimesh
 
 from .constants import FWHM_PER_SIGMA
 from .errors import require
-from .geometry import Facets, as_point  # noqa: F401  (Facets: re-exported)
+from .geometry import Facets, as_point, coincident_pair  # noqa: F401  (Facets: re-exported)
 from .meshes import rectangle
 from .reflectance import Lambertian, as_reflectance
 
@@ -88,9 +88,7 @@ class Setup:
             require(bool(np.all(np.abs(pts[:, 1]) < 1e-9)), name,
                     f"points must lie on the wall plane y = 0, got y = {pts[:, 1].tolist()}",
                     "set the y coordinate of every wall spot to 0")
-        gaps = np.linalg.norm(spots[:, None, :] - spots[None, :, :], axis=-1)
-        np.fill_diagonal(gaps, np.inf)
-        require(bool(np.all(gaps > 1e-6)), "setup.detector_spots",
+        require(coincident_pair(spots, 1e-6) is None, "setup.detector_spots",
                 "two detector spots coincide, so their ellipses carry the same information",
                 "give every detector its own spot on the wall")
         require(bool(np.all(np.linalg.norm(spots - laser, axis=1) > 1e-6)), "setup.detector_spots",

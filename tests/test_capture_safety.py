@@ -262,6 +262,7 @@ def test_a_large_sensor_grid_is_checked(tmp_path):
                           [0, 0, 0], nl.PathCalibration(C, [0.0]))
     path = nl.write_capture(tmp_path / "big.h5", big)
     assert nl.read_capture(path)[0].n_detectors == 128 * 128
-    from nlos_cl.frames import _coincident_pair
-    assert _coincident_pair(spots) is None
-    assert _coincident_pair(np.vstack([spots, spots[5000] + 1e-5])) == (5000, len(spots))
+    from nlos_cl.frames import SAME_SPOT_M
+    from nlos_cl.geometry import coincident_pair
+    assert coincident_pair(spots, SAME_SPOT_M) is None
+    assert coincident_pair(np.vstack([spots, spots[5000] + 1e-5]), SAME_SPOT_M) == (5000, len(spots))

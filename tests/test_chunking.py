@@ -53,8 +53,8 @@ def test_score_in_slabs_is_identical(runtime, tiny, scene_axis, grid):
     handle = tiny.ellipse_score(tiny.from_numpy(filtered.data / filtered.data.max()),
                                 tiny.row_stats(tiny.from_numpy(filtered.data)),
                                 filtered.detector_spots, filtered.laser_spot,
-                                *[np.asarray(v) for v in (filtered.score_axis()[0],
-                                                          1 / filtered.score_axis()[1])],
+                                filtered.path_axis().centre0_m,
+                                1 / filtered.path_axis().step_m,
                                 grid, False, 1e-6)
     assert len(handle.slabs) > 2
     assert np.array_equal(a.score_map, b.score_map)

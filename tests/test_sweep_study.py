@@ -86,7 +86,7 @@ def test_example_study_and_command(capsys):
 
     import nlos_cl as nl
     from nlos_cl.apps.sweep_cmd import _parser, main
-    from nlos_cl.sweep.study import yaml_loader
+    from nlos_cl.scenefile import yaml_loader
     assert main(_parser().parse_args(["--example"])) == 0
     text = capsys.readouterr().out
     s = load_study(yaml.load(text, Loader=yaml_loader()))

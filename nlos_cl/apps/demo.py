@@ -70,10 +70,9 @@ def _check_png(path_text: str) -> None:
     from pathlib import Path
 
     from ..errors import require
+    from ..safe_io import require_writable
     path = Path(path_text)
-    require(not path.is_dir(), "--png", f"{path} is a folder", "pass a file path, e.g. demo.png")
-    require(path.parent.is_dir(), "--png", f"the folder {path.parent} does not exist",
-            "create it first, or pass '' for no figure")
+    require_writable(path, what="--png")
     require(path.suffix.lower() in (".png", ".svg", ".pdf"), "--png", f"{path.name} has no "
             ".png, .svg or .pdf suffix", "name the figure e.g. demo.png")
 

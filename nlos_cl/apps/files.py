@@ -146,10 +146,12 @@ def _locate_one(args, hist, frame, backend):
 
     from .. import pipeline as pl
     from ..frames import on_region_edge, region_step, zoom_region
+    from ..signals import upload
     region, derived = _region(args, hist, frame)
     log_mode = args.log or hist.n_detectors > 8  # products of many detectors underflow float32
     h_s = args.h_ns * 1e-9
-    filtered = pl.gauss_filter(hist, h_s, backend=backend)
+    raw = upload(hist, backend)  # once: filtered here, and fitted by the model estimator
+    filtered = pl.gauss_filter(raw, h_s)
     grid = region
     if derived and min(region.step) > region_step(hist, h_s) * 1.001:
         coarse = pl.locate(filtered, region, log_mode=log_mode, estimator="paper")
@@ -157,7 +159,7 @@ def _locate_one(args, hist, frame, backend):
     with pywarnings.catch_warnings(record=True) as caught:
         pywarnings.simplefilter("always")
         loc = pl.locate(filtered, grid, log_mode=log_mode, estimator=_estimator(args),
-                        raw=hist, return_map=bool(args.map))
+                        raw=raw, return_map=bool(args.map))
     notes = [str(w.message) for w in caught]
     if on_region_edge(loc.position, region):
         notes.append(f"the answer lies on the search region's edge "
@@ -223,15 +225,9 @@ def _save_map(args, i, n_sets, loc, grid):
 
 def _check_map_path(args) -> None:
     """Before any work: --map must be writable as a .npz map (never over another kind of file)."""
-    from pathlib import Path
-
-    from ..errors import require
-    path = Path(args.map)
-    require(path.parent.is_dir() and not path.is_dir(), "--map", f"{path} is a folder or its "
-            "folder does not exist", "pass a file path in an existing folder, e.g. map.npz")
-    require(args.force or not path.exists() or path.suffix == ".npz", "--map", f"{path} exists "
-            "and is not a .npz map, so writing would destroy it", "pick another path, or pass "
-            "--force to replace it")
+    from ..safe_io import require_writable
+    require_writable(args.map, keep_unless=lambda p: p.suffix == ".npz", force=args.force,
+                     what="--map", kind="a .npz map")
 
 
 def locate(args) -> int:

@@ -34,19 +34,25 @@ def result_of(index, score, patch, count=0.0):
     return out
 
 
+def neighbourhood(read_rows, shape, index):
+    """The 3 x 3 x 3 scores around index = (ix, iy, iz) on a grid of shape (nx, ny, nz), NaN
+    outside it; read_rows(iz, iy0, iy1) gives one plane's rows (a host array, a device map)."""
+    nx, ny, nz = shape
+    ix, iy, iz = index
+    patch = np.full((3, 3, 3), np.nan)
+    y0, y1 = max(iy - 1, 0), min(iy + 2, ny)
+    x0, x1 = max(ix - 1, 0), min(ix + 2, nx)
+    for dz in (-1, 0, 1):
+        if 0 <= iz + dz < nz:
+            rows = np.asarray(read_rows(iz + dz, y0, y1))[:, x0:x1]
+            patch[dz + 1, y0 - iy + 1:y1 - iy + 1, x0 - ix + 1:x1 - ix + 1] = rows
+    return patch
+
+
 def patch_of(score, index):
     """The 3 x 3 x 3 host scores (nz, ny, nx) around index = (ix, iy, iz), NaN outside."""
     nz, ny, nx = score.shape
-    patch = np.full((3, 3, 3), np.nan)
-    ix, iy, iz = index
-    for dz in range(3):
-        for dy in range(3):
-            z, y = iz + dz - 1, iy + dy - 1
-            if 0 <= z < nz and 0 <= y < ny:
-                for dx in range(3):
-                    if 0 <= ix + dx - 1 < nx:
-                        patch[dz, dy, dx] = score[z, y, ix + dx - 1]
-    return patch
+    return neighbourhood(lambda z, a, b: score[z, a:b], (nx, ny, nz), index)
 
 
 def numpy(score):
@@ -68,13 +74,8 @@ def _host_fallback(rt, score):
         return result_of(None, value, np.full((3, 3, 3), np.nan))
     iz, rem = divmod(flat, nx * ny)
     iy, ix = divmod(rem, nx)
-    patch = np.full((3, 3, 3), np.nan)
-    y0, y1 = max(iy - 1, 0), min(iy + 2, ny)
-    x0, x1 = max(ix - 1, 0), min(ix + 2, nx)
-    for dz in range(3):
-        if 0 <= iz + dz - 1 < nz:
-            rows = score.rows(rt.queue, iz + dz - 1, y0, y1)[:, x0:x1]
-            patch[dz, y0 - iy + 1:y1 - iy + 1, x0 - ix + 1:x1 - ix + 1] = rows
+    patch = neighbourhood(lambda z, a, b: score.rows(rt.queue, z, a, b), score.shape,
+                          (ix, iy, iz))
     return result_of((ix, iy, iz), value, patch).astype(np.float32)
 
 

@@ -33,7 +33,7 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..scenefile import read_yaml, yaml_loader  # noqa: F401  (yaml_loader: re-exported)
+from ..scenefile import read_yaml
 from ..errors import InputError, require
 
 TOP = {"description", "scene", "axes", "estimators", "seeds", "h_s", "filter", "grid", "record",
