@@ -43,7 +43,7 @@ def both(signals, seed, truth, log_mode=False, noise=None, targets=1):
     """(paper error, model error(s), model seconds, model LocatedTargets) for one noisy frame."""
     noisy = nl.add_noise(signals, 10, seed=seed, model=noise)
     filt = nl.gauss_filter(noisy)
-    paper = nl.locate(filt, GRID, log_mode=log_mode)
+    paper = nl.locate(filt, GRID, log_mode=log_mode, estimator="paper")
     t = time.perf_counter()
     model = nl.locate(filt, GRID, log_mode=log_mode, estimator=ModelEstimator(targets=targets),
                       raw=noisy)
@@ -144,7 +144,7 @@ def photon_table(seeds):
         for s in range(seeds):
             counts = pc.counts(base, seed=s)
             filt = nl.gauss_filter(counts)
-            p.append(nl.locate(filt, GRID).error_m)
+            p.append(nl.locate(filt, GRID, estimator="paper").error_m)
             t0 = time.perf_counter()
             loc = nl.locate(filt, GRID, estimator="model", raw=counts)
             t.append(time.perf_counter() - t0)

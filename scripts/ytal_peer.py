@@ -52,11 +52,12 @@ for path in sys.argv[1:]:
     (h,), frame = read_capture_with_frame(path)
     grid = frames.default_region(h, %(h)r)
     filtered = nl.gauss_filter(h, %(h)r)
-    loc = nl.locate(filtered, grid)
+    loc = nl.locate(filtered, grid, estimator="paper")
     zoom = grid.step[0] > frames.region_step(h, %(h)r)
     edge = frames.on_region_edge(loc.position, grid)
     if zoom:
-        loc = nl.locate(filtered, frames.zoom_region(loc.position, grid, h, %(h)r))
+        loc = nl.locate(filtered, frames.zoom_region(loc.position, grid, h, %(h)r),
+                        estimator="paper")
     out.append({"position": frame.from_internal(loc.position).tolist(), "frame": frame.name,
                 "cells": grid.n_cells, "step_m": grid.step[0], "zoomed": bool(zoom),
                 "on_edge": bool(edge)})

@@ -94,7 +94,7 @@ def pipeline_row(rt, smoke):
 
     def run(backend):
         f = pl.gauss_filter(pl.add_noise(pl.simulate(scene, axis, backend=backend), 10.0, 0))
-        return pl.locate(f, grid)
+        return pl.locate(f, grid, estimator="paper")
     kernel, twin, build, mem = time_pair(lambda: run(rt), lambda: run(NumpyBackend()),
                                          rt.finish, twin_repeats=1)
     k, k_spread = spread(kernel)

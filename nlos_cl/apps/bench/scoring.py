@@ -86,7 +86,8 @@ def scoring_rows(rt, smoke, Row):
     peers = read_peers()
     rows = []
     for label, sig, grid, log, width, peer_n in cases(rt, smoke):
-        locs = {s: Locator(sig.layout, grid, log_mode=log, search=s, signal_width_m=width)
+        locs = {s: Locator(sig.layout, grid, log_mode=log, search=s, signal_width_m=width,
+                           estimator="paper")
                 for s in ("coarse_to_fine", "exhaustive")}
         times = _time(locs, sig, rt, 3 if smoke else 5)
         found = {s: locs[s](sig).cell_position for s in locs}

@@ -41,7 +41,7 @@ def _cases(rt, clean, frames, grid, smoke):
     from ...signals import upload
     from ...tracking import Tracker
     n = 20 if smoke else 200
-    gauss, locator = GaussFilter(time_axis=clean.time_axis), Locator(clean.layout, grid)
+    gauss, locator = GaussFilter(time_axis=clean.time_axis), Locator(clean.layout, grid, estimator="paper")
     paper = Tracker(clean.layout, grid, estimator="paper", backend=rt)
     model = Tracker(clean.layout, grid, estimator="model", backend=rt)
     k = len(frames)
@@ -51,8 +51,10 @@ def _cases(rt, clean, frames, grid, smoke):
         return lambda i: tracker.update(frames[i % k])
     return {
         "functional: nl.gauss_filter + nl.locate per frame": (
-            lambda i: pl.locate(pl.gauss_filter(frames[i % k], backend=rt), grid), n,
-            lambda i: pl.locate(pl.gauss_filter(frames[i % k], backend=NumpyBackend()), grid)),
+            lambda i: pl.locate(pl.gauss_filter(frames[i % k], backend=rt), grid,
+                                estimator="paper"), n,
+            lambda i: pl.locate(pl.gauss_filter(frames[i % k], backend=NumpyBackend()), grid,
+                             estimator="paper")),
         "plans: GaussFilter + Locator built once": (
             lambda i: locator(gauss(upload(frames[i % k], rt))), n, None),
         "tracker, paper estimator": (lambda i: paper.update(frames[i % k]), n,

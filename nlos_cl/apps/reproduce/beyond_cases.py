@@ -117,7 +117,7 @@ def noisy_frame(clean, seed: int, s: Settings, noise=None):
 
 def run_paper(clean, seed, lay: Layout, grid, s: Settings, noise=None) -> np.ndarray:
     _, filtered = noisy_frame(clean, seed, s, noise)
-    return np.asarray(nl.locate(filtered, grid, log_mode=lay.log_mode).position, float)
+    return np.asarray(nl.locate(filtered, grid, log_mode=lay.log_mode, estimator="paper").position, float)
 
 
 def run_model(clean, seed, lay: Layout, grid, s: Settings, targets=1, noise=None):

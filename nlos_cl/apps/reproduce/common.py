@@ -89,11 +89,11 @@ def run_trials(scene: nl.Scene, s: Settings, methods=METHODS, h_values=None):
         if "filter" in methods:
             for h in h_values:
                 key = "filter" if len(h_values) == 1 else ("filter", h)
-                out.setdefault(key, []).append(nl.locate(nl.gauss_filter(noisy, h), grid))
+                out.setdefault(key, []).append(nl.locate(nl.gauss_filter(noisy, h), grid, estimator="paper"))
         if "fit" in methods:
-            out.setdefault("fit", []).append(nl.locate(nl.gauss_fit(noisy)[0], grid))
+            out.setdefault("fit", []).append(nl.locate(nl.gauss_fit(noisy)[0], grid, estimator="paper"))
         if "raw" in methods:
-            out.setdefault("raw", []).append(nl.locate(noisy, grid))
+            out.setdefault("raw", []).append(nl.locate(noisy, grid, estimator="paper"))
     return out, clean
 
 

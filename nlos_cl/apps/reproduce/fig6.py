@@ -22,8 +22,8 @@ def fig6(s: Settings, out: Path) -> Result:
     maps = {}
     for method in MAP_METHODS:
         hist = sources[method].histograms()
-        maps[method] = (nl.locate(hist.select([0]), grid, return_map=True),
-                        nl.locate(hist, grid, return_map=True))
+        maps[method] = (nl.locate(hist.select([0]), grid, return_map=True, estimator="paper"),
+                        nl.locate(hist, grid, return_map=True, estimator="paper"))
     figure = plotting.maps_figure(maps, scene.truth, out, "fig6")
     rows = [{"method": m, **stats(trials[m]), "paper_x": PAPER["fig6"][m][0],
              "paper_y": PAPER["fig6"][m][1]} for m in METHODS]
