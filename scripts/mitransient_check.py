@@ -6,14 +6,16 @@
   compare (.venv)              : renders convolved with the same bin-integrated pulse, scaled
                                  by W per render unit derived from both sides' definitions (no
                                  fit); energy per detector, onset (first bin over 5 % of the
-                                 peak) and shape (max difference / peak)
+                                 peak) and shape (max difference / peak), with the shape's
+                                 Monte Carlo noise from the independent renders (--splits)
 
 `reference` (a 4 mm facet, not rendered by default) shows a limit of the renderer: the ray from
 the wall to a hidden-geometry sample leaves 1500 float32 epsilons x (1 + |p|) (0.1-0.2 mm) off the
 wall, lands that far off the sample and misses a 0.1-0.2 mm strip at a mesh's outer edges: a 4 mm
 facet loses 3.5-6 % (per detector), a 0.3 m plate 0.05 %.
-Run through scripts/mitransient_check.sh. Point spots only: mitransient's nlos_capture_meter
-measures the exact pixel centres and the laser is focused on one point.
+Run through scripts/mitransient_check.sh. Point spots here: mitransient's nlos_capture_meter
+measures the exact pixel centres and the laser is focused on one point; disk spots are checked by
+scripts/mitransient_spots.py. `--facet` sets nlos_cl's facet size (the renders do not use it).
 """
 from __future__ import annotations
 
@@ -28,8 +30,8 @@ import numpy as np
 BIN_M = 0.002  # 2 mm of path per bin
 SPOTS = [[-1.5, 0, 0], [-1.0, 0, 0], [-0.5, 0, 0]]  # + the laser spot's own pixel at x = 0
 WALL_BRDF = 0.2579
-SPLITS = 4
-OCCLUDING = ("l_block", "two_plates")  # rendered with BSDF sampling (see render)  # independent renders per scene, for the Monte Carlo noise
+SPLITS = 4  # independent renders (seeds) per scene, for the Monte Carlo noise (--splits)
+OCCLUDING = ("l_block", "two_plates")  # rendered with BSDF sampling (see render)
 # the device: 20 m from the wall on the hidden side, above the targets (rays pass over them)
 DEVICE = [-0.75, 20 / math.sqrt(2), 20 / math.sqrt(2)]
 
@@ -46,6 +48,8 @@ def scenes():
         "box": [lam(nl.box((0.3, 0.3, 0.6), (1.0, 1.5, 0.0)))],
         "sphere": [lam(nl.sphere(0.25, (1.0, 1.6, 0.0)))],
         "l_block": [lam(l_block(centre=(0.9, 1.4, 0.0)))],
+        # mitransient_spots.py's plate (30 cm from the wall, beside the spots), point spots
+        "near_plate": [lam(nl.rectangle(0.2, 0.2, centre=(-0.75, 0.3, 0.1), normal=(0, -1, 0)))],
         "two_plates": [lam(nl.rectangle(0.3, 0.3, centre=(0.8, 1.2, 0.0))),
                        lam(nl.rectangle(0.5, 0.5, centre=(1.1, 1.8, 0.05)))],
         "glossy": [(nl.rectangle(0.5, 0.5, centre=(-0.6, 1.2, 0.0), normal=(0, -1, 0)),
@@ -53,7 +57,7 @@ def scenes():
     }, nl, GGX
 
 
-def export(out: Path, names):
+def export(out: Path, names, facet_m: float = 0.01):
     all_scenes, nl, GGX = scenes()
     from nlos_cl.reflectance import from_spec
     setup = nl.paper_setup(detector_spots=SPOTS)
@@ -63,15 +67,17 @@ def export(out: Path, names):
         for i, (mesh, _) in enumerate(parts):
             mesh.export(out / f"{name}_{i}.ply")
         meta = {"targets": [spec for _, spec in parts]}
-        for occlusion in (True, False):
-            scene = nl.Scene(setup, targets[0], 0.01, more_targets=tuple(targets[1:]),
+        for occlusion in (False, True):  # on last: its time is the table's (visibility included)
+            scene = nl.Scene(setup, targets[0], facet_m, more_targets=tuple(targets[1:]),
                              occlusion=occlusion)
             paths = np.concatenate([np.linalg.norm(m.vertices, axis=1) for m, _ in parts])
             start = max(paths.min() + 0.3, 0.5)
             t0 = (2 * setup.device_distance_m + start - 0.3) / nl.SPEED_OF_LIGHT \
                 + setup.pulse.peak_delay_s
             axis = nl.TimeAxis(t0, BIN_M / nl.SPEED_OF_LIGHT, 3000)
+            t0 = time.perf_counter()
             hist = nl.simulate(scene, axis).histograms()
+            meta["nlos_seconds"] = time.perf_counter() - t0
             np.save(out / f"{name}_nlos_{'on' if occlusion else 'off'}.npy", hist.data)
         # nlos_cl's W per unit of (f_c f_w^2 x integral of the four cosines / (r1^2 r2^2) dA):
         # E / dt x S_d A / d^2 (Setup.power_scale without the BRDFs)
@@ -95,7 +101,7 @@ def _bsdf(spec):
         spec["specular"] + spec["diffuse"]
 
 
-def render(out: Path, names, spp: int):
+def render(out: Path, names, spp: int, splits: int = SPLITS):
     import mitsuba as mi
     mi.set_variant("llvm_ad_mono" if "llvm_ad_mono" in mi.variants() else "llvm_ad_rgb")
     import drjit as dr
@@ -144,19 +150,25 @@ def render(out: Path, names, spp: int):
         _, e_laser = scene.emitters()[0].sample_direction(it, mi.Point2f(0.5, 0.5))
         e_laser = float(np.array(e_laser).ravel()[0])
         cos_device = DEVICE[1] / float(np.linalg.norm(DEVICE))
-        t0 = time.perf_counter()
-        parts = []  # SPLITS independent renders (seeds): their spread is the Monte Carlo noise
-        for seed in range(SPLITS):
-            _, transient = mi.render(scene, spp=max(1, spp // SPLITS), seed=seed)
-            parts.append(np.array(transient)[0, :, :, 0] * scales[0])  # (4 pixels, bins)
-        seconds = time.perf_counter() - t0
-        parts = np.array(parts)
-        energy = parts.sum(axis=2)  # (SPLITS, pixels)
-        noise = energy.std(axis=0, ddof=1) / math.sqrt(SPLITS) / energy.mean(axis=0)
-        np.save(out / f"{name}_render.npy", parts.mean(axis=0))
-        (out / f"{name}_render.json").write_text(json.dumps(
-            {"spp": SPLITS * max(1, spp // SPLITS), "seconds": seconds, "e_laser": e_laser,
-             "cos_device": cos_device, "noise": noise[:3].tolist()}))
+        render_splits(mi, scene, out / name, spp, splits, scales[0],
+                      {"e_laser": e_laser, "cos_device": cos_device})
+
+
+def render_splits(mi, scene, prefix: Path, spp: int, splits: int, scale: float, units: dict):
+    """`splits` independent renders (seeds): their mean, each one (for the shape noise) and the
+    energy's standard error, in PREFIX_render.npy / _render_splits.npy / _render.json with the
+    render's units (e_laser, cos_device)."""
+    t0 = time.perf_counter()
+    parts = np.array([np.array(mi.render(scene, spp=max(1, spp // splits), seed=seed)[1])
+                      [0, :, :, 0] * scale for seed in range(splits)])  # (splits, pixels, bins)
+    seconds = time.perf_counter() - t0
+    energy = parts.sum(axis=2)
+    noise = energy.std(axis=0, ddof=1) / math.sqrt(splits) / energy.mean(axis=0)
+    np.save(f"{prefix}_render.npy", parts.mean(axis=0))
+    np.save(f"{prefix}_render_splits.npy", parts.astype(np.float32))
+    Path(f"{prefix}_render.json").write_text(json.dumps(
+        {"spp": splits * max(1, spp // splits), "seconds": seconds, "noise": noise[:3].tolist(),
+         **units}))
 
 
 def _pulse_convolve(data, sigma_m):
@@ -168,47 +180,92 @@ def _pulse_convolve(data, sigma_m):
     return np.stack([np.convolve(row, taps, mode="same") for row in data])
 
 
+def onset(h):
+    """First bin over 5 % of the peak."""
+    return int(np.argmax(h > 0.05 * h.max()))
+
+
+def render_in_watts(out: Path, name: str, meta: dict, rmeta: dict):
+    """The render of detectors 0-2 in W per bin (pulse-convolved, scaled by the fixed W per
+    render unit), its per-bin Monte Carlo sigma (spread of the splits / sqrt(splits)), and the
+    shape noise: max |mean of even splits - mean of odd splits| / 2 / peak, which has the same
+    distribution as the max-norm error of the full mean when the two halves are equal."""
+    k = meta["nlos_units"] / (rmeta["cos_device"] * rmeta["e_laser"])
+    split_file = out / f"{name}_render_splits.npy"
+    if not split_file.exists():  # renders from before the splits were kept
+        return k * _pulse_convolve(np.load(out / f"{name}_render.npy")[:3], meta["sigma_m"]), \
+            None, None
+    parts = np.array([k * _pulse_convolve(p[:3].astype(np.float64), meta["sigma_m"])
+                      for p in np.load(split_file)])
+    mean = parts.mean(axis=0)
+    sigma = parts.std(axis=0, ddof=1) / math.sqrt(len(parts))
+    half = np.abs(parts[0::2].mean(axis=0) - parts[1::2].mean(axis=0)).max(axis=1) / 2
+    return mean, sigma, half / mean.max(axis=1)
+
+
+def shape_columns(model, r, sigma, half, d):
+    """Shape (% of peak), its half-split noise and the part of it beyond 4 sigma per bin
+    (4 sigma: over ~10^3 bins a Gaussian passes it with probability ~6 %)."""
+    peak = r[d].max()
+    diff = np.abs(model[d] - r[d])
+    if sigma is None:
+        return f"{100 * diff.max() / peak:.2f} | - | -"
+    beyond = np.maximum(diff - 4 * sigma[d], 0).max() / peak
+    return f"{100 * diff.max() / peak:.2f} | {100 * half[d]:.2f} | {100 * beyond:.2f}"
+
+
 def compare(out: Path, names):
     """No constant is fitted: W per render unit follows from both sides' definitions (nlos_cl's
     Setup.power_scale, mitransient's laser irradiance and the wall's cosine towards the device),
     the same for every scene."""
     rows = ["| scene | detector | energy, occlusion on | off | onset (bins) | shape (% of peak) "
-            "| MC noise (energy) | spp | render s |",
-            "|---|---|---|---|---|---|---|---|---|"]
+            "| shape noise | shape beyond 4 sigma | MC noise (energy) | spp | render s "
+            "| nlos_cl s |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for name in names:
         meta = json.loads((out / f"{name}.json").read_text())
         rmeta = json.loads((out / f"{name}_render.json").read_text())
-        k = meta["nlos_units"] / (rmeta["cos_device"] * rmeta["e_laser"])
-        raw = np.load(out / f"{name}_render.npy")[:3]
-        r = k * _pulse_convolve(raw, meta["sigma_m"])
+        r, sigma, half = render_in_watts(out, name, meta, rmeta)
         on, off = (np.load(out / f"{name}_nlos_{s}.npy") for s in ("on", "off"))
         noise = rmeta.get("noise")
         for d in range(3):
-            lead = lambda h: int(np.argmax(h > 0.05 * h.max()))  # noqa: E731
             e_on, e_off = on[d].sum() / r[d].sum() - 1, off[d].sum() / r[d].sum() - 1
-            shape = np.abs(on[d] - r[d]).max() / r[d].max()
             mc = f"{100 * noise[d]:.2f} %" if noise else "-"
             rows.append(f"| {name} | {d} | {100 * e_on:+.2f} % | {100 * e_off:+.2f} % | "
-                        f"{lead(on[d]) - lead(r[d]):+d} | {100 * shape:.2f} | {mc} | "
-                        f"{rmeta['spp']} | {rmeta['seconds']:.1f} |")
+                        f"{onset(on[d]) - onset(r[d]):+d} | {shape_columns(on, r, sigma, half, d)}"
+                        f" | {mc} | {rmeta['spp']} | {rmeta['seconds']:.1f} | "
+                        f"{meta.get('nlos_seconds', float('nan')):.2f} |")
+    write_table(out / "table.md", rows)
+
+
+def write_table(path: Path, rows):
     table = "\n".join(rows)
-    (out / "table.md").write_text(table + "\n")
+    path.write_text(table + "\n")
     print(table)
 
 
-def main():
+def step_parser(spp: int, splits: int) -> argparse.ArgumentParser:
+    """The arguments of both check scripts (this one and mitransient_spots.py)."""
     parser = argparse.ArgumentParser()
     parser.add_argument("step", choices=("export", "render", "compare"))
     parser.add_argument("--out", type=Path, default=Path("out/mitransient"))
-    parser.add_argument("--spp", type=int, default=2 ** 16)
+    parser.add_argument("--spp", type=int, default=spp)
+    parser.add_argument("--splits", type=int, default=splits,
+                        help="independent renders per scene (even: the shape noise halves them)")
+    return parser
+
+
+def main():
+    parser = step_parser(2 ** 16, SPLITS)
     parser.add_argument("--scenes", default="plate,box,sphere,l_block,two_plates,glossy")
+    parser.add_argument("--facet", type=float, default=0.01,
+                        help="nlos_cl's facet size in m (export only; the renders do not use it)")
     args = parser.parse_args()
     names = args.scenes.split(",")
     args.out.mkdir(parents=True, exist_ok=True)
     if args.step == "export":
-        export(args.out, names)
+        export(args.out, names, args.facet)
     elif args.step == "render":
-        render(args.out, names, args.spp)
+        render(args.out, names, args.spp, args.splits)
     else:
         compare(args.out, names)
 

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Independent check of the forward model against mitransient (Mitsuba 3 transient renders).
 # Its own venv (.venv-mitransient); Debian 12's LLVM 15 crashes drjit: libllvm19 from apt.
-# Usage: bash scripts/mitransient_check.sh [--spp N] [--scenes plate,box,...] [--out DIR]
+# Usage: bash scripts/mitransient_check.sh [--spp N] [--splits N] [--scenes plate,box,...] [--facet M]
+# (results in $OUT, default out/mitransient)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 if ! ls /usr/lib/x86_64-linux-gnu/libLLVM.so.19* >/dev/null 2>&1; then
