@@ -72,9 +72,30 @@ def _bench_args(p):
     p.add_argument("--out", default="", help="write performance.md/.json/.png here")
 
 
+class _LazyChoices:
+    """argparse choices read from a module only when a value is checked or help is shown: the
+    experiments' names live in nlos_cl.apps.reproduce, whose import (~0.1 s: every experiment,
+    tqdm, yaml) only `nlos-cl reproduce` should pay, not `nlos-cl locate`."""
+
+    def __init__(self, first, module, attr):
+        self.first, self.module, self.attr = list(first), module, attr
+
+    def _names(self):
+        import importlib
+        return [*self.first, *getattr(importlib.import_module(self.module, __package__),
+                                      self.attr)]
+
+    def __contains__(self, value):
+        return value in self._names()
+
+    def __iter__(self):
+        return iter(self._names())
+
+
 def _reproduce_args(p):
-    from .apps.reproduce import EXPERIMENTS  # a light module: names only
-    p.add_argument("name", choices=["all", *EXPERIMENTS])
+    # a metavar, so that argparse does not list the choices (an import) while building
+    p.add_argument("name", choices=_LazyChoices(["all"], ".apps.reproduce", "EXPERIMENTS"),
+                   metavar="NAME", help="the experiment: %(choices)s")
     p.add_argument("--out", default="out/reproduce", help="folder for figures and CSVs")
     p.add_argument("--seeds", type=_number("seeds", "pass a count, e.g. 3", minimum=1,
                                            integer=True), default=None,
@@ -170,6 +191,9 @@ def _track_args(p):
     p.add_argument("--max-frames", type=_number("max_frames", "pass a count", minimum=1,
                                                 integer=True), default=None,
                    help="track the first N frames")
+    p.add_argument("--smooth", action="store_true",
+                   help="offline: with --json, print every frame's tracks smoothed with the "
+                        "later frames (Rauch-Tung-Striebel), after the last frame")
     p.add_argument("--force", action="store_true", help="replace an existing --video file")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 

@@ -25,7 +25,7 @@ def _target(p, sigma=None, z_known=False):
 
 def test_straight_line_is_smoothed():
     rng = np.random.default_rng(0)
-    tr = Tracker(_layout(), motion=ConstantVelocity(accel_sigma=0.01))
+    tr = Tracker(_layout(), estimator="paper", motion=ConstantVelocity(accel_sigma=0.01))
     raw, trk = [], []
     for k in range(60):
         t = 0.1 * k
@@ -49,7 +49,7 @@ def test_paper_argmax_without_covariance_uses_the_fallback():
 
 def test_unobservable_height_is_not_updated():
     grid = nl.Grid.from_ranges(x=(0, 6), y=(0.1, 6), z=(-1, 1), step_m=0.5)
-    tr = Tracker(_layout(), grid)
+    tr = Tracker(_layout(), grid, estimator="paper")
     assert tr.dims == 3
     for k in range(10):  # the estimator reports z = 0.7 with an infinite variance
         (track,) = tr.step([_target([3, 2, 0.7], 0.01)], 0.1 * k)
@@ -59,7 +59,7 @@ def test_unobservable_height_is_not_updated():
 
 
 def test_gate_rejects_an_outlier_and_tracks_are_deleted():
-    tr = Tracker(_layout(), max_misses=3)
+    tr = Tracker(_layout(), estimator="paper", max_misses=3)
     for k in range(10):
         tr.step([_target([3, 2, 0], 0.01)], 0.1 * k)
     (track,) = tr.step([_target([5, 5, 0], 0.01)], 1.0)  # 3.6 m away: outside the gate
@@ -77,7 +77,8 @@ def test_identities_survive_crossings():
     kept = 0
     for seed in range(10):
         rng = np.random.default_rng(seed)
-        tr = Tracker(_layout(), max_tracks=2, motion=ConstantVelocity(accel_sigma=0.3))
+        tr = Tracker(_layout(), estimator="paper", max_tracks=2,
+                     motion=ConstantVelocity(accel_sigma=0.3))
         ids = {}
         for k in range(41):
             t = 0.1 * k
@@ -102,10 +103,10 @@ def test_bad_options():
     with pytest.raises(nl.InputError, match="motion.accel_sigma"):
         ConstantVelocity(accel_sigma=-1)
     with pytest.raises(nl.InputError, match="max_tracks"):
-        Tracker(_layout(), max_tracks=0)
+        Tracker(_layout(), estimator="paper", max_tracks=0)
     with pytest.raises(nl.InputError, match="confirm"):
-        Tracker(_layout(), confirm=(3, 2))
-    tr = Tracker(_layout())
+        Tracker(_layout(), estimator="paper", confirm=(3, 2))
+    tr = Tracker(_layout(), estimator="paper")
     tr.step([], 1.0)
     with pytest.raises(nl.InputError, match="t_s"):
         tr.step([], 0.5)

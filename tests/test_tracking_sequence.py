@@ -1,4 +1,5 @@
 """Sequence files: y-tal fields with a leading frame axis, written atomically, read lazily."""
+import json
 import os
 import tracemalloc
 
@@ -119,3 +120,31 @@ def test_truncated_sequence_is_refused(tmp_path):
     cut.write_bytes(data[: len(data) // 2])
     with pytest.raises(nl.InputError, match="incomplete or corrupted"):
         list(read_sequence(cut))
+
+
+def test_track_command_smooths_offline(tmp_path, capsys):
+    from nlos_cl.apps import track
+    from nlos_cl.cli import parser
+    from nlos_cl.tracking import MovingTarget, Trajectory, simulate_sequence
+    setup = nl.paper_setup()
+    walk = Trajectory([0, 1.2], [[3, 1.5, 0], [3.5, 2.5, 0]])
+    target = MovingTarget(nl.Target(nl.rectangle(centre=walk.at(0), cell_m=0.03)), walk)
+    frames = simulate_sequence(setup, target, n_frames=12, fps=10, noise=nl.AWGN(10), seed=0,
+                               facet_size_m=0.03, time_axis=nl.default_time_axis(setup, 1e-11))
+    path = write_sequence(tmp_path / "walk.h5", frames)
+    args = parser().parse_args(["track", str(path), "--json", "--estimator", "paper",
+                                "--no-progress"])
+    lines = {}
+    for smooth in (False, True):
+        args.smooth = smooth  # the flag nlos_cl/cli.py is to add
+        capsys.readouterr()
+        assert track.main(args) == 0
+        lines[smooth] = [json.loads(x) for x in capsys.readouterr().out.splitlines()
+                         if x.startswith("{")]
+    causal, smoothed = lines[False], lines[True]
+    assert len(smoothed) == len(causal) == 12
+    assert all(e["smoothed"] for e in smoothed) and not any("smoothed" in e for e in causal)
+    pos = lambda e: np.array(e["tracks"][0]["position"])  # noqa: E731
+    # the last frame has no later frames: the same; earlier ones see the later frames
+    np.testing.assert_allclose(pos(smoothed[-1]), pos(causal[-1]), atol=1e-5)
+    assert max(np.abs(pos(s) - pos(c)).max() for s, c in zip(smoothed[2:-1], causal[2:-1])) > 1e-4

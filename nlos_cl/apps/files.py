@@ -98,15 +98,15 @@ def simulate(args) -> int:
 def _read(args):
     """The capture's sets (background subtracted, calibration applied) and its frame."""
     from ..capture import read_capture, read_capture_with_frame
-    from ..measured import (fit_calibration, read_calibration_pairs, subtract_background,
-                            with_calibration)
     sets, frame = read_capture_with_frame(args.file)
     if args.background:
+        from ..measured import subtract_background
         backgrounds = read_capture(args.background)
         sets = [subtract_background(h, b, negatives=args.negatives)
                 for h, b in zip(sets, backgrounds)]
     calibration = None
-    if args.calibration:
+    if args.calibration:  # (measured: imported only where a file asks for it)
+        from ..measured import fit_calibration, read_calibration_pairs, with_calibration
         calibration = fit_calibration(*read_calibration_pairs(args.calibration)).calibration
         sets = [with_calibration(h, calibration) for h in sets]
     return sets, frame, calibration

@@ -7,9 +7,13 @@ reported in the file's own frame (as `nlos-cl locate`): `--json` prints one obje
 {"frame", "t_s", "tracks": [{"id", "status", "position", "velocity", "covariance"}],
 "measurements": [positions]}. A progress bar goes to stderr. `--video` draws the tracks (2-sigma
 error ellipses, trails) and the raw measurements over the search region, frame by frame.
+`--smooth` (offline): the JSON lines come after the last frame, each track's position, velocity
+and covariance smoothed with the frames after it as well (Rauch-Tung-Striebel, Tracker.smooth),
+with "smoothed": true; the video and the summary stay causal (the filter's).
 """
 from __future__ import annotations
 
+import copy
 import json
 import sys
 
@@ -41,21 +45,28 @@ def _tracker(args, seq, backend):
                    frame_interval_s=interval, backend=backend)
 
 
-def _entry(frame, tracks, measurements, cframe) -> dict:
+def _entry(frame, tracks, measurements, cframe, smoothed=None) -> dict:
+    """One frame's JSON object; `smoothed`: {(id, frame): Smoothed} replaces the filter's
+    position, velocity and covariance where it holds the track."""
     import numpy as np
 
     from .files import _covariance_json
     m = np.asarray(cframe.matrix)
     r5 = lambda v: [round(float(x), 5) for x in np.ravel(v)]  # noqa: E731
-    return {"frame": frame.index, "t_s": frame.t_s,
-            "tracks": [{"id": t.id, "status": t.status,
-                        "position": r5(cframe.from_internal(t.position)),
-                        "velocity": r5(cframe.from_internal(t.velocity)),
-                        "covariance": _covariance_json(t.position_covariance, m)}
-                       for t in tracks],
-            "measurements": [r5(cframe.from_internal(x.position)) for x in measurements],
-            "truths": None if frame.truths is None else
-            [r5(cframe.from_internal(p)) for p in frame.truths]}
+    states = [(t, (smoothed or {}).get((t.id, frame.index))) for t in tracks]
+    states = [(t, s.position, s.velocity, s.covariance) if s is not None else
+              (t, t.position, t.velocity, t.position_covariance) for t, s in states]
+    entry = {"frame": frame.index, "t_s": frame.t_s,
+             "tracks": [{"id": t.id, "status": t.status,
+                         "position": r5(cframe.from_internal(p)),
+                         "velocity": r5(cframe.from_internal(v)),
+                         "covariance": _covariance_json(c, m)} for t, p, v, c in states],
+             "measurements": [r5(cframe.from_internal(x.position)) for x in measurements],
+             "truths": None if frame.truths is None else
+             [r5(cframe.from_internal(p)) for p in frame.truths]}
+    if smoothed is not None:
+        entry["smoothed"] = True
+    return entry
 
 
 def main(args) -> int:
@@ -69,18 +80,26 @@ def main(args) -> int:
         _check_video_path(args)
     tracker = _tracker(args, seq, backend)
     stop = len(seq) if args.max_frames is None else min(args.max_frames, len(seq))
-    drawn = []
+    smooth = args.smooth
+    drawn, kept = [], []
     bar = tqdm(total=stop, unit="frame", desc="track", file=sys.stderr,
                disable=args.no_progress)
     for frame in seq.frames(0, stop):
         tracks = tracker.update(frame.histograms, frame.t_s)
-        entry = _entry(frame, tracks, tracker.last_measurements, seq.frame)
-        if args.json:
-            print(json.dumps(entry), flush=True)
+        if args.json and smooth:  # small: the frame's header, tracks and measurements
+            kept.append((frame, [copy.copy(t) for t in tracks], tracker.last_measurements))
+        elif args.json:
+            print(json.dumps(_entry(frame, tracks, tracker.last_measurements, seq.frame)),
+                  flush=True)
         if args.video:
             drawn.append(_drawn(frame, tracks, tracker.last_measurements))
         bar.update(1)
     bar.close()
+    if kept:
+        smoothed = {(tid, s.frame): s for tid, points in tracker.smooth().items()
+                    for s in points}
+        for frame, tracks, measurements in kept:
+            print(json.dumps(_entry(frame, tracks, measurements, seq.frame, smoothed)))
     if not args.json:
         for t in tracker.tracks:
             where = [round(float(v), 3) for v in seq.frame.from_internal(t.position)]

@@ -13,6 +13,7 @@ detector where it does not see the laser spot or that detector's spot.
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -153,16 +154,21 @@ def deposit_plan(span, total, edge0, dpath, sigma_path, n_bins):
     return os_, half, first, count, base, scale
 
 
+@functools.lru_cache(maxsize=64)
 def deposit_taps(os_, half, dpath, sigma_path) -> np.ndarray:
     """(OS, 2 T + 1): taps[p][t], twice the pulse energy that a unit weight at the centre of
-    sub-bin phase p, t bins into the deposit window, puts into the bin (float64 erf)."""
-    from scipy.special import erf
+    sub-bin phase p, t bins into the deposit window, puts into the bin (float64 erf).
+    A few hundred values, cached (a model fit asks for the same table ~100 times) and
+    computed with math.erf: SciPy's import (~0.1 s) would dominate a one-shot `locate`."""
     dsub = dpath / os_
     p = np.arange(os_)[:, None]
     t = np.arange(2 * half + 1)[None, :]
     edge = lambda k: ((half - t + k) * os_ - p - 0.5) * dsub  # noqa: E731
     inv = 1.0 / (math.sqrt(2.0) * sigma_path)
-    return erf(edge(1) * inv) - erf(edge(0) * inv)
+    erf = np.frompyfunc(math.erf, 1, 1)
+    taps = (erf(edge(1) * inv) - erf(edge(0) * inv)).astype(np.float64)
+    taps.flags.writeable = False
+    return taps
 
 
 def _deposit_bins(rt, defines, group, span, total, edge0, dpath, sigma_path, n_bins, hist):

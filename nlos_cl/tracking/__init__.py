@@ -8,12 +8,13 @@ from __future__ import annotations
 
 from .background import BackgroundRemover
 from .kalman import ConstantVelocity, Measurement
+from .noise import SensorNoise
 from .reading import Sequence, read_sequence
 from .sequence import SequenceFrame, write_sequence
 from .simulate import SimFrame, frame_seed, simulate_sequence
 from .tracker import Track, Tracker
 from .trajectory import MovingTarget, Trajectory
 
-__all__ = ["BackgroundRemover", "ConstantVelocity", "Measurement", "MovingTarget", "Sequence",
-           "SequenceFrame", "SimFrame", "Track", "Tracker", "Trajectory", "frame_seed",
+__all__ = ["BackgroundRemover", "ConstantVelocity", "Measurement", "MovingTarget", "SensorNoise",
+           "Sequence", "SequenceFrame", "SimFrame", "Track", "Tracker", "Trajectory", "frame_seed",
            "read_sequence", "simulate_sequence", "write_sequence"]

@@ -41,7 +41,8 @@ class ConstantVelocity:
         require(self.dims in (None, 2, 3), "motion.dims", f"must be 2, 3 or None, got "
                 f"{self.dims!r}", "pass 2 (the search plane) or 3")
 
-    def transition(self, dt: float, d: int) -> np.ndarray:
+    @staticmethod
+    def transition(dt: float, d: int) -> np.ndarray:
         F = np.eye(2 * d)
         F[:d, d:] = dt * np.eye(d)
         return F
@@ -62,6 +63,7 @@ class Measurement:
     R: np.ndarray  # (m, m)
     position: np.ndarray  # (3,) as located
     source: object = None  # the LocatedTarget
+    merged: bool = False  # two fits on one spot, merged (nlos_cl.tracking.association)
 
 
 def measurement(target, d: int, *, fallback_sigma_m: float, min_sigma_m: float,
@@ -127,3 +129,20 @@ def gate_threshold(probability: float, dof: int) -> float:
         from scipy.stats import chi2
         _GATES[key] = float(chi2.ppf(probability, dof))
     return _GATES[key]
+
+
+def rts_smooth(filtered, predicted):
+    """Rauch-Tung-Striebel smoothing of one track, offline: `filtered` is [(x_k, P_k)] after
+    each frame's update (or coast), `predicted` is [(F_k, x_k|k-1, P_k|k-1)] into each frame
+    (None for the first). Returns [(x_k|N, P_k|N)]: every frame's state given all frames, the
+    later ones included. Same model and noise as the filter, so no extra parameter."""
+    xs, Ps = filtered[-1]
+    out = [(xs, Ps)]
+    for k in range(len(filtered) - 2, -1, -1):
+        x, P = filtered[k]
+        F, xp, Pp = predicted[k + 1]
+        C = np.linalg.solve(Pp, F @ P).T  # P F^T Pp^-1 (P, Pp symmetric)
+        xs, Ps = x + C @ (xs - xp), P + C @ (Ps - Pp) @ C.T
+        Ps = 0.5 * (Ps + Ps.T)
+        out.append((xs, Ps))
+    return out[::-1]

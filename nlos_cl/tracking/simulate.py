@@ -2,8 +2,9 @@
 
 Frame k is at t = k / fps. Each moving target's mesh is translated onto its trajectory (its
 facets are cut once and translated: subdividing commutes with translation); static targets
-(clutter: a wall, a box) stay where they are, and since light is third-order only (no occlusion)
-their signal is the same every frame: it is simulated once and added on the device. Per-frame
+(clutter: a wall, a box) stay where they are, and their signal is simulated once and added on
+the device every frame. So static and moving targets never shadow each other here (the moving
+targets, simulated together in one nl.simulate call, do shadow one another). Per-frame
 noise (nl.AWGN or nl.PhotonCounter) is seeded from (seed, k) by NumPy's SeedSequence, so frame k
 of a sequence is the same whether or not the frames before it were drawn.
 """

@@ -2,14 +2,17 @@
 
 Per frame: (background removal) -> nl.GaussFilter -> nl.Locator (plans built once) -> the
 estimator's targets become measurements (nlos_cl.tracking.kalman.measurement) -> every live
-track is predicted to the frame's time with the constant-velocity model -> tracks and
-measurements are paired by SciPy's linear_sum_assignment on the squared Mahalanobis distance,
-pairs beyond the gate (chi-square quantile `gate_probability`) refused -> paired tracks are
-updated, the others coast on their prediction -> measurements left over start tentative tracks
-(while fewer than `max_tracks` are alive). A tentative track is confirmed after M hits in its
-first N frames (`confirm=(M, N)`) and deleted if it is not; a confirmed track is deleted after
-`max_misses` frames in a row without a measurement. Identities survive crossings because the
-assignment compares measurements with each track's *predicted* position and covariance.
+track is predicted to the frame's time with the constant-velocity model -> measurements are
+screened and paired with tracks (nlos_cl.tracking.association: vague, misfit and duplicate fits
+out; SciPy's linear_sum_assignment on the squared Mahalanobis distance inside a chi-square gate;
+one blob for two tracks updates neither) -> paired tracks are updated, the others coast on
+their prediction -> measurements left over start tentative tracks (while fewer than
+`max_tracks` are alive). A tentative track is confirmed after M hits in its first N frames
+(`confirm=(M, N)`) and deleted if it is not; a confirmed track is deleted after `max_misses`
+frames in a row without a measurement. Identities survive crossings because the assignment
+compares measurements with each track's *predicted* position and covariance, and tracks coast
+where the measurements cannot tell the targets apart. `smooth()`: the offline RTS smoother
+over every track's record.
 """
 from __future__ import annotations
 
@@ -17,12 +20,13 @@ import itertools
 import math
 from collections import deque
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
 from ..constants import PAPER_H_S
 from ..errors import InputError, require
-from . import kalman
+from . import association, kalman
 from .kalman import ConstantVelocity
 
 NO_SIGNAL = "no cell has a non-zero likelihood"
@@ -31,7 +35,9 @@ NO_SIGNAL = "no cell has a non-zero likelihood"
 @dataclass
 class Track:
     """A followed target. state: (p, v) (2d,), covariance (2d, 2d); status 'tentative',
-    'confirmed' or 'deleted'; history: (frame, t_s, x, y, z, measured) per frame since birth."""
+    'confirmed' or 'deleted'; history: (frame, t_s, x, y, z, measured) per frame since birth;
+    steps: the filter's own record per frame (for `smoothed()`), as long as the history: one
+    packed float64 array each (x, P, predicted x, predicted P, dt), ~0.4 kB in 2D."""
 
     id: int
     state: np.ndarray
@@ -43,6 +49,8 @@ class Track:
     age: int = 1
     t_s: float = 0.0
     history: deque = field(default_factory=deque)
+    steps: deque = field(default_factory=deque)
+    pending: tuple | None = None  # (dt, x, P) of the last prediction, until it is recorded
 
     @property
     def dims(self) -> int:
@@ -69,6 +77,35 @@ class Track:
             c[2, 2] = math.inf
         return c
 
+    def smoothed(self) -> list:
+        """The track's history smoothed offline (Rauch-Tung-Striebel, the filter's own model):
+        a `Smoothed(frame, t_s, position, covariance, velocity)` per frame of the history, each
+        using the frames after it as well. Costs one small solve per frame."""
+        d = self.dims
+        n = 2 * d
+        filtered, predicted = [], []
+        for row in self.steps:  # unpack: x (n), P (n^2), x_pred (n), P_pred (n^2), dt
+            filtered.append((row[:n], row[n:n + n * n].reshape(n, n)))
+            predicted.append((kalman.ConstantVelocity.transition(row[-1], d),
+                              row[n + n * n:2 * n + n * n], row[2 * n + n * n:-1].reshape(n, n)))
+        smooth = kalman.rts_smooth(filtered, predicted)
+        out = []
+        for h, (x, P) in zip(self.history, smooth):
+            view = Track(self.id, x, P, self.plane_z)
+            out.append(Smoothed(h[0], h[1], view.position, view.position_covariance,
+                                view.velocity))
+        return out
+
+
+class Smoothed(NamedTuple):
+    """One frame of a smoothed track (Track.smoothed()); covariance of the position, m^2."""
+
+    frame: int
+    t_s: float
+    position: np.ndarray
+    covariance: np.ndarray
+    velocity: np.ndarray
+
 
 class Tracker:
     """`Tracker(layout, grid, estimator='paper'|'model'|object, motion=ConstantVelocity())`;
@@ -85,7 +122,8 @@ class Tracker:
                  max_tracks: int = 1, gate_probability: float = 0.999,
                  fallback_sigma_m: float = 0.05, min_sigma_m: float = 0.002,
                  confirm=(2, 3), max_misses: int = 5, frame_interval_s: float = 0.1,
-                 max_history: int | None = None, backend=None, search="auto"):
+                 max_history: int | None = None, backend=None, search="auto",
+                 max_sigma_m: float | None = 0.5, max_birge_ratio: float | None = None):
         from ..grid import Grid
         from ..plans import GaussFilter, Locator
         layout = getattr(layout, "layout", layout)
@@ -94,7 +132,7 @@ class Tracker:
         require(isinstance(motion, ConstantVelocity), "motion", f"expected a ConstantVelocity,"
                 f" got {type(motion).__name__}", "pass ConstantVelocity(accel_sigma=0.5)")
         _check_options(max_tracks, gate_probability, fallback_sigma_m, min_sigma_m, confirm,
-                       max_misses, frame_interval_s)
+                       max_misses, frame_interval_s, max_sigma_m, max_birge_ratio)
         log_mode = layout.n_detectors > 4 if log_mode is None else bool(log_mode)
         self.gauss = GaussFilter(h_s, layout.time_axis, backend=backend)
         self.locator = Locator(layout, grid, estimator=estimator, log_mode=log_mode,
@@ -106,7 +144,8 @@ class Tracker:
         self.fallback_sigma_m, self.min_sigma_m = float(fallback_sigma_m), float(min_sigma_m)
         self.confirm, self.max_misses = (int(confirm[0]), int(confirm[1])), int(max_misses)
         self.frame_interval_s, self.max_history = float(frame_interval_s), max_history
-        self.backend = backend
+        self.backend, self.max_sigma_m, self.max_birge_ratio = backend, max_sigma_m, \
+            max_birge_ratio
         from ..layouts import height_observable
         self.height_observable = height_observable(layout.laser_spot, layout.detector_spots)
         self.tracks: list[Track] = []  # live
@@ -114,6 +153,11 @@ class Tracker:
         self.frame_index, self.t_s = -1, None
         self.last_location, self.last_measurements = None, []
         self._ids = itertools.count(1)
+
+    def smooth(self) -> dict:
+        """Every track seen so far (live, then the last 100 deleted) smoothed offline:
+        {id: Track.smoothed()}. The causal filter's states (`update`) are left as they are."""
+        return {t.id: t.smoothed() for t in self.finished + self.tracks}
 
     # ------------------------------------------------------------------ per frame
     def update(self, frame, t_s: float | None = None) -> list[Track]:
@@ -131,7 +175,10 @@ class Tracker:
         self.frame_index += 1
         for track in self.tracks:
             self._predict(track, t)
-        pairs, free = self._assign(measurements)
+        measurements = association.screen(
+            measurements, max_sigma_m=self.max_sigma_m, max_birge_ratio=self.max_birge_ratio,
+            gate_probability=self.gate_probability)
+        pairs, free = association.associate(self.tracks, measurements, self.gate_probability)
         for track, m in pairs:
             track.state, track.covariance = kalman.update(track.state, track.covariance, m)
         paired = {id(tr) for tr, _ in pairs}
@@ -178,28 +225,10 @@ class Tracker:
     def _predict(self, track: Track, t: float):
         dt = t - track.t_s
         d = track.dims
+        F = self.motion.transition(dt, d)
         track.state, track.covariance = kalman.predict(
-            track.state, track.covariance, self.motion.transition(dt, d),
-            self.motion.process_noise(dt, d))
-        track.t_s = t
-
-    def _assign(self, measurements):
-        """(track, measurement) pairs inside the gate, and the measurements left over."""
-        if not self.tracks or not measurements:
-            return [], list(measurements)
-        from scipy.optimize import linear_sum_assignment
-        big = 1e12
-        cost = np.full((len(self.tracks), len(measurements)), big)
-        for i, tr in enumerate(self.tracks):
-            for j, m in enumerate(measurements):
-                d2 = kalman.mahalanobis2(tr.state, tr.covariance, m)
-                if d2 <= kalman.gate_threshold(self.gate_probability, len(m.axes)):
-                    cost[i, j] = d2
-        rows, cols = linear_sum_assignment(cost)
-        pairs = [(self.tracks[i], measurements[j]) for i, j in zip(rows, cols)
-                 if cost[i, j] < big]
-        used = {id(m) for _, m in pairs}
-        return pairs, [m for m in measurements if id(m) not in used]
+            track.state, track.covariance, F, self.motion.process_noise(dt, d))
+        track.t_s, track.pending = t, (dt, track.state, track.covariance)
 
     def _account(self, track: Track, hit: bool):
         """Hits and misses, confirmation and deletion; the history point."""
@@ -222,6 +251,11 @@ class Tracker:
         p = track.position
         track.history.append((self.frame_index, track.t_s, float(p[0]), float(p[1]),
                               float(p[2]), bool(measured)))
+        dt, xp, Pp = track.pending or (np.nan, np.full_like(track.state, np.nan),
+                                       np.full_like(track.covariance, np.nan))  # a birth
+        track.steps.append(np.concatenate([track.state, track.covariance.ravel(), xp,
+                                           Pp.ravel(), [dt]]))
+        track.pending = None
 
     def _birth(self, m, t) -> Track:
         d = self.dims
@@ -233,7 +267,8 @@ class Tracker:
         P[np.ix_(m.axes, m.axes)] = m.R
         P[d:, d:] = self.motion.initial_speed_sigma ** 2 * np.eye(d)
         track = Track(next(self._ids), x, P, self.plane_z, t_s=t,
-                      history=deque(maxlen=self.max_history))
+                      history=deque(maxlen=self.max_history),
+                      steps=deque(maxlen=self.max_history))
         if self.confirm[0] <= 1:
             track.status = "confirmed"
         self._remember(track, True)
@@ -241,7 +276,7 @@ class Tracker:
 
 
 def _check_options(max_tracks, gate_probability, fallback_sigma_m, min_sigma_m, confirm,
-                   max_misses, frame_interval_s):
+                   max_misses, frame_interval_s, max_sigma_m, max_birge_ratio):
     def positive(v, name, example, integer=False):
         ok = isinstance(v, (int, np.integer)) if integer else isinstance(v, (int, float))
         require(ok and not isinstance(v, bool) and math.isfinite(v) and v > 0, name,
@@ -252,6 +287,10 @@ def _check_options(max_tracks, gate_probability, fallback_sigma_m, min_sigma_m, 
     positive(min_sigma_m, "min_sigma_m", 0.002)
     positive(max_misses, "max_misses", 5, integer=True)
     positive(frame_interval_s, "frame_interval_s", 0.1)
+    if max_sigma_m is not None:
+        positive(max_sigma_m, "max_sigma_m", 0.5)
+    if max_birge_ratio is not None:
+        positive(max_birge_ratio, "max_birge_ratio", 2.0)
     require(isinstance(gate_probability, float) and 0 < gate_probability < 1,
             "gate_probability", f"must be in (0, 1), got {gate_probability!r}", "pass 0.999")
     require(isinstance(confirm, (tuple, list)) and len(confirm) == 2

@@ -1,0 +1,112 @@
+"""Which measurement belongs to which track: screening, then gated assignment.
+
+Screening (per frame, before any track is looked at):
+- a measurement whose position sd exceeds `max_sigma_m` along some measured axis says nothing
+  useful about where a target is (a spare plate fitted to noise reports sd of metres): dropped;
+- a measurement from a fit that does not explain the frame (the model estimator's Birge ratio,
+  residual variance / the noise's, above `max_birge_ratio`: a wrong local minimum, or a scene
+  beyond the model) is dropped; estimators that report no Birge ratio are not screened;
+- two measurements each inside the other's gate are one target fitted twice (two plates
+  on the same spot, which a two-target fit does when the targets are close or in a degenerate
+  minimum): merged into one, with the information-weighted mean and the mean covariance (the
+  same data, so no more information than one of them). While two or more tracks are alive a
+  merged pair is not used at all: a fit asked for two targets that puts both on one spot could
+  not separate them, and the spot is then often neither (two plates midway between two targets
+  0.5 m apart explain 8 spots' data as well as the truth does); with one track it is that
+  track's target, fitted twice.
+
+Assignment: squared Mahalanobis distance of each measurement to each track's predicted
+position, chi-square gate at `gate_probability`, SciPy's linear_sum_assignment. Where two or
+more tracks share their gated measurements and there are fewer measurements than tracks (one
+blob for two targets at a crossing), the measurements cannot be told apart: none of those
+tracks is updated (they coast on their velocity) and the measurements start no track.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import kalman
+
+BIG = 1e12
+
+
+def screen(measurements, *, max_sigma_m, max_birge_ratio, gate_probability) -> list:
+    """The measurements worth pairing (see the module docstring)."""
+    kept = []
+    for m in measurements:
+        birge = (getattr(m.source, "details", None) or {}).get("birge_ratio")
+        if max_birge_ratio is not None and birge is not None and birge > max_birge_ratio:
+            continue
+        if max_sigma_m is not None and len(m.axes) and \
+                np.linalg.eigvalsh(m.R).max() > max_sigma_m ** 2:
+            continue
+        kept.append(m)
+    return _merge(kept, gate_probability)
+
+
+def _merge(measurements, gate_probability):
+    out = list(measurements)
+    i = 0
+    while i < len(out):
+        for j in range(i + 1, len(out)):
+            a, b = out[i], out[j]
+            if list(a.axes) != list(b.axes) or not len(a.axes):
+                continue
+            d = a.z - b.z  # each inside the other's own gate (a vague one is no duplicate)
+            d2 = max(d @ np.linalg.solve(a.R, d), d @ np.linalg.solve(b.R, d))
+            if d2 <= kalman.gate_threshold(gate_probability, len(a.axes)):
+                out[i] = _mean(a, b)
+                del out[j]
+                break
+        else:
+            i += 1
+    return out
+
+
+def _mean(a, b):
+    Ia, Ib = np.linalg.inv(a.R), np.linalg.inv(b.R)
+    z = np.linalg.solve(Ia + Ib, Ia @ a.z + Ib @ b.z)
+    position = a.position.copy()
+    position[a.axes] = z
+    return kalman.Measurement(a.axes, z, 0.5 * (a.R + b.R), position, a.source, merged=True)
+
+
+def associate(tracks, measurements, gate_probability):
+    """(track, measurement) pairs, and the measurements free to start tracks."""
+    if len(tracks) >= 2:  # a merged pair cannot tell which target it is (see the docstring)
+        measurements = [m for m in measurements if not m.merged]
+    if not tracks or not measurements:
+        return [], list(measurements)
+    from scipy.optimize import linear_sum_assignment
+    cost = np.full((len(tracks), len(measurements)), BIG)
+    for i, tr in enumerate(tracks):
+        for j, m in enumerate(measurements):
+            d2 = kalman.mahalanobis2(tr.state, tr.covariance, m)
+            if d2 <= kalman.gate_threshold(gate_probability, len(m.axes)):
+                cost[i, j] = d2
+    empty = np.array([], int)
+    blocked = _unresolved(cost < BIG) if len(tracks) >= 2 else (empty, empty)
+    cost[blocked[0], :] = BIG
+    rows, cols = linear_sum_assignment(cost)
+    pairs = [(tracks[i], measurements[j]) for i, j in zip(rows, cols) if cost[i, j] < BIG]
+    used = {id(m) for _, m in pairs} | {id(measurements[j]) for j in blocked[1]}
+    return pairs, [m for m in measurements if id(m) not in used]
+
+
+def _unresolved(gated):
+    """(track rows, measurement columns) of the gate graph's connected groups that hold two
+    or more tracks but fewer measurements than tracks."""
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import connected_components
+    n_t, n_m = gated.shape
+    adjacency = np.zeros((n_t + n_m, n_t + n_m), bool)
+    adjacency[:n_t, n_t:] = gated
+    _, label = connected_components(csr_matrix(adjacency), directed=False)
+    rows, cols = [], []
+    for group in np.unique(label):
+        t = np.flatnonzero(label[:n_t] == group)
+        m = np.flatnonzero(label[n_t:] == group)
+        if len(t) >= 2 and len(m) < len(t):
+            rows += list(t)
+            cols += list(m)
+    return np.array(rows, int), np.array(cols, int)
