@@ -2,7 +2,8 @@
 
 The `Locator` plan scores the grid; an estimator turns that into positions. The paper's
 estimator (`PaperArgmax`) is the first: the argmax of the joint likelihood, refined below the
-cell size by a parabola per axis. Others plug in through the same `estimate(scored)` call.
+cell size by a parabola per axis. Others plug in through the same `estimate(scored)` call. The
+default (`as_estimator(None)`) is the model fit (nlos_cl.model, loaded on first use).
 """
 from __future__ import annotations
 
@@ -144,9 +145,14 @@ ESTIMATORS = {"paper": PaperArgmax,
               "model": lambda: __import__("nlos_cl.model", fromlist=["_"]).ModelEstimator()}
 
 
+# The default (issue 11): the most accurate estimator within the time budget, the model fit.
+DEFAULT_ESTIMATOR = "model"
+
+
 def as_estimator(value):
+    """A name ('paper', 'model'), an object with estimate(scored), or None: the default."""
     if value is None:
-        return PaperArgmax()
+        value = DEFAULT_ESTIMATOR
     if isinstance(value, str):
         if value not in ESTIMATORS:
             raise InputError(f"estimator: unknown name {value!r}. Fix: pass one of "

@@ -43,7 +43,7 @@ def test_round_trip_is_lossless(paper_hist, tmp_path):
     path2 = nl.write_capture(tmp_path / "b.h5", back)
     (again,) = nl.read_capture(path2)
     assert np.array_equal(again.data, back.data)
-    loc = nl.locate(nl.gauss_filter(back), GRID)
+    loc = nl.locate(nl.gauss_filter(back), GRID, estimator="paper")
     assert loc.error_m < 0.05
 
 
@@ -109,7 +109,7 @@ def test_hand_written_ytal_capture_locates(runtime, tmp_path):
     assert np.allclose(capture.detector_spots, spots, atol=1e-6)
     # the file's mapping equals the simulation's to float32 precision (~4e-6 m of path)
     np.testing.assert_allclose(capture.hidden_path_axis(), hist.hidden_path_axis(), atol=2e-5)
-    loc = nl.locate(nl.gauss_filter(capture), GRID)
+    loc = nl.locate(nl.gauss_filter(capture), GRID, estimator="paper")
     assert np.linalg.norm(loc.position - [4.0, 2.0, 0.0]) < 0.05
 
 
@@ -131,8 +131,8 @@ def test_several_laser_points_give_one_set_each(paper_hist, tmp_path):
     sets = nl.read_capture(path)
     assert len(sets) == 2
     for s in sets:
-        assert nl.locate(nl.gauss_filter(s), GRID).error_m is None  # no truth in a plain file
-        assert np.linalg.norm(nl.locate(nl.gauss_filter(s), GRID).position - [4, 2, 0]) < 0.05
+        assert nl.locate(nl.gauss_filter(s), GRID, estimator="paper").error_m is None  # no truth in a plain file
+        assert np.linalg.norm(nl.locate(nl.gauss_filter(s), GRID, estimator="paper").position - [4, 2, 0]) < 0.05
 
 
 def broken(tmp_path, paper_hist, edit):

@@ -131,7 +131,8 @@ def test_a_ytal_capture_locates_on_either_side_with_no_grid_given(runtime, tmp_p
     (capture,), frame = nl.capture.read_capture_with_frame(tmp_path / "y.hdf5")
     assert frame is frames.YTAL
     grid = frames.default_region(capture, 0.65e-9)
-    loc = nl.locate(nl.gauss_filter(capture, 0.65e-9, backend=runtime), grid, backend=runtime)
+    loc = nl.locate(nl.gauss_filter(capture, 0.65e-9, backend=runtime), grid, backend=runtime,
+                     estimator="paper")
     found = frame.from_internal(loc.position)
     assert np.linalg.norm(found - truth_ytal) < 0.05, found
     assert not frames.on_region_edge(loc.position, grid)

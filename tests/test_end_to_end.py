@@ -15,7 +15,8 @@ def paper_signals(runtime):
 
 @pytest.mark.parametrize("seed", range(5))
 def test_paper_scene_located_within_5cm_at_10db(paper_signals, seed):
-    loc = nl.locate(nl.gauss_filter(nl.add_noise(paper_signals, 10.0, seed)), GRID)
+    loc = nl.locate(nl.gauss_filter(nl.add_noise(paper_signals, 10.0, seed)), GRID,
+                    estimator="paper")
     assert loc.error_m < 0.05, loc.position
 
 
@@ -26,7 +27,8 @@ def test_small_target_elsewhere_located_within_5cm(runtime, position):
     scene = nl.Scene(nl.paper_setup(), nl.Target(facing_rectangle(position)), 0.01,
                      truth=position)
     signals = nl.simulate(scene, backend=runtime)
-    errors = [nl.locate(nl.gauss_filter(nl.add_noise(signals, 10.0, seed)), GRID).error_m
+    errors = [nl.locate(nl.gauss_filter(nl.add_noise(signals, 10.0, seed)), GRID,
+                        estimator="paper").error_m
               for seed in range(5)]
     assert max(errors) < 0.05, errors
 
@@ -35,7 +37,8 @@ def test_reference_backend_runs_the_same_pipeline(reference, runtime):
     scene = nl.paper_scene(facet_size_m=0.02)
     axis = nl.TimeAxis(2 * 20 / nl.SPEED_OF_LIGHT + 28e-9, 10e-12, 900)
     grid = nl.Grid.from_ranges(x=(3, 5), y=(1, 3), step_m=0.01)
-    locs = [nl.locate(nl.gauss_filter(nl.simulate(scene, axis, backend=be)), grid)
+    locs = [nl.locate(nl.gauss_filter(nl.simulate(scene, axis, backend=be)), grid,
+                      estimator="paper")
             for be in (runtime, reference)]
     assert np.linalg.norm(locs[0].position - locs[1].position) < 0.005
     assert locs[0].error_m < 0.05
@@ -45,7 +48,7 @@ def test_measured_style_histograms_locate(runtime):
     """Host data in watts (~1e-20 W), uploaded: normalisation keeps float32 in range."""
     sim = nl.simulate(nl.paper_scene(), backend=runtime).histograms()
     tiny = sim.with_data(sim.data * 1e-7)
-    loc = nl.locate(nl.gauss_filter(tiny, backend=runtime), GRID)
+    loc = nl.locate(nl.gauss_filter(tiny, backend=runtime), GRID, estimator="paper")
     assert loc.error_m < 0.05
 
 
@@ -54,7 +57,7 @@ def test_sum_of_logs_mode_locates_with_many_detectors(runtime):
     setup = nl.paper_setup(detector_spots=spots)
     scene = nl.Scene(setup, nl.Target(nl.rectangle()), 0.01, truth=(4.0, 2.0, 0.0))
     signals = nl.gauss_filter(nl.add_noise(nl.simulate(scene, backend=runtime), 10.0, 1))
-    loc = nl.locate(signals, GRID, log_mode=True)
+    loc = nl.locate(signals, GRID, log_mode=True, estimator="paper")
     assert loc.error_m < 0.05
 
 
@@ -67,5 +70,5 @@ def test_paper_5x5_grid_within_paper_tolerance(runtime):
             pos = (float(x), float(y), 0.0)
             scene = nl.Scene(nl.paper_setup(), nl.Target(facing_rectangle(pos)), 0.01, truth=pos)
             noisy = nl.add_noise(nl.simulate(scene, backend=runtime), 10.0, seed=x * 10 + y)
-            errors.append(nl.locate(nl.gauss_filter(noisy), GRID).error_m)
+            errors.append(nl.locate(nl.gauss_filter(noisy), GRID, estimator="paper").error_m)
     assert np.mean(errors) <= 0.0684 and max(errors) < 0.12, errors

@@ -114,7 +114,8 @@ GRIDS = {
 def test_ellipse_score_matches_twin(filtered_paper, grid_name, log_mode, device_runtime,
                                     reference):
     grid = GRIDS[grid_name]
-    maps = [nl.locate(filtered_paper, grid, log_mode=log_mode, return_map=True, backend=be)
+    maps = [nl.locate(filtered_paper, grid, log_mode=log_mode, return_map=True, backend=be,
+                      estimator="paper")
             for be in (device_runtime, reference)]
     a, b = maps[0].score_map, maps[1].score_map
     assert a.shape == (grid.shape[2], grid.shape[1], grid.shape[0])

@@ -49,7 +49,7 @@ def test_calibrate_from_known_distances_then_locate(runtime):
     assert fit.calibration.a_m_per_s == pytest.approx(C, rel=2e-3)
     measured = nl.simulate(nl.paper_scene(), axis, backend=runtime).histograms()
     calibrated = nl.with_calibration(measured, fit.calibration)
-    loc = nl.locate(nl.gauss_filter(calibrated), nl.Grid())
+    loc = nl.locate(nl.gauss_filter(calibrated), nl.Grid(), estimator="paper")
     assert loc.error_m < 0.05
 
 
@@ -100,7 +100,7 @@ def test_photon_counts_follow_the_detector_model(runtime):
     many = nl.PhotonCounter(n_pulses=1e9, tdc_bin_s=50e-12).counts(
         hist_of(np.zeros((3, 20_000))), seed=1).data
     assert many.var() == pytest.approx(many.mean(), rel=0.05)
-    loc = nl.locate(nl.gauss_filter(a), nl.Grid())
+    loc = nl.locate(nl.gauss_filter(a), nl.Grid(), estimator="paper")
     assert loc.error_m < 0.1
 
 

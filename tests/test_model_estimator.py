@@ -41,7 +41,7 @@ def test_paper_scene_centre_size_and_covariance():
 
 def test_extended_target_centre_where_the_argmax_is_far_off():
     filtered, noisy = frame((4.0, 2.0, 0.0), size=(0.8, 1.2))
-    paper = nl.locate(filtered, GRID)
+    paper = nl.locate(filtered, GRID, estimator="paper")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         model = nl.locate(filtered, GRID, estimator="model", raw=noisy)
@@ -100,3 +100,46 @@ def test_choosing_the_model_estimator_by_name_loads_scipy_only_then():
             "m = e.as_estimator('model'); print(m.name)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "model"
+
+
+def test_the_default_estimator_is_the_model_fit_loaded_on_first_use():
+    code = ("import sys, nlos_cl.estimators as e; assert 'nlos_cl.model' not in sys.modules; "
+            "m = e.as_estimator(None); assert 'nlos_cl.model' in sys.modules; print(m.name)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "model"
+    filtered, noisy = frame((4.0, 2.0, 0.0))
+    with pytest.warns(UserWarning, match="height"):
+        loc = nl.locate(filtered, GRID, raw=noisy)  # no estimator: the default
+    assert loc.estimator == "model" and loc.targets[0].details["model"] == "upright plate"
+    assert loc.error_m < 0.02  # as test_paper_scene_centre_size_and_covariance
+
+
+def test_box_model_is_the_plate_at_depth_zero():
+    from nlos_cl.model import box, plate
+    spots, laser = np.array(TRIANGLE), np.zeros(3)
+    p = np.array([3.0, 2.0, 0.3, 0.7, 1.1, 2.8])
+    a = plate.model_facets(p, (16, 24), spots, laser)
+    b = box.model_facets(box.from_plate(p, 0.0), (16, 24), spots, laser)
+    lit = b[0].areas > 0  # the side faces of a depth-0 box have no area
+    assert np.allclose(b[0].centres[lit], a[0].centres) and math.isclose(a[1], b[1])
+    assert np.allclose(a[2], b[2], atol=1e-15)
+    deep = box.box_facets(box.from_plate(p, 0.4), (16, 24))  # all six faces, none culled
+    assert math.isclose(deep.areas.sum(), 2 * (0.7 * 1.1 + 0.4 * 1.1 + 0.7 * 0.4))
+    assert np.allclose(deep.centres.mean(axis=0), box.from_plate(p, 0.4)[:3], atol=1e-9)
+
+
+def test_curved_shapes_cover_their_surface_and_cull_what_no_spot_sees():
+    from nlos_cl.model import cylinder, ellipsoid
+    # The cell areas sum to the surface's: a sphere's 4 pi r^2 within the midpoint rule's
+    # error on 32 x 16 cells (measured 0.16 %); a cylinder's side and caps exactly (flat in
+    # height, the caps' rings summed exactly by the midpoint rule in radius).
+    sphere = ellipsoid.ellipsoid_facets([2.0, 3.0, 0.0, 0.6, 0.6, 0.6, 1.0])
+    assert math.isclose(sphere.areas.sum(), 4 * math.pi * 0.09, rel_tol=5e-3)
+    assert np.allclose(np.linalg.norm(sphere.centres - [2, 3, 0], axis=1), 0.3)
+    can = cylinder.cylinder_facets([2.0, 3.0, 0.1, 0.4, 1.7, 0.4, 1.0])
+    assert math.isclose(can.areas.sum(), 2 * math.pi * 0.2 * 1.7 + 2 * math.pi * 0.04,
+                        rel_tol=1e-9)
+    seen, _ = ellipsoid.ellipsoid_cells([2.0, 3.0, 0.0, 0.6, 0.6, 0.6, 1.0], np.array(TRIANGLE),
+                                        np.zeros(3))
+    assert 0 < seen.count < sphere.count  # the far side is dropped
+    assert np.all(np.einsum("fk,fk->f", seen.normals, -seen.centres) > 0)  # faces the laser

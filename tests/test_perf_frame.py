@@ -37,7 +37,7 @@ def test_a_located_frame_is_one_read(runtime, monkeypatch, search, launches):
     hist = histograms([(4.0, 2.0, 0.0)], [1.0], 3, 0.065, 0.05, 6)
     grid = nl.Grid.from_ranges(x=(2.0, 6.0), y=(0.5, 4.0), step_m=0.01)
     signals = GaussFilter(time_axis=hist.time_axis)(nl.upload(hist, runtime))
-    plan = Locator(hist.layout, grid, search=search, backend=runtime)
+    plan = Locator(hist.layout, grid, search=search, backend=runtime, estimator="paper")
     plan(signals)  # builds the programs, allocates the plan's buffers
     runtime.finish()
     count = Counter(monkeypatch)

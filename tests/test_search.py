@@ -38,7 +38,7 @@ def same_answer(hist, grid, backend, log_mode, width_m):
     found = {}
     for search in ("exhaustive", "coarse_to_fine"):
         plan = Locator(hist.layout, grid, search=search, log_mode=log_mode, backend=backend,
-                       signal_width_m=width_m)
+                       signal_width_m=width_m, estimator="paper")
         try:
             found[search] = (plan(hist), plan.last_search)
         except nl.InputError as exc:  # no signal reaches the grid: both must say so
@@ -104,7 +104,7 @@ def test_a_flat_map_falls_back_to_every_cell(runtime):
 def test_unknown_search_is_a_clear_error():
     hist = histograms([(4.0, 2.0, 0.0)], [1.0], 3, 0.065, 0.0, 0)
     with pytest.raises(nl.InputError, match="search"):
-        Locator(hist.layout, search="fast")
+        Locator(hist.layout, search="fast", estimator="paper")
 
 
 class HostSideArgmax(PaperArgmax):
@@ -123,7 +123,8 @@ def test_fused_device_search_matches_the_host_side_search(runtime, log_mode, vol
     grid = (nl.Grid((2.5, 1.0, -0.3), (0.03, 0.03, 0.05), (90, 90, 13)) if volume
             else nl.Grid.from_ranges(x=(2.5, 5.0), y=(1.0, 3.5), step_m=0.01))
     for search in ("coarse_to_fine", "exhaustive"):
-        fused = Locator(hist.layout, grid, search=search, log_mode=log_mode, backend=runtime)
+        fused = Locator(hist.layout, grid, search=search, log_mode=log_mode, backend=runtime,
+                        estimator="paper")
         host = Locator(hist.layout, grid, search=search, log_mode=log_mode, backend=runtime,
                        estimator=HostSideArgmax())
         a, b = fused(hist), host(hist)
@@ -136,8 +137,8 @@ def test_auto_keeps_one_search_after_its_trials(runtime):
     from nlos_cl.plans import AUTO_TRIALS
     hist = histograms([(4.0, 2.0, 0.0)], [1.0], 3, 0.065, 0.02, 5)
     grid = nl.Grid.from_ranges(x=(2.5, 5.0), y=(1.0, 3.5), step_m=0.01)
-    plan, exhaustive = Locator(hist.layout, grid, backend=runtime), Locator(
-        hist.layout, grid, backend=runtime, search="exhaustive")
+    plan, exhaustive = Locator(hist.layout, grid, backend=runtime, estimator="paper"), Locator(
+        hist.layout, grid, backend=runtime, search="exhaustive", estimator="paper")
     expected = exhaustive(hist)
     for _ in range(2 * (AUTO_TRIALS + 1)):
         assert plan.chosen is None
@@ -156,8 +157,8 @@ def test_exhaustive_score_map_in_slabs(runtime, grid):
     from nlos_cl.runtime import Runtime
     tiny = Runtime(max_alloc_bytes=24_000)
     hist = histograms([(3.5, 1.2, 0.0)], [1.0], 3, 0.065, 0.02, 8)
-    a = Locator(hist.layout, grid, search="exhaustive", backend=runtime)(hist)
-    plan = Locator(hist.layout, grid, search="exhaustive", backend=tiny)
+    a = Locator(hist.layout, grid, search="exhaustive", backend=runtime, estimator="paper")(hist)
+    plan = Locator(hist.layout, grid, search="exhaustive", backend=tiny, estimator="paper")
     for _ in range(2):  # the second frame reuses the plan's buffers
         b = plan(hist)
         assert np.array_equal(a.cell_position, b.cell_position) and a.score == b.score

@@ -1,6 +1,7 @@
-"""`ModelEstimator`: analysis by synthesis. Fit K upright plates to the measured histograms with
-the forward model (the registered "forward" operation, on the backend), report each plate's
-centre, size and a calibrated covariance. Plugs into `nl.locate(..., estimator="model")`."""
+"""`ModelEstimator`: analysis by synthesis. Fit K upright plates (one target: a plate, or an
+upright box where the plate misses the data) to the measured histograms with the forward model
+(the registered "forward" operation, on the backend), report each target's centre, size and a
+calibrated covariance. Plugs into `nl.locate(..., estimator="model")`."""
 from __future__ import annotations
 
 import time
@@ -22,6 +23,8 @@ HEIGHT_WARNING = ("height (z) is unobservable with collinear wall spots (rotatin
 # 1 cm-facet data from the truth is then off by <= 0.25 sd (Mahalanobis) on the
 # 0.3 x 1.6 m plate, a 0.7 m and a 1 m square (10 x 20 left the 0.7 m square 1 sd off).
 GAUSS_LATTICE, POISSON_LATTICE = (16, 24), (16, 32)
+MODELS = {"plate": "upright plate", "box": "upright box", "ellipsoid": "upright ellipsoid",
+          "cylinder": "upright cylinder"}
 # With more detectors than this, the starts, the search over K and the short fits use this
 # many, evenly spread; the final fit and the covariance use every detector.
 SEARCH_DETECTORS = 64
@@ -37,11 +40,16 @@ class ModelEstimator:
     name = "model"
 
     def __init__(self, targets=1, *, likelihood="auto", h_s=PAPER_H_S, pulse_fwhm_s=70e-12,
-                 jitter_s=30e-12, lattice=None, max_targets=3, backend=None, final_nfev=30):
+                 jitter_s=30e-12, lattice=None, max_targets=3, backend=None, final_nfev=30,
+                 closed="auto"):
         require(targets == "auto" or (isinstance(targets, int) and targets >= 1), "targets",
                 f"must be a positive integer or 'auto', got {targets!r}", "pass e.g. 1 or 'auto'")
         require(likelihood in ("auto", "gauss", "poisson"), "likelihood",
                 f"must be 'auto', 'gauss' or 'poisson', got {likelihood!r}", "pick one")
+        require(closed in ("auto", True, False), "closed", f"must be 'auto', True or False, got "
+                f"{closed!r}", "pass 'auto' (a box where one plate misses the data), True or "
+                "False")
+        self.closed = closed
         self.targets, self.likelihood, self.h_s = targets, likelihood, float(h_s)
         self.pulse_sigma_s = float(pulse_fwhm_s) / FWHM_PER_SIGMA
         self.jitter_s, self.lattice = float(jitter_s), lattice
@@ -80,13 +88,21 @@ class ModelEstimator:
         free = np.array([True, True, observable, True, True, True])
         result, history = self._fit(problem, paper.targets[0].position, free, z0)
         clock["fit"] = time.perf_counter()
-        cov_all, info = covariance(problem, result, free)
+        cov = covariance(problem, result, free)
         clock["covariance"] = time.perf_counter()
+        chosen = problem
+        if len(result.params) == 1:  # one target: a plate, or a box where the data ask for it
+            from .select import closed_or_plate
+            chosen, result, free, cov = closed_or_plate(problem, result, free, self.final_nfev,
+                                                        cov, self.closed)
+            clock["box"] = time.perf_counter()
+        cov_all, info = cov
         notes = [] if observable else [HEIGHT_WARNING.format(z=z0)]
         for note in notes:
             warnings.warn(note, stacklevel=3)
         self.timings = _stages(clock, problem)
-        located = [self._target(result, cov_all, k, info, notes, obs, history, observable)
+        located = [self._target(result, cov_all, k, info, notes, obs, history, observable,
+                                chosen.shape)
                    for k in _order(result)]
         return Estimate(located, paper.cell_position, paper.score)
 
@@ -106,15 +122,16 @@ class ModelEstimator:
         problem.model_s += search.model_s
         return result, history
 
-    def _target(self, result, cov_all, k, info, notes, obs, history, observable):
+    def _target(self, result, cov_all, k, info, notes, obs, history, observable, shape):
         p = result.params[k]
-        details = {"model": "upright plate", "params": dict(zip(plate.NAMES, map(float, p))),
-                   "normal": plate.normal_of(p), "amplitude": float(result.linear[k]),
+        details = {"model": MODELS[shape.__name__.rsplit(".", 1)[-1]],
+                   "params": dict(zip(shape.NAMES, map(float, p))),
+                   "normal": shape.normal_of(p), "amplitude": float(result.linear[k]),
                    "likelihood": obs.mode, "cost": result.cost, "n_residuals": result.n_residuals,
                    "targets_tried": history, "height_observable": observable,
                    "warnings": list(notes), "timings_s": dict(self.timings), **info}
-        return LocatedTarget(p[:3].copy(), centre_covariance(cov_all, k), plate.extent(p),
-                             details)
+        return LocatedTarget(p[:3].copy(), centre_covariance(cov_all, k, shape),
+                             shape.extent(p), details)
 
 
 def _order(result):

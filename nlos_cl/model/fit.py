@@ -1,9 +1,11 @@
-"""The nonlinear fit (SciPy least squares, trust region with bounds) of K plates, the linear
+"""The nonlinear fit (bounded Levenberg-Marquardt, nlos_cl.model.lm) of K targets, the linear
 factors profiled out at every step (variable projection), and the covariance of the result.
 
-Finite-difference steps are absolute (2 mm, 4 mrad): the forward kernel works in float32, so
-SciPy's default relative steps (~1e-8) would differentiate rounding noise. A Jacobian column
-re-simulates only the plate whose parameter moved.
+The target's shape is the problem's `shape` module (default nlos_cl.model.plate): its N_PARAMS,
+LOWER, UPPER, STEPS and X_SCALE are read from there, so a new shape needs no edit here.
+Finite-difference steps are absolute (STEPS: 2 mm, 4 mrad for the plate): the forward kernel
+works in float32, so relative steps (~1e-8) would differentiate rounding noise. A Jacobian
+column re-simulates only the target whose parameter moved.
 
 Covariance. AWGN: the sandwich (J'J)^-1 J' C J (J'J)^-1 of weighted least squares on filtered
 samples whose noise correlation C comes from the filter's taps (no free factor), times the
@@ -18,28 +20,33 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import plate
+from .lm import least_squares
 
-STEPS = np.array([2e-3, 2e-3, 2e-3, 2e-3, 2e-3, 4e-3])
-X_SCALE = np.array([0.05, 0.05, 0.05, 0.1, 0.1, 0.1])
-
+JAC_UPDATE = "full"  # not "broyden": it took more forward calls here (nlos_cl.model.lm)
 
 @dataclass
 class FitResult:
-    params: np.ndarray  # (K, 6)
+    params: np.ndarray  # (K, N_PARAMS)
     linear: np.ndarray  # amplitudes (and backgrounds for Poisson)
     cost: float  # sum of squared residuals (= -2 log L + const)
     n_residuals: int
     nfev: int
-    cov: np.ndarray | None = None  # (K*6, K*6) over all parameters (inf where fixed)
+    cov: np.ndarray | None = None  # (K*N, K*N) over all parameters (inf where fixed)
+
+
+def shape_of(problem):
+    """The target model's module: the problem's `shape`, else the plate."""
+    return getattr(problem, "shape", plate)
 
 
 class _Objective:
     """Residual and Jacobian of the profiled problem over the free parameters."""
 
     def __init__(self, problem, params0, free):
-        self.problem = problem
-        self.base = np.array(params0, dtype=np.float64).reshape(-1, plate.N_PARAMS)
+        self.problem, self.shape = problem, shape_of(problem)
+        self.base = np.array(params0, dtype=np.float64).reshape(-1, self.shape.N_PARAMS)
         self.free = np.tile(np.asarray(free, bool), len(self.base))
+        self.steps = np.tile(self.shape.STEPS, len(self.base))[self.free]
         self._key, self._cols, self._lin = None, None, None
 
     def full(self, theta):
@@ -65,48 +72,47 @@ class _Objective:
         return self.problem.residual(cols, lin)
 
     def jac(self, theta):
+        return np.stack([self.column(theta, j) for j in range(len(self.steps))], axis=1)
+
+    def column(self, theta, j):
+        """Forward difference along free parameter j: one forward call, only the target whose
+        parameter moved is re-simulated."""
         cols, lin = self._eval(theta)
-        r0 = self.problem.residual(cols, lin)
-        full = self.full(theta)
-        free_idx = np.flatnonzero(self.free)
-        out = np.empty((r0.size, free_idx.size))
-        for j, flat in enumerate(free_idx):
-            k, i = divmod(flat, plate.N_PARAMS)
-            p = full[k].copy()
-            p[i] += STEPS[i]
-            moved = cols.copy()
-            moved[k] = self.problem.column(p)
-            r = self.problem.residual(moved, self.problem.linear(moved, lin))
-            out[:, j] = (r - r0) / STEPS[i]
-        return out
+        k, i = divmod(int(np.flatnonzero(self.free)[j]), self.shape.N_PARAMS)
+        p = self.full(theta)[k].copy()
+        p[i] += self.steps[j]
+        moved = cols.copy()
+        moved[k] = self.problem.column(p)
+        r = self.problem.residual(moved, self.problem.linear(moved, lin))
+        return (r - self.problem.residual(cols, lin)) / self.steps[j]
 
 
 def fit(problem, params0, free, max_nfev=30) -> FitResult:
-    """Least squares from params0 (K, 6) over the parameters marked in `free` (6,)."""
-    from scipy.optimize import least_squares
+    """Least squares from params0 (K, N_PARAMS) over the parameters marked in `free`
+    (N_PARAMS,)."""
     obj = _Objective(problem, params0, free)
-    lo = np.tile(plate.LOWER, len(obj.base))[obj.free]
-    hi = np.tile(plate.UPPER, len(obj.base))[obj.free]
+    shape, k = obj.shape, len(obj.base)
+    lo, hi = (np.tile(b, k)[obj.free] for b in (shape.LOWER, shape.UPPER))
     theta0 = np.clip(obj.base.reshape(-1)[obj.free], lo + 1e-6, hi - 1e-6)
-    sol = least_squares(obj.residual, theta0, jac=obj.jac, bounds=(lo, hi), method="trf",
-                        x_scale=np.tile(X_SCALE, len(obj.base))[obj.free], max_nfev=max_nfev,
-                        ftol=1e-7, xtol=1e-5)
+    sol = least_squares(obj.residual, theta0, jac=obj.jac, bounds=(lo, hi),
+                        x_scale=np.tile(shape.X_SCALE, k)[obj.free], max_nfev=max_nfev,
+                        ftol=1e-7, xtol=1e-5, jac_update=JAC_UPDATE, jac_column=obj.column)
     cols, lin = obj._eval(sol.x)
     r = problem.residual(cols, lin)
     return FitResult(obj.full(sol.x), lin, float(r @ r), int(r.size), int(sol.nfev))
 
 
 def _mean_jacobian(problem, params, lin, free):
-    """d mu / d (free plate parameters, linear factors), central differences: (D, n, P)."""
+    """d mu / d (free target parameters, linear factors), central differences: (D, n, P)."""
     cols = problem.columns(params)
-    k_targets = len(params)
+    steps = shape_of(problem).STEPS
     blocks = []
-    for k in range(k_targets):
+    for k in range(len(params)):
         for i in np.flatnonzero(free):
             hi, lo = params[k].copy(), params[k].copy()
-            hi[i] += STEPS[i]
-            lo[i] -= STEPS[i]
-            blocks.append(lin[k] * (problem.column(hi) - problem.column(lo)) / (2 * STEPS[i]))
+            hi[i] += steps[i]
+            lo[i] -= steps[i]
+            blocks.append(lin[k] * (problem.column(hi) - problem.column(lo)) / (2 * steps[i]))
     blocks.extend(cols)
     if problem.obs.mode == "poisson":
         n_det = problem.obs.y.shape[0]
@@ -140,7 +146,8 @@ def _scaled_pinv(a) -> np.ndarray:
 
 
 def covariance(problem, result: FitResult, free) -> tuple[np.ndarray, dict]:
-    """Covariance of every plate parameter (K*6 square; inf on fixed ones) and diagnostics."""
+    """Covariance of every target parameter (K*N_PARAMS square; inf on fixed ones) and
+    diagnostics."""
     obs, params = problem.obs, result.params
     cols, jmu = _mean_jacobian(problem, params, result.linear, free)
     mu = problem.mean(cols, result.linear)
@@ -166,10 +173,10 @@ def covariance(problem, result: FitResult, free) -> tuple[np.ndarray, dict]:
     return full, info
 
 
-def centre_covariance(cov_all, k) -> np.ndarray:
-    """The (x, y, z) block of target k; an unobservable (fixed) axis has infinite variance and
-    no correlation with the others."""
-    s = slice(k * plate.N_PARAMS, k * plate.N_PARAMS + 3)
+def centre_covariance(cov_all, k, shape=plate) -> np.ndarray:
+    """The (x, y, z) block of target k (rows of shape.N_PARAMS parameters, x, y, z first); an
+    unobservable (fixed) axis has infinite variance and no correlation with the others."""
+    s = slice(k * shape.N_PARAMS, k * shape.N_PARAMS + 3)
     c = np.array(cov_all[s, s], dtype=np.float64)
     fixed = ~np.isfinite(np.diag(c))
     c[fixed, :] = 0.0

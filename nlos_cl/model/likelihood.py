@@ -1,5 +1,5 @@
-"""The model's histograms for K plates, the linear factors solved in closed form, and the
-residuals whose sum of squares is -2 log-likelihood (up to a constant).
+"""The model's histograms for K targets (plates, or one box), the linear factors solved in
+closed form, and the residuals whose sum of squares is -2 log-likelihood (up to a constant).
 
 Gaussian (AWGN): mu = sum_k a_k m_k; a = weighted least squares (noise std per detector);
 residual (y - mu) / noise. Poisson (photon counts): lambda = sum_k a_k m_k + b_d (b_d: dark and
@@ -16,19 +16,22 @@ from . import plate
 
 
 class Problem:
-    """Evaluates the forward model for parameter rows (K, 6) on `backend`."""
+    """Evaluates the forward model for parameter rows (K, shape.N_PARAMS) on `backend`.
+    `shape`: the target model's module (nlos_cl.model.plate or .box): its model_facets, and
+    the N_PARAMS, STEPS, X_SCALE, LOWER, UPPER the fit reads."""
 
-    def __init__(self, obs, backend, lattice=(16, 24)):
+    def __init__(self, obs, backend, lattice=(16, 24), shape=plate):
         self.obs, self.backend, self.lattice = obs, backend, tuple(lattice)
+        self.shape = shape
         self.calls = 0
         self.model_s = 0.0
 
     def column(self, p) -> np.ndarray:
-        """(D, n) histograms of one plate, unit amplitude (forward op on the backend)."""
+        """(D, n) histograms of one target, unit amplitude (forward op on the backend)."""
         import time
         t = time.perf_counter()
         obs = self.obs
-        facets, blur, shift = plate.model_facets(p, self.lattice, obs.spots, obs.laser)
+        facets, blur, shift = self.shape.model_facets(p, self.lattice, obs.spots, obs.laser)
         sigma = math.sqrt(obs.sigma0_m ** 2 + blur ** 2 - obs.box_excess_m2)
         hist, _ = self.backend.call("forward", facets, obs.spots, obs.laser, obs.edge0 - shift,
                                     obs.dpath, sigma, obs.n, None)
@@ -38,7 +41,7 @@ class Problem:
         return np.where(obs.valid, out, 0.0)
 
     def columns(self, params) -> np.ndarray:
-        return np.stack([self.column(p) for p in np.reshape(params, (-1, plate.N_PARAMS))])
+        return np.stack([self.column(p) for p in np.reshape(params, (-1, self.shape.N_PARAMS))])
 
     # ------------------------------------------------------------------ linear factors
     def linear(self, cols, warm=None) -> np.ndarray:

@@ -25,6 +25,11 @@ NAMES = ("x", "y", "z", "width", "height", "yaw")
 LOWER = np.array([-np.inf, 0.05, -np.inf, 0.04, 0.04, -np.inf])
 UPPER = np.array([np.inf, np.inf, np.inf, 3.0, 3.0, np.inf])
 N_PARAMS = len(NAMES)
+YAW = 5  # index of the yaw
+# Finite-difference steps, absolute (the forward kernel is float32: relative ~1e-8 steps would
+# differentiate rounding), and the parameters' typical scales (nlos_cl.model.fit reads both).
+STEPS = np.array([2e-3, 2e-3, 2e-3, 2e-3, 2e-3, 4e-3])
+X_SCALE = np.array([0.05, 0.05, 0.05, 0.1, 0.1, 0.1])
 UP = np.array([0.0, 0.0, 1.0])
 
 
@@ -54,13 +59,20 @@ STAT_SPOTS = 32  # the cells' path statistics from at most this many spots (an a
 # across a 0.9 m SPAD patch, so the fit's error is ~1e-3 mm; 1,024 spots cost 150 ms a call)
 
 
-def _gauss_points(p, lattice, cells, scale):
-    """Each cell's 2 x 2 Gauss points, their offsets from the centre times `scale` (F,)."""
+def plate_edges(p, lattice, count):
+    """Per cell of plate p, its two edge vectors (across, up), each (count, 3)."""
     yaw = float(p[5])
-    across = np.array([-math.sin(yaw), math.cos(yaw), 0.0])
-    du, dv = float(p[3]) / lattice[0], float(p[4]) / lattice[1]
+    across = np.array([-math.sin(yaw), math.cos(yaw), 0.0]) * (float(p[3]) / lattice[0])
+    up = UP * (float(p[4]) / lattice[1])
+    return np.broadcast_to(across, (count, 3)), np.broadcast_to(up, (count, 3))
+
+
+def _gauss_points(cells, edges, scale):
+    """Each cell's 2 x 2 Gauss points, their offsets from the centre times `scale` (F,);
+    edges: the cells' two edge vectors, each (F, 3)."""
+    eu, ev = edges
     scale = np.asarray(scale, float)[:, None]
-    pts = [cells.centres + scale * ((su * du * GAUSS_2) * across + (sv * dv * GAUSS_2) * UP)
+    pts = [cells.centres + scale * ((su * GAUSS_2) * eu + (sv * GAUSS_2) * ev)
            for su in (-1.0, 1.0) for sv in (-1.0, 1.0)]
     return Facets(np.concatenate(pts), np.ascontiguousarray(np.tile(cells.normals, (4, 1))),
                   np.tile(cells.areas, 4) / 4.0)
@@ -68,7 +80,14 @@ def _gauss_points(p, lattice, cells, scale):
 
 def model_facets(p, lattice, spots, laser):
     """What the forward call sees of plate p: point facets, the pulse blur (m of path) they
-    share, and a path shift per detector (D,) to add to every facet's path.
+    share, and a path shift per detector (D,) to add to every facet's path (`cell_model`)."""
+    cells = plate_facets(p, lattice)
+    return cell_model(cells, plate_edges(p, lattice, cells.count), spots, laser)
+
+
+def cell_model(cells, edges, spots, laser):
+    """Point facets, shared blur and per-detector shift for rectangular cells (centres,
+    normals, areas; `edges` their two edge vectors).
 
     The forward call puts each facet's pulse at its path and spreads it by one width for all
     facets, but a lattice cell spans a range of paths, and that range differs from cell to
@@ -83,10 +102,9 @@ def model_facets(p, lattice, spots, laser):
     / v_f) so that points + blur have the cell's own variance; the shift restores the part
     (1 - s_f^2) of the cell's mean-path offset that the pulled-in points no longer carry."""
     spots, laser = np.asarray(spots, float), np.asarray(laser, float)
-    cells = plate_facets(p, lattice)
     some = np.unique(np.linspace(0, len(spots) - 1, min(len(spots), STAT_SPOTS)).round()
                      ).astype(int)
-    mean, centre, var_df, wsum = _cell_stats(p, lattice, cells, spots[some], laser)
+    mean, centre, var_df, wsum = _cell_stats(cells, edges, spots[some], laser)
     var_f = (var_df * wsum).sum(axis=0) / np.maximum(wsum.sum(axis=0), 1e-300)  # (F,)
     lit = wsum.sum(axis=0) > 0
     blur2 = BLUR_SHARE * float(np.mean(var_f[lit])) if lit.any() else 0.0
@@ -97,15 +115,15 @@ def model_facets(p, lattice, spots, laser):
         basis = np.hstack([np.ones((len(spots), 1)), spots - spots.mean(axis=0)])
         coef, *_ = np.linalg.lstsq(basis[some], shift, rcond=None)
         shift = basis @ coef
-    return _gauss_points(p, lattice, cells, keep), math.sqrt(blur2), shift
+    return _gauss_points(cells, edges, keep), math.sqrt(blur2), shift
 
 
-def _cell_stats(p, lattice, cells, spots, laser):
+def _cell_stats(cells, edges, spots, laser):
     """Per (spot, cell): weighted mean path over the cell's Gauss points, the centre's path,
     the weighted variance, and the summed weight."""
     from ..ops.forward import facet_paths
     n_f = len(cells.centres)
-    full = _gauss_points(p, lattice, cells, np.ones(n_f))
+    full = _gauss_points(cells, edges, np.ones(n_f))
     path, weight = facet_paths(full.centres, full.normals, full.areas, spots, laser)
     path, weight = path.reshape(len(path), 4, n_f), weight.reshape(len(weight), 4, n_f)
     wsum = weight.sum(axis=1)  # (D, F)

@@ -1,6 +1,7 @@
 """How many plates, and where they start: one plate from the centroid start (and the paper's
 argmax), then, greedily, one more from the centroid of what the plates so far leave
-unexplained, followed by a joint fit of all of them.
+unexplained, followed by a joint fit of all of them. For one target, where the plate misses
+the data, the closed shapes (box, ellipsoid, cylinder) are fitted too (`closed_or_plate`).
 
 'auto' keeps a new plate only if the BIC improves: the drop of -2 log L, divided by the noise
 correlation's inflation kappa = tr(C^2) / tr(C) (1 for counts), exceeds p ln(N / kappa) with
@@ -24,17 +25,17 @@ import math
 
 import numpy as np
 
-from . import starts
+from . import box, cylinder, ellipsoid, plate, starts
 from .fit import covariance, fit
 
 SHORT_NFEV = 6
 MIN_SHARE = 0.10
 
 
-def best_of(problem, rows, free, final_nfev, fixed=None):
-    """Short fits from the best candidate rows, then the best one to convergence."""
+def best_of(problem, rows, free, final_nfev, fixed=None, keep=3):
+    """Short fits from the `keep` best candidate rows, then the best one to convergence."""
     prefix = [] if fixed is None else list(fixed)
-    chosen = starts.best_starts(problem, rows, fixed, keep=3)
+    chosen = starts.best_starts(problem, rows, fixed, keep=keep)
     short = [fit(problem, np.array(prefix + [p]), free, SHORT_NFEV) for p in chosen]
     best = min(short, key=lambda r: r.cost)
     return fit(problem, best.params, free, final_nfev)
@@ -90,9 +91,8 @@ def accepts(problem, before, after, free) -> tuple[bool, dict]:
     penalty = (int(np.count_nonzero(free)) + 1) * math.log(n_eff)
     birge, adequate = 1.0, False
     if obs.mode == "gauss":
-        from scipy.stats import chi2
         birge = covariance(problem, after, free)[1]["birge_ratio"]
-        adequate = birge <= chi2.ppf(0.999, n_eff) / n_eff
+        adequate = birge <= _chi2_999(n_eff) / n_eff
     gain = (before.cost - after.cost) / (k * max(1.0, birge))
     cols = problem.columns(after.params)
     energy = np.array([np.sum((a * c) ** 2) for a, c in zip(after.linear, cols)])
@@ -120,3 +120,99 @@ def fit_targets(problem, est, argmax_position, free, z0):
             history.append(entry)
         current = bigger
     return current, history
+
+
+# ------------------------------------------------------------------ plate or closed shape
+CLOSED = (box, ellipsoid, cylinder)  # the closed families tried, same parameters
+BOX_DEPTHS = (0.1, 0.3, 0.6)  # m: starts behind the fitted plate's face
+BOX_YAWS = np.radians([-35.0, 0.0, 35.0])  # a box seen corner-on: the plate's yaw is between
+BOX_WIDTHS = (1.0, 0.6)  # times the plate's width (the plate spans both visible faces)
+# The closed fits get this many times final_nfev: from starts 0.3 m off, a cylinder on a
+# capsule still lowered its cost 40-fold between 30 and 90 evaluations.
+CLOSED_NFEV = 3
+CENTRE_SIZES = ((0.3, 0.3, 0.3), (0.6, 0.6, 0.6), (0.4, 1.7, 0.3))  # (w, h, d) m, at centres
+
+
+def misfit(problem, result, free, cov_info) -> tuple[bool, float]:
+    """Does the fit miss the data by more than the noise? The Birge ratio (from
+    `covariance`'s info) above the 99.9 % point of chi^2_nu / nu, nu = N / kappa; counts: the
+    deviance per degree of freedom, same test."""
+    n_eff = max(result.n_residuals / kappa(problem.obs), 2.0)
+    birge = cov_info.get("birge_ratio")
+    if birge is None:
+        birge = result.cost / max(result.n_residuals - int(np.count_nonzero(free)) - 1, 1)
+    return birge > _chi2_999(n_eff) / n_eff, float(birge)
+
+
+Z_999 = 3.090232306167813  # the standard normal's 99.9 % point
+
+
+def _chi2_999(nu) -> float:
+    """chi^2_nu's 99.9 % point by Wilson-Hilferty: relative error 3.7e-4 at nu = 100, 1.7e-3 at
+    30, 2.3e-2 at 2, while the Birge ratio it is compared with scatters by sqrt(2 / nu) (14-100 %
+    there): exact enough for the test, and scipy.stats' import (~0.6 s) would otherwise be most
+    of a one-shot `nlos-cl locate`."""
+    a = 2.0 / (9.0 * nu)
+    return float(nu * (1.0 - a + Z_999 * math.sqrt(a)) ** 3)
+
+
+def box_rows(q, centres=(), laser=None) -> np.ndarray:
+    """Closed-shape starts around a fitted plate q (depths behind its face, yaws, narrower
+    widths; none if q is None) and, facing the laser spot, at each of `centres`."""
+    rows = []
+    for depth in BOX_DEPTHS if q is not None else ():
+        for dyaw in BOX_YAWS:
+            for scale in BOX_WIDTHS:
+                p = np.array(q, float)
+                p[3], p[5] = p[3] * scale, p[5] + dyaw
+                rows.append(box.from_plate(p, depth))
+    for c in centres:
+        for w, h, depth in CENTRE_SIZES:
+            rows.append(box.from_plate([*c[:3], w, h, plate.facing(c, laser)], depth))
+    return np.array(rows)
+
+
+def fit_closed(problem, plate_result, free, final_nfev, shape):
+    """A closed shape's fit (box or ellipsoid) started from the plate's, on the same data;
+    (problem, result, free)."""
+    from .likelihood import Problem
+    closed = Problem(problem.obs, problem.backend, problem.lattice, shape=shape)
+    free_closed = np.insert(np.asarray(free, bool), 5, True)  # + depth
+    q = plate_result.params[0]
+    centres = starts.start_centres(problem.obs, None, bool(free[2]), float(q[2]))
+    # Two groups of starts, each to convergence: around the plate, and at the centroid start
+    # (for a sphere the plate landed 0.5 m off and its starts won the short fits, in a minimum
+    # of twice the cost of the one the centroid's start reaches).
+    groups = (box_rows(q), box_rows(None, centres, problem.obs.laser))
+    result = min((best_of(closed, rows, free_closed, CLOSED_NFEV * final_nfev, keep=2)
+                  for rows in groups), key=lambda r: r.cost)
+    return closed, result, free_closed
+
+
+def closed_or_plate(problem, plate_result, free, final_nfev, plate_cov, closed="auto"):
+    """Plate or closed shape for one target. The closed shapes (CLOSED) are fitted only where
+    the plate misses the data (`misfit`) or closed=True; the one of lowest cost (they share
+    the parameters) is kept where its one more parameter (depth) passes the BIC test in units
+    of its own residual variance (as `accepts`). plate_cov: covariance(...) of the plate.
+    Returns (problem, result, free, (cov_all, info)) of the chosen model."""
+    inadequate, birge = misfit(problem, plate_result, free, plate_cov[1])
+    plate_cov[1].update(plate_birge_ratio=birge, closed_tried=False)
+    if closed is False or (closed == "auto" and not inadequate):
+        return problem, plate_result, free, plate_cov
+    fits = [fit_closed(problem, plate_result, free, final_nfev, shape) for shape in CLOSED]
+    for closed_problem, _, _ in fits:  # the plate's problem counts every forward call
+        problem.calls += closed_problem.calls
+        problem.model_s += closed_problem.model_s
+    shaped, result, free_shaped = min(fits, key=lambda f: f[1].cost)
+    shaped_cov = covariance(shaped, result, free_shaped)
+    k = kappa(problem.obs)
+    log_n = math.log(max(result.n_residuals / k, 2.0))
+    scale = max(1.0, misfit(shaped, result, free_shaped, shaped_cov[1])[1])
+    gain = (plate_result.cost - result.cost) / (k * scale)
+    why = {"plate_birge_ratio": birge, "closed_tried": True, "closed_bic_gain": gain - log_n,
+           "closed_costs": {f[0].shape.__name__.rsplit(".", 1)[-1]: f[1].cost for f in fits}}
+    if closed is True or gain > log_n:
+        shaped_cov[1].update(why)
+        return shaped, result, free_shaped, shaped_cov
+    plate_cov[1].update(why)
+    return problem, plate_result, free, plate_cov

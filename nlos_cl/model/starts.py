@@ -28,7 +28,7 @@ def mean_paths(obs, data=None) -> np.ndarray:
 
 def ellipse_point(obs, paths, z0=0.0, free_z=False) -> np.ndarray:
     """The point (y > 0) whose paths to the laser and each spot best match `paths`."""
-    from scipy.optimize import least_squares
+    from .lm import least_squares  # not SciPy's: its import costs a one-shot locate ~0.25 s
     spots, laser = obs.spots, obs.laser
 
     def res(v):
@@ -40,7 +40,7 @@ def ellipse_point(obs, paths, z0=0.0, free_z=False) -> np.ndarray:
     for gx, gy in ((0.5, 0.7), (0.9, 0.3), (0.2, 0.9)):
         v0 = [laser[0] + gx * reach, max(gy * reach, 0.1)] + ([z0] if free_z else [])
         lo = [-np.inf, 0.05] + ([-np.inf] if free_z else [])
-        sol = least_squares(res, v0, bounds=(lo, np.inf), method="trf")
+        sol = least_squares(res, v0, bounds=(lo, np.inf))
         if best is None or sol.cost < best.cost:
             best = sol
     v = best.x
@@ -65,10 +65,10 @@ def best_starts(problem, rows, fixed=None, keep=3) -> list[np.ndarray]:
         cols = col if fixed_cols is None else np.concatenate([fixed_cols, col])
         r = problem.residual(cols, problem.linear(cols))
         costs.append(float(r @ r))
-    chosen = []
+    chosen, yaw = [], getattr(problem, "shape", plate).YAW
     for i in np.argsort(costs):
         p = rows[i]
-        if all(np.linalg.norm(p[:3] - q[:3]) > 0.05 or abs(p[5] - q[5]) > 0.3
+        if all(np.linalg.norm(p[:3] - q[:3]) > 0.05 or abs(p[yaw] - q[yaw]) > 0.3
                or abs(p[3] - q[3]) > 0.2 for q in chosen):
             chosen.append(p)
         if len(chosen) == keep:
