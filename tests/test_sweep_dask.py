@@ -1,5 +1,6 @@
 """Sweeps on real Dask: a LocalCluster with 1 and 2 workers (bit-identical tables), a cluster
-started separately (`dask scheduler` + `dask worker`), and --resume after a killed run."""
+started separately (`dask scheduler` + `dask worker`), --resume after a killed run; and the
+same study in this process (workers=0), bit-identical too."""
 import os
 import signal
 import subprocess
@@ -69,6 +70,13 @@ def test_two_workers_give_the_same_table(reference, tmp_path):
     assert same(result.table(), reference)
     assert (tmp_path / "summary.csv").is_file() and (tmp_path / "errors_by_axis.png").is_file()
     assert len(list((tmp_path / "runs.parquet").glob("part-*.parquet"))) == N_RUNS
+
+
+def test_in_process_gives_the_same_table(reference, tmp_path):
+    """workers=0: the same batches run in this process, no Dask; the same table."""
+    result = sweep(STUDY, tmp_path, workers=0, batch_size=3, progress=False, report=False)
+    assert result.workers == 0 and result.tasks == 4  # 2 scenes of 4 runs, halved
+    assert same(result.table(), reference)
 
 
 def _start(args, **kw):

@@ -6,7 +6,7 @@ import pytest
 from nlos_cl.errors import InputError
 from nlos_cl.sweep import load_study
 from nlos_cl.sweep.engine import make_batches
-from nlos_cl.sweep.study import check_scenes, parse_path, scene_of, substitute
+from nlos_cl.sweep.study import assignments, check_scenes, parse_path, scene_of, substitute
 
 BASE = {"setup": {"detector_spots": [[-0.5, 0, 0], [-1, 0, 0], [-1.5, 0, 0]]},
         "targets": [{"shape": "rectangle", "size_m": [0.3, 1.6], "position": [4, 2, 0]}],
@@ -67,6 +67,11 @@ def test_batches_keep_a_scene_together():
     ({"record": ["everything"]}, "record"),
     ({"filters": "gauss"}, "study.filters"),
     ({"axes": [{"path": "noise.snr_db", "name": "seed", "values": [1]}]}, "used twice"),
+    ({"axes": [{"path": "filter", "values": ["gauss"], "scale": 2}]}, r"axes\[0\]\.scale"),
+    ({"axes": [{"path": "h_s", "values": [1, "a"], "scale": 1e-9}]}, "needs numeric values"),
+    ({"axes": [{"path": "h_s", "values": [1], "scale": "ns"}]}, "nested"),
+    ({"axes": [{"path": "h_s", "values": [1], "scale": [[1, True]]}]}, "nested"),
+    ({"axes": [{"path": "h_s", "values": [1], "scale": []}]}, "nested"),
 ])
 def test_bad_studies_say_where(bad, where):
     with pytest.raises(InputError, match=where):
@@ -93,4 +98,37 @@ def test_example_study_and_command(capsys):
     assert s.n_runs == 108 and check_scenes(s) >= 1
     with pytest.raises(InputError, match="--out"):
         main(_parser().parse_args(["study.yaml"]))
+    assert _parser().parse_args(["s.yaml", "--workers", "0"]).workers == 0  # in this process
+    with pytest.raises(SystemExit):  # argparse: "--workers: must be an integer >= 0"
+        _parser().parse_args(["s.yaml", "--workers", "-1"])
+    capsys.readouterr()
     assert callable(nl.sweep) and callable(nl.sweep.read_table)
+
+
+def test_scale_sets_value_times_scale_and_keeps_the_value():
+    s = load_study(study(axes=[
+        {"path": "setup.detector_spots", "name": "delta_m", "values": [0.3, 0.7],
+         "scale": [[-1, 0, 0], [-2, 0, 0], [-3, 0, 0]]},
+        {"path": "h_s", "name": "h_ns", "values": [0.65], "scale": 1e-9}]))
+    (_, first), (_, second) = list(s.runs())
+    assert first == {"delta_m": 0.3, "h_ns": 0.65, "estimator": "paper", "seed": 0}
+    spots = scene_of(s.plan(), second)["setup"]["detector_spots"]
+    # bit-equal to how reproduce's loops built them: [-k * delta, 0.0, 0.0] and h * 1e-9
+    assert spots == [[-k * 0.7, 0.0, 0.0] for k in (1, 2, 3)]
+    assert assignments(s.plan(), first)["h_s"] == 0.65 * 1e-9
+    assert load_study(s.as_dict()).fingerprint() == s.fingerprint()  # scale survives as_dict
+    assert check_scenes(s) == 2
+
+
+@pytest.mark.parametrize("name, runs, scenes", [
+    ("fig7a", 10 * 2 * 3, 10), ("fig7b", 16 * 3, 1), ("table1", 6 * 3, 6), ("fig9", 9 * 2 * 3, 9),
+    ("fig10", 25 * 3 * 3, 1 + 4 + 4)])  # scenes checked: each axis's values, others at first
+def test_paper_study_files_load(name, runs, scenes):
+    """The paper's sweeps as package study files: they load, have the classic loops' run
+    counts, and every axis value gives a valid scene."""
+    from importlib import resources
+    path = resources.files("nlos_cl.sweep").joinpath(f"{name}.yaml")
+    s = load_study(str(path))
+    assert s.n_runs == runs and s.settings["grid"]["step_m"] == 0.01
+    assert set(s.axes[-2].values) == {"paper"}  # the paper's figures: the paper's estimator
+    assert check_scenes(s) == scenes

@@ -9,15 +9,15 @@ import json
 import sys
 
 
-def _positive_int(field: str):
+def _positive_int(field: str, minimum: int = 1):
     def parse(text):
         try:
             value = int(text)
         except ValueError:
-            value = 0
-        if value < 1:
-            raise argparse.ArgumentTypeError(f"{field}: must be a positive integer, got {text!r}."
-                                             " Fix: pass e.g. 2")
+            value = -1
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"{field}: must be an integer >= {minimum}, got "
+                                             f"{text!r}. Fix: pass e.g. 2")
         return value
     return parse
 
@@ -28,8 +28,9 @@ def add_arguments(p) -> None:
                    help="the study file (YAML: a base scene, axes, seeds, estimators)")
     p.add_argument("--out", help="results folder: runs.parquet/, summary.csv, plots")
     where = p.add_mutually_exclusive_group()
-    where.add_argument("--workers", type=_positive_int("--workers"), default=None,
-                       help="local worker processes (default: one per core)")
+    where.add_argument("--workers", type=_positive_int("--workers", 0), default=None,
+                       help="local worker processes (default: one per core; 0: in this "
+                       "process, no Dask)")
     where.add_argument("--scheduler", default=None,
                        help="an existing Dask cluster: tcp://HOST:PORT or a scheduler file")
     p.add_argument("--resume", action="store_true",
@@ -75,7 +76,8 @@ def _report(result, as_json: bool) -> None:
     if as_json:
         print(json.dumps(info))
         return
-    print(f"sweep: {done} runs in {result.wall_s:.1f} s on {result.workers} worker(s), "
+    where = f"on {result.workers} worker(s)" if result.workers else "in this process"
+    print(f"sweep: {done} runs in {result.wall_s:.1f} s {where}, "
           f"{result.tasks} tasks ({result.n_skipped} done before); {result.n_failed} failed")
     print(f"table: {result.out}/runs.parquet   summary: {result.summary}")
     for figure in result.figures:

@@ -33,7 +33,7 @@ class SweepResult:
     n_skipped: int  # done before (resume)
     n_failed: int
     wall_s: float
-    workers: int
+    workers: int  # 0: ran in this process (workers=0), no Dask
     tasks: int
     run_s: float = 0.0  # first task submitted to last result written (cluster start excluded)
     summary: Path | None = None
@@ -48,7 +48,8 @@ def sweep(study, out, *, workers: int | None = None, scheduler: str | None = Non
           resume: bool = False, batch_size: int | None = None, progress: bool = True,
           report: bool = True, log=None) -> SweepResult:
     """Run every run of `study` (a study file, dict or Study) not yet in OUT/runs.parquet, on
-    `workers` local processes (default: one per core) or on the cluster at `scheduler`; then
+    `workers` local processes (default: one per core; 0: in this process, no Dask, for studies
+    too small to pay for a cluster's start-up) or on the cluster at `scheduler`; then
     write OUT/summary.csv and the plots (report=True). Status lines go to `log` (default:
     stderr, so a --json on stdout stays parseable)."""
     log = log or _to_stderr
@@ -59,7 +60,15 @@ def sweep(study, out, *, workers: int | None = None, scheduler: str | None = Non
     pending = [(rid, v) for rid, v in study.runs() if rid not in done]
     start = time.perf_counter()
     n_workers, n_tasks, run_s = 0, 0, 0.0
-    if pending:
+    if pending and workers == 0 and scheduler is None:  # in this process, no Dask
+        log(f"sweep: in this process (workers=0), device {worker_info()['device']}")
+        batches = make_batches(study, pending, batch_size or study.batch_size, 1)
+        n_tasks, run_start = len(batches), time.perf_counter()
+        plan = study.plan()
+        _write_all(study, out, batches, (run_batch(plan, b) for b in batches), len(done),
+                   progress)
+        run_s = time.perf_counter() - run_start
+    elif pending:
         with open_client(workers, scheduler, log) as client:
             n_workers = len(client.scheduler_info(n_workers=-1)["workers"])
             batches = make_batches(study, pending, batch_size or study.batch_size, n_workers)
@@ -127,21 +136,31 @@ def make_batches(study: Study, pending, batch_size: int | None, n_workers: int) 
 
 def _run(client, study: Study, out: Path, batches, n_done: int, progress: bool) -> None:
     from dask.distributed import as_completed
-    from tqdm import tqdm
-    values = dict(r for batch in batches for r in batch)
     plan = client.scatter(study.plan(), broadcast=True)
     futures = [client.submit(run_batch, plan, batch, pure=False) for batch in batches]
-    bar = tqdm(total=study.n_runs, initial=n_done, unit="run", desc="sweep", disable=not progress,
-               dynamic_ncols=True, smoothing=0.1, file=sys.stderr)
-    try:
+
+    def finished():
         for future in as_completed(futures):
             rows = future.result()
-            results.write_part(out, results.to_table(study, rows, values.__getitem__))
             future.release()
-            bar.update(len(rows))
+            yield rows
+    try:
+        _write_all(study, out, batches, finished(), n_done, progress)
     except BaseException:
         client.cancel(futures)
         raise
+
+
+def _write_all(study: Study, out: Path, batches, finished, n_done: int, progress: bool) -> None:
+    """Write each batch's rows (from the iterable `finished`) as one part, as they come."""
+    from tqdm import tqdm
+    values = dict(r for batch in batches for r in batch)
+    bar = tqdm(total=study.n_runs, initial=n_done, unit="run", desc="sweep", disable=not progress,
+               dynamic_ncols=True, smoothing=0.1, file=sys.stderr)
+    try:
+        for rows in finished:
+            results.write_part(out, results.to_table(study, rows, values.__getitem__))
+            bar.update(len(rows))
     finally:
         bar.close()
 

@@ -17,7 +17,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from .study import SPECIAL, scene_of
+from .study import SPECIAL, assignments, scene_of
 
 _SCENES: OrderedDict = OrderedDict()  # scene key -> (spec, clean Signals, signal photons)
 _GRIDS: dict = {}
@@ -78,7 +78,7 @@ class _Clock:
 
 def _measure(plan: dict, values: dict, row: dict) -> None:
     import nlos_cl as nl
-    own = {plan["paths"][n]: v for n, v in values.items() if plan["paths"][n] in SPECIAL}
+    own = {p: v for p, v in assignments(plan, values).items() if p in SPECIAL}
     h_s, how = float(own.get("h_s", plan["h_s"])), own.get("filter", plan["filter"])
     start = time.perf_counter()
     spec, clean, signal_photons, cached = _clean(plan, values)

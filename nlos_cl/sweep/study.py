@@ -6,6 +6,7 @@ Schema (YAML or dict; every key but `scene` optional)::
     axes:                                 # crossed in this order (the last varies fastest)
       - {path: noise.snr_db, values: [0, 5, 10, 20]}
       - {path: targets[0].position[0], name: x, range: {start: 1, stop: 5, step: 1}}
+      - {path: h_s, name: h_ns, values: [0.1, 0.65], scale: 1.0e-9}   # sets value x scale
       - zip:                              # zipped: these advance together
           - {path: h_s, values: [0.3e-9, 0.65e-9]}
           - {path: setup.pulse.fwhm_s, range: {start: 35e-12, stop: 70e-12, num: 2}}
@@ -19,7 +20,9 @@ Schema (YAML or dict; every key but `scene` optional)::
 
 A path addresses a scene-file key (`noise.snr_db`, `setup.detector_spots`,
 `targets[0].position[1]`) or one of the run's own settings (`estimator`, `seed`, `h_s`,
-`filter`). Run i's values are the i-th element of the axes' cross product (seed fastest):
+`filter`). With `scale` an axis sets value x scale (element-wise through nested lists; the
+column keeps the value): units, or one number setting a vector (a detector spacing).
+Run i's values are the i-th element of the axes' cross product (seed fastest):
 `run_id` is stable for a given study.
 """
 from __future__ import annotations
@@ -52,6 +55,7 @@ class Axis:
     name: str
     path: str
     values: tuple
+    scale: object = None  # the value set is value x scale (scaled); the column keeps the value
 
 
 @dataclass(frozen=True)
@@ -83,12 +87,14 @@ class Study:
     def plan(self) -> dict:
         """Everything a worker needs, as plain data (cheap to send)."""
         return {"base": self.base, "paths": {a.name: a.path for a in self.axes},
+                "scales": {a.name: a.scale for a in self.axes if a.scale is not None},
                 **self.settings}
 
     def as_dict(self) -> dict:
         """The study written out in full (scene inline, ranges expanded): what --resume checks."""
         def axis(a):
-            return {"name": a.name, "path": a.path, "values": list(a.values)}
+            scale = {} if a.scale is None else {"scale": a.scale}
+            return {"name": a.name, "path": a.path, "values": list(a.values), **scale}
         *groups, estimators, seeds = self.groups
         axes = [axis(g[0]) if len(g) == 1 else {"zip": [axis(a) for a in g]} for g in groups]
         return {"description": self.description, "scene": self.base, "axes": axes,
@@ -175,9 +181,9 @@ def _values(where: str, spec: dict) -> tuple:
 def _axis(where: str, spec) -> Axis:
     require(isinstance(spec, dict) and "path" in spec, where, f"expected {{path, values}} or "
             f"{{path, range}}, got {spec!r}", "write e.g. {path: noise.snr_db, values: [0, 10]}")
-    unknown = sorted(set(spec) - {"path", "name", "values", "range"})
+    unknown = sorted(set(spec) - {"path", "name", "values", "range", "scale"})
     require(not unknown, f"{where}.{unknown[0] if unknown else ''}", "is not a known key",
-            "use path, name, values or range")
+            "use path, name, values, range or scale")
     parse_path(spec["path"])
     values = _values(where, spec)
     path = spec["path"]
@@ -185,7 +191,37 @@ def _axis(where: str, spec) -> Axis:
         allowed = ESTIMATORS if path == "estimator" else FILTERS
         bad = [v for v in values if v not in allowed]
         require(not bad, f"{where}.values", f"unknown {path} {bad[:1]}", f"use {list(allowed)}")
-    return Axis(str(spec.get("name", path)), path, values)
+    scale = spec.get("scale")
+    if scale is not None:
+        _check_scale(where, path, values, scale)
+    return Axis(str(spec.get("name", path)), path, values, scale)
+
+
+def _check_scale(where: str, path: str, values, scale) -> None:
+    def number(v):
+        return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+    def ok(node):
+        return number(node) or (isinstance(node, list) and node and all(ok(n) for n in node))
+    require(path not in ("estimator", "seed", "filter"), f"{where}.scale", f"cannot scale the "
+            f"{path} axis", "leave scale out (it is for numeric values: units, spacings)")
+    require(all(number(v) for v in values), f"{where}.scale", "needs numeric values",
+            "write the axis's values as numbers, or leave scale out")
+    require(bool(ok(scale)), f"{where}.scale", "expected a number or (nested) lists of "
+            f"numbers, got {scale!r}", "write e.g. scale: 1.0e-9, or [[-1, 0, 0], [-2, 0, 0]]")
+
+
+def scaled(value, scale):
+    """What an axis value sets: value x scale, element-wise through nested lists."""
+    if scale is None:
+        return value
+    return [scaled(value, s) for s in scale] if isinstance(scale, list) else value * scale
+
+
+def assignments(plan: dict, values: dict) -> dict:
+    """{path: the value it is set to} for one run (scaled where the axis has a scale)."""
+    scales = plan.get("scales", {})
+    return {plan["paths"][n]: scaled(v, scales.get(n)) for n, v in values.items()}
 
 
 def _group(i: int, spec) -> tuple:
@@ -287,9 +323,8 @@ def load_study(source, base_dir=None) -> Study:
 
 def scene_of(plan: dict, values: dict) -> dict:
     """The scene dict of one run: the base with the run's scene-key axes substituted."""
-    paths = plan["paths"]
-    return substitute(plan["base"], [(paths[n], v) for n, v in values.items()
-                                     if paths[n] not in SPECIAL])
+    return substitute(plan["base"], [(p, v) for p, v in assignments(plan, values).items()
+                                     if p not in SPECIAL])
 
 
 def check_scenes(study: Study) -> int:

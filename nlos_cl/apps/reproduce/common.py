@@ -40,6 +40,7 @@ class Settings:
     snr_db: float = 10.0
     h_s: float = 0.65e-9
     quick: bool = False
+    workers: int | None = 0  # sweep engine for the study figures: 0 this process, None per core
 
     @classmethod
     def make(cls, quick=False, seeds=None) -> "Settings":
