@@ -1,6 +1,7 @@
 """Tracking accuracy and throughput (issue 12's done-when table). Prints markdown tables.
 
     .venv/bin/python scripts/tracking_accuracy.py [--quick] [--only NAME ...] [--update-doc]
+                                                  [--cold]
 
 Sections: lines (straight/curved, paper and 8-spot layouts, paper and model estimators; the
 causal filter and the offline RTS smoother), crossing (two targets, 8 spots, model estimator
@@ -8,6 +9,8 @@ with targets=2, 10 seeds), box (a static box with and without background removal
 (frames/s, 3 x 4,096 bins, 512^2 grid, host frames to track states), memory (peak RSS tracking
 a 10,000-frame sequence file). --update-doc writes each section's output into docs/tracking.md
 between its markers (<!-- tracking_accuracy:NAME --> ... <!-- /tracking_accuracy:NAME -->).
+--cold: trackers with warm_start=False (every model fit from the frame's data alone: the
+numbers before warm starts, for comparison; not for --update-doc).
 """
 from __future__ import annotations
 
@@ -256,7 +259,11 @@ def main(argv=None):
                    choices=["lines", "crossing", "box", "speed", "memory"])
     p.add_argument("--update-doc", action="store_true",
                    help="write each section's output into docs/tracking.md at its markers")
+    p.add_argument("--cold", action="store_true",
+                   help="no warm starts: every model fit from the frame's data alone")
     args = p.parse_args(argv)
+    if args.cold:
+        TRACKING["warm_start"] = False
     warnings.simplefilter("ignore")  # collinear spots: the model estimator's height warning
     print(f"device: {nl.resolve_backend().name}; {os.cpu_count()} CPU cores")
     for name in args.only or ["speed", "memory", "lines", "box", "crossing"]:

@@ -132,11 +132,11 @@ def test_track_command_smooths_offline(tmp_path, capsys):
     frames = simulate_sequence(setup, target, n_frames=12, fps=10, noise=nl.AWGN(10), seed=0,
                                facet_size_m=0.03, time_axis=nl.default_time_axis(setup, 1e-11))
     path = write_sequence(tmp_path / "walk.h5", frames)
-    args = parser().parse_args(["track", str(path), "--json", "--estimator", "paper",
-                                "--no-progress"])
     lines = {}
-    for smooth in (False, True):
-        args.smooth = smooth  # the flag nlos_cl/cli.py is to add
+    for smooth in (False, True):  # through the parser: `nlos-cl track F --json --smooth`
+        args = parser().parse_args(["track", str(path), "--json", "--estimator", "paper",
+                                    "--no-progress"] + (["--smooth"] if smooth else []))
+        assert args.smooth is smooth
         capsys.readouterr()
         assert track.main(args) == 0
         lines[smooth] = [json.loads(x) for x in capsys.readouterr().out.splitlines()

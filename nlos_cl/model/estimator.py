@@ -28,6 +28,8 @@ MODELS = {"plate": "upright plate", "box": "upright box", "ellipsoid": "upright 
 # With more detectors than this, the starts, the search over K and the short fits use this
 # many, evenly spread; the final fit and the covariance use every detector.
 SEARCH_DETECTORS = 64
+# Residual evaluations of a warm-started fit (nlos_cl.model.warm; Jacobians not counted).
+WARM_NFEV = 10
 
 
 class ModelEstimator:
@@ -35,13 +37,14 @@ class ModelEstimator:
     nlos_cl.model.select). `likelihood`: 'gauss' (AWGN; the data are compared after a Gauss
     filter of window h_s), 'poisson' (photon counts in `raw`), or 'auto' (counts when `raw`
     holds non-negative whole numbers). `backend`: where the forward model runs while fitting
-    (default: the scored frame's backend)."""
+    (default: the scored frame's backend). warm_nfev: the evaluation budget of a warm-started
+    fit (`estimate(scored, start=...)`)."""
 
     name = "model"
 
     def __init__(self, targets=1, *, likelihood="auto", h_s=PAPER_H_S, pulse_fwhm_s=70e-12,
                  jitter_s=30e-12, lattice=None, max_targets=3, backend=None, final_nfev=30,
-                 closed="auto"):
+                 closed="auto", warm_nfev=WARM_NFEV):
         require(targets == "auto" or (isinstance(targets, int) and targets >= 1), "targets",
                 f"must be a positive integer or 'auto', got {targets!r}", "pass e.g. 1 or 'auto'")
         require(likelihood in ("auto", "gauss", "poisson"), "likelihood",
@@ -54,6 +57,7 @@ class ModelEstimator:
         self.pulse_sigma_s = float(pulse_fwhm_s) / FWHM_PER_SIGMA
         self.jitter_s, self.lattice = float(jitter_s), lattice
         self.max_targets, self.backend, self.final_nfev = int(max_targets), backend, final_nfev
+        self.warm_nfev = int(warm_nfev)
         self.timings: dict = {}
 
     # ------------------------------------------------------------------ data
@@ -75,17 +79,43 @@ class ModelEstimator:
                                          pulse_sigma_s=self.pulse_sigma_s)
 
     # ------------------------------------------------------------------ the estimate
-    def estimate(self, scored) -> Estimate:
+    def estimate(self, scored, start=None) -> Estimate:
+        """The targets in one frame. start: None (the full fit from the data alone), or
+        (targets, 6) plate rows (x, y, z, width, height, yaw) to warm-start from, e.g. the
+        previous frame's fit moved to where a tracker predicts it: only the final fit runs,
+        from there (nlos_cl.model.warm), and the full fit replaces it where it misses the data.
+        details["warm_start"] says which (only when `start` was given)."""
         clock = {"start": time.perf_counter()}
         paper = PaperArgmax().estimate(scored)  # also rejects frames with no signal
         clock["argmax"] = time.perf_counter()
         obs = self.observation(scored)
         clock["data"] = time.perf_counter()
-        lattice = self.lattice or (GAUSS_LATTICE if obs.mode == "gauss" else POISSON_LATTICE)
-        problem = Problem(obs, self.backend or scored.backend, lattice)
         observable = plate.height_observable(obs.spots, obs.laser)
         z0 = float(scored.grid.origin[2] + 0.5 * (scored.grid.shape[2] - 1) * scored.grid.step[2])
         free = np.array([True, True, observable, True, True, True])
+        fitted, warm_info = None, None
+        if start is not None:
+            from .warm import warm_fit
+            fitted, warm_info = warm_fit(self, obs, self._start_rows(start), free, z0)
+            clock["warm_fit"] = time.perf_counter()
+        if fitted is None:
+            fitted = self._cold(scored, obs, paper, free, z0, clock)
+        problem, chosen, result, free, (cov_all, info), history = fitted
+        if warm_info is not None:
+            info = dict(info, warm_start=warm_info)
+        notes = [] if observable else [HEIGHT_WARNING.format(z=z0)]
+        for note in notes:
+            warnings.warn(note, stacklevel=3)
+        self.timings = _stages(clock, problem)
+        located = [self._target(result, cov_all, k, info, notes, obs, history, observable,
+                                chosen.shape)
+                   for k in _order(result)]
+        return Estimate(located, paper.cell_position, paper.score)
+
+    def _cold(self, scored, obs, paper, free, z0, clock):
+        """The full fit: starts, short fits, final fit, covariance, plate or closed shape.
+        (problem, chosen problem, result, free, (cov_all, info), history)."""
+        problem = Problem(obs, self.backend or scored.backend, self.lattice_for(obs))
         result, history = self._fit(problem, paper.targets[0].position, free, z0)
         clock["fit"] = time.perf_counter()
         cov = covariance(problem, result, free)
@@ -96,15 +126,24 @@ class ModelEstimator:
             chosen, result, free, cov = closed_or_plate(problem, result, free, self.final_nfev,
                                                         cov, self.closed)
             clock["box"] = time.perf_counter()
-        cov_all, info = cov
-        notes = [] if observable else [HEIGHT_WARNING.format(z=z0)]
-        for note in notes:
-            warnings.warn(note, stacklevel=3)
-        self.timings = _stages(clock, problem)
-        located = [self._target(result, cov_all, k, info, notes, obs, history, observable,
-                                chosen.shape)
-                   for k in _order(result)]
-        return Estimate(located, paper.cell_position, paper.score)
+        return problem, chosen, result, free, cov, history
+
+    def lattice_for(self, obs):
+        return self.lattice or (GAUSS_LATTICE if obs.mode == "gauss" else POISSON_LATTICE)
+
+    def _start_rows(self, start) -> np.ndarray:
+        rows = np.array(start, dtype=np.float64)
+        rows = rows.reshape(1, -1) if rows.ndim == 1 else rows
+        require(rows.ndim == 2 and rows.shape[1] == plate.N_PARAMS and bool(np.all(
+                np.isfinite(rows))), "start", f"must be finite plate rows (K, "
+                f"{plate.N_PARAMS}): x, y, z, width, height, yaw; got shape {rows.shape}",
+                "pass the previous fit's details['params'] values, one row per target")
+        require(self.targets == len(rows), "start", f"has {len(rows)} rows for targets="
+                f"{self.targets!r}", "pass one row per target (warm starts need an integer "
+                "number of targets)")
+        require(self.closed is not True, "start", "warm starts fit plates; closed=True always "
+                "fits the closed shapes", "use closed='auto' or False, or start=None")
+        return rows
 
     def _fit(self, problem, argmax_position, free, z0):
         """fit_targets, on a spread subset of the detectors when there are many, then the

@@ -72,7 +72,22 @@ class _Objective:
         return self.problem.residual(cols, lin)
 
     def jac(self, theta):
-        return np.stack([self.column(theta, j) for j in range(len(self.steps))], axis=1)
+        """Forward differences along every free parameter; the moved targets' histograms in
+        one `column_batch` (what `column` computes, column by column)."""
+        cols, lin = self._eval(theta)
+        full = self.full(theta)
+        which = [divmod(int(f), self.shape.N_PARAMS) for f in np.flatnonzero(self.free)]
+        rows = np.array([full[k] for k, _ in which])
+        rows[np.arange(len(which)), [i for _, i in which]] += self.steps
+        moved_cols = self.problem.column_batch(rows)
+        base = self.problem.residual(cols, lin)
+        out = []
+        for (k, _), col, step in zip(which, moved_cols, self.steps):
+            moved = cols.copy()
+            moved[k] = col
+            out.append((self.problem.residual(moved, self.problem.linear(moved, lin)) - base)
+                       / step)
+        return np.stack(out, axis=1)
 
     def column(self, theta, j):
         """Forward difference along free parameter j: one forward call, only the target whose
@@ -87,16 +102,17 @@ class _Objective:
         return (r - self.problem.residual(cols, lin)) / self.steps[j]
 
 
-def fit(problem, params0, free, max_nfev=30) -> FitResult:
+def fit(problem, params0, free, max_nfev=30, tau=None, atol=None) -> FitResult:
     """Least squares from params0 (K, N_PARAMS) over the parameters marked in `free`
-    (N_PARAMS,)."""
+    (N_PARAMS,). tau, atol: nlos_cl.model.lm's (tau None: its default; atol None: off)."""
     obj = _Objective(problem, params0, free)
     shape, k = obj.shape, len(obj.base)
     lo, hi = (np.tile(b, k)[obj.free] for b in (shape.LOWER, shape.UPPER))
     theta0 = np.clip(obj.base.reshape(-1)[obj.free], lo + 1e-6, hi - 1e-6)
     sol = least_squares(obj.residual, theta0, jac=obj.jac, bounds=(lo, hi),
                         x_scale=np.tile(shape.X_SCALE, k)[obj.free], max_nfev=max_nfev,
-                        ftol=1e-7, xtol=1e-5, jac_update=JAC_UPDATE, jac_column=obj.column)
+                        ftol=1e-7, xtol=1e-5, jac_update=JAC_UPDATE, jac_column=obj.column,
+                        atol=atol, **({} if tau is None else {"tau": tau}))
     cols, lin = obj._eval(sol.x)
     r = problem.residual(cols, lin)
     return FitResult(obj.full(sol.x), lin, float(r @ r), int(r.size), int(sol.nfev))
@@ -104,15 +120,17 @@ def fit(problem, params0, free, max_nfev=30) -> FitResult:
 
 def _mean_jacobian(problem, params, lin, free):
     """d mu / d (free target parameters, linear factors), central differences: (D, n, P)."""
-    cols = problem.columns(params)
     steps = shape_of(problem).STEPS
-    blocks = []
-    for k in range(len(params)):
-        for i in np.flatnonzero(free):
-            hi, lo = params[k].copy(), params[k].copy()
-            hi[i] += steps[i]
-            lo[i] -= steps[i]
-            blocks.append(lin[k] * (problem.column(hi) - problem.column(lo)) / (2 * steps[i]))
+    which = [(k, i) for k in range(len(params)) for i in np.flatnonzero(free)]
+    rows = [p.copy() for p in params]  # the targets, then hi, lo, parameter after parameter
+    for k, i in which:
+        for sign in (1.0, -1.0):
+            rows.append(params[k].copy())
+            rows[-1][i] += sign * steps[i]
+    evaluated = problem.column_batch(np.array(rows))
+    cols, moved = evaluated[:len(params)], evaluated[len(params):]
+    blocks = [lin[k] * (moved[2 * n] - moved[2 * n + 1]) / (2 * steps[i])
+              for n, (k, i) in enumerate(which)]
     blocks.extend(cols)
     if problem.obs.mode == "poisson":
         n_det = problem.obs.y.shape[0]

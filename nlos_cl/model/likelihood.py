@@ -43,6 +43,11 @@ class Problem:
     def columns(self, params) -> np.ndarray:
         return np.stack([self.column(p) for p in np.reshape(params, (-1, self.shape.N_PARAMS))])
 
+    def column_batch(self, rows) -> np.ndarray:
+        """(B, D, n): `column` of each parameter row, in order (one forward call each here;
+        nlos_cl.model.batch.HostProblem evaluates them all in one host call)."""
+        return np.stack([self.column(p) for p in rows])
+
     # ------------------------------------------------------------------ linear factors
     def linear(self, cols, warm=None) -> np.ndarray:
         """Closed-form linear factors for the columns (K, D, n)."""

@@ -45,7 +45,8 @@ MESSAGES = {0: "the maximum number of function evaluations is exceeded",
             1: "gtol termination condition is satisfied",
             2: "ftol termination condition is satisfied",
             3: "xtol termination condition is satisfied",
-            4: "both ftol and xtol termination conditions are satisfied"}
+            4: "both ftol and xtol termination conditions are satisfied",
+            5: "atol termination condition is satisfied"}
 
 
 @dataclass
@@ -55,7 +56,7 @@ class LMResult:
     cost: float  # 0.5 |fun(x)|^2, as SciPy reports it
     nfev: int  # residual evaluations
     njev: int  # Jacobian evaluations (full ones; Broyden's single columns are in ncol)
-    status: int  # 0 max_nfev, 1 gtol, 2 ftol, 3 xtol, 4 ftol and xtol
+    status: int  # 0 max_nfev, 1 gtol, 2 ftol, 3 xtol, 4 ftol and xtol, 5 atol
     ncol: int = 0  # single finite-difference columns (jac_update="broyden")
 
     @property
@@ -65,14 +66,21 @@ class LMResult:
 
 def least_squares(fun, x0, jac=None, bounds=(-np.inf, np.inf), x_scale=1.0, ftol=1e-8,
                   xtol=1e-8, gtol=1e-8, max_nfev=None, jac_update="full",
-                  diff_step=None, jac_column=None) -> LMResult:
+                  diff_step=None, jac_column=None, tau=TAU, atol=None) -> LMResult:
     """Bounded least squares by Levenberg-Marquardt (see the module's docstring). `jac`:
     callable x -> (m, n), or None for forward differences of step `diff_step` (absolute, (n,)
     or scalar; default sqrt(eps) max(1, |x|)). `jac_column`: callable (x, j) -> column j of
-    the Jacobian, for Broyden's fresh columns (default: a forward difference of `fun`)."""
+    the Jacobian, for Broyden's fresh columns (default: a forward difference of `fun`). tau:
+    the initial damping relative to max diag(J'J) (TAU; smaller for a start known to be in the
+    minimum's basin, e.g. a tracker's warm start). atol: stop when a step's predicted cost
+    decrease is below atol (absolute; None: off). Where the cost is chi^2 / 2 that is a
+    statistical scale: a step that cannot lower chi^2 by 2 atol moves no parameter by more
+    than ~sqrt(2 atol) of its sd, while finite-difference Jacobians leave ~1e-4 of cost that
+    the relative ftol waits for in vain (rejected steps until max_nfev)."""
     x0, lo, hi, scale, max_nfev = _inputs(x0, bounds, x_scale, max_nfev, jac_update)
     diff = _diff_steps(x0, diff_step)
     s = _State(fun, np.clip(x0, lo, hi), lo, hi, scale)
+    s.tau, s.atol = float(tau), atol
     # forward differences use the residual at hand (s.r) for the base point: no extra call
     s.column = jac_column or (lambda x, j: _fd_column(fun, x, s.r, j, diff[j], hi[j]))
     if jac is None:
@@ -130,7 +138,7 @@ def _iterate(s, jacobian, ftol, xtol, max_nfev, jac_update):
     a = js.T @ js
     free = s.free(g)
     if s.mu is None:
-        s.mu = TAU * max(float(np.max(np.diag(a))), EPS)
+        s.mu = s.tau * max(float(np.max(np.diag(a))), EPS)
     cost = 0.5 * float(s.r @ s.r)
     while s.nfev < max_nfev:
         h = _damped_step(a, g, s.mu, free)
@@ -142,6 +150,8 @@ def _iterate(s, jacobian, ftol, xtol, max_nfev, jac_update):
         actual = cost - new_cost
         ratio = actual / predicted if predicted > 0 else -1.0
         status = _termination(actual, cost, x_new - s.x, s.x, ratio, ftol, xtol)
+        if status is None and s.atol is not None and predicted < s.atol:
+            status = 5
         if ratio > ACCEPT:
             s.mu *= max(1.0 / 3.0, 1.0 - (2.0 * ratio - 1.0) ** 3)
             s.nu = 2.0

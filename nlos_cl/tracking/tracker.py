@@ -26,7 +26,7 @@ import numpy as np
 
 from ..constants import PAPER_H_S
 from ..errors import InputError, require
-from . import association, kalman
+from . import association, kalman, warm
 from .kalman import ConstantVelocity
 
 NO_SIGNAL = "no cell has a non-zero likelihood"
@@ -37,7 +37,9 @@ class Track:
     """A followed target. state: (p, v) (2d,), covariance (2d, 2d); status 'tentative',
     'confirmed' or 'deleted'; history: (frame, t_s, x, y, z, measured) per frame since birth;
     steps: the filter's own record per frame (for `smoothed()`), as long as the history: one
-    packed float64 array each (x, P, predicted x, predicted P, dt), ~0.4 kB in 2D."""
+    packed float64 array each (x, P, predicted x, predicted P, dt), ~0.4 kB in 2D. plate: the
+    plate row (x, y, z, width, height, yaw) of the last measurement paired with it, where that
+    was a model estimator's plate fit (the next frame's warm start)."""
 
     id: int
     state: np.ndarray
@@ -51,6 +53,7 @@ class Track:
     history: deque = field(default_factory=deque)
     steps: deque = field(default_factory=deque)
     pending: tuple | None = None  # (dt, x, P) of the last prediction, until it is recorded
+    plate: np.ndarray | None = None  # the last paired fit's plate row (warm starts)
 
     @property
     def dims(self) -> int:
@@ -115,7 +118,10 @@ class Tracker:
     frame: a HistogramSet (uploaded) or Signals, unfiltered. t_s: the frame's time (default:
     the previous one + frame_interval_s). background: a BackgroundRemover or None. max_tracks:
     how many targets may be followed at once (the model estimator finds several with
-    estimator=ModelEstimator(targets=K)). See the module docstring for the rest."""
+    estimator=ModelEstimator(targets=K)). warm_start: with the model estimator (one target), fit
+    each frame from the confirmed track's last plate moved to its prediction (nlos_cl.tracking.
+    warm; ~10x faster), else from the data alone. See the
+    module docstring for the rest."""
 
     def __init__(self, layout, grid=None, *, estimator="paper", motion=None,
                  h_s: float = PAPER_H_S, log_mode: bool | None = None, background=None,
@@ -123,7 +129,9 @@ class Tracker:
                  fallback_sigma_m: float = 0.05, min_sigma_m: float = 0.002,
                  confirm=(2, 3), max_misses: int = 5, frame_interval_s: float = 0.1,
                  max_history: int | None = None, backend=None, search="auto",
-                 max_sigma_m: float | None = 0.5, max_birge_ratio: float | None = None):
+                 max_sigma_m: float | None = 0.5, max_birge_ratio: float | None = None,
+                 warm_start: bool = True):
+        from ..estimators import as_estimator
         from ..grid import Grid
         from ..plans import GaussFilter, Locator
         layout = getattr(layout, "layout", layout)
@@ -135,8 +143,12 @@ class Tracker:
                        max_misses, frame_interval_s, max_sigma_m, max_birge_ratio)
         log_mode = layout.n_detectors > 4 if log_mode is None else bool(log_mode)
         self.gauss = GaussFilter(h_s, layout.time_axis, backend=backend)
-        self.locator = Locator(layout, grid, estimator=estimator, log_mode=log_mode,
-                               backend=backend, search=search)
+        self.estimator = as_estimator(estimator)
+        # warm starts (nlos_cl.tracking.warm): the Locator calls the estimator through this
+        self._started = warm.StartedEstimator(self.estimator) if warm_start and \
+            warm.can_start(self.estimator) else None
+        self.locator = Locator(layout, grid, estimator=self._started or self.estimator,
+                               log_mode=log_mode, backend=backend, search=search)
         self.layout, self.grid, self.motion, self.background = layout, grid, motion, background
         self.dims = motion.dims or (3 if grid.shape[2] > 1 else 2)
         self.plane_z = float(grid.origin[2] + 0.5 * (grid.shape[2] - 1) * grid.step[2])
@@ -163,7 +175,7 @@ class Tracker:
     def update(self, frame, t_s: float | None = None) -> list[Track]:
         """Locate in `frame` and advance every track to its time."""
         t = self._next_time(t_s)
-        return self.step(self.measure(frame), t)
+        return self.step(self.measure(frame, t), t)
 
     def step(self, measurements, t_s: float | None = None) -> list[Track]:
         """Advance the tracks with given measurements: kalman.Measurements or LocatedTargets
@@ -181,6 +193,7 @@ class Tracker:
         pairs, free = association.associate(self.tracks, measurements, self.gate_probability)
         for track, m in pairs:
             track.state, track.covariance = kalman.update(track.state, track.covariance, m)
+            track.plate = warm.plate_of(m)
         paired = {id(tr) for tr, _ in pairs}
         for track in list(self.tracks):
             self._account(track, id(track) in paired)
@@ -190,8 +203,10 @@ class Tracker:
         self.t_s = t
         return list(self.tracks)
 
-    def measure(self, frame) -> list:
-        """The frame's located targets as Kalman measurements ([] if it holds no signal)."""
+    def measure(self, frame, t_s: float | None = None) -> list:
+        """The frame's located targets as Kalman measurements ([] if it holds no signal).
+        t_s: the frame's time; with it (as `update` passes it) the model estimator is
+        warm-started from the confirmed tracks' predictions (nlos_cl.tracking.warm)."""
         from ..signals import as_signals
         sig = as_signals(frame, self.backend)
         if self.background is not None:
@@ -199,18 +214,33 @@ class Tracker:
             if getattr(self.background, "alpha", 0) > 0 and self.background.frames_seen == 1:
                 self.last_location, self.last_measurements = None, []
                 return []  # a running mean's first frame: nothing learnt to subtract yet
+        predicted = None
+        if self._started is not None and t_s is not None:
+            predicted = warm.predictions(self.tracks, t_s, self.motion, self.estimator.targets)
+        location, found = self._locate(sig, predicted)
+        if predicted is not None and warm.outside_gates(found, predicted,
+                                                        self.gate_probability):
+            location, found = self._locate(sig, None)  # another basin: fit this frame cold
+        self.last_location, self.last_measurements = location, found
+        return found
+
+    def _locate(self, sig, predicted):
+        """(Location or None, measurements), warm-started from `predicted` where given."""
+        if self._started is not None:
+            self._started.start = None if predicted is None else warm.start_rows(predicted)
         try:
             location = self.locator(self.gauss(sig), raw=sig)
         except InputError as exc:
             if NO_SIGNAL not in str(exc):
                 raise
             location = None
+        finally:
+            if self._started is not None:
+                self._started.start = None
         targets = [] if location is None else location.targets
-        self.last_location = location
-        self.last_measurements = [kalman.measurement(
+        return location, [kalman.measurement(
             tg, self.dims, fallback_sigma_m=self.fallback_sigma_m, min_sigma_m=self.min_sigma_m,
             height_observable=self.height_observable) for tg in targets]
-        return self.last_measurements
 
     # ------------------------------------------------------------------ pieces
     def _next_time(self, t_s):

@@ -1,0 +1,141 @@
+"""Warm-started model fits (nlos_cl.model.warm, nlos_cl.tracking.warm): the host model that
+runs them against the forward operation, a warm estimate against the cold one on the same
+frame, and both fallbacks (the estimator's misfit test, the tracker's gate). No timings."""
+import warnings
+
+import numpy as np
+import pytest
+
+import nlos_cl as nl
+from nlos_cl.estimators import Scored
+from nlos_cl.model import ModelEstimator
+from nlos_cl.model.batch import HostProblem
+from nlos_cl.model.likelihood import Problem
+from nlos_cl.tracking import Tracker, kalman, warm
+
+GRID = nl.Grid.from_ranges(x=(2, 6), y=(0.5, 4), step_m=0.02)
+TRUTH = (4.0, 2.0, 0.0)
+
+
+@pytest.fixture(scope="module")
+def scored(runtime):
+    """One 10 dB frame of the paper's scene, as a Locator hands it to the estimator."""
+    setup = nl.paper_setup()
+    mesh = nl.rectangle(0.3, 1.6, centre=TRUTH)
+    raw = nl.add_noise(nl.simulate(nl.Scene(setup, nl.Target(mesh), truth=TRUTH),
+                                   backend=runtime), 10, seed=3)
+    filtered = nl.gauss_filter(raw)
+    locator = nl.Locator(filtered, GRID, estimator="model")
+    scores = locator.scores(filtered)
+    return Scored(filtered.backend, scores, GRID, False, filtered.n_detectors, filtered, raw)
+
+
+def _estimate(scored, start=None):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # collinear spots: height unobservable
+        return ModelEstimator().estimate(scored, start=start).targets[0]
+
+
+@pytest.fixture(scope="module")
+def cold(scored):
+    return _estimate(scored)
+
+
+def test_host_model_matches_the_forward_operation(scored, cold):
+    est = ModelEstimator()
+    obs = est.observation(scored)
+    device = Problem(obs, scored.backend, est.lattice_for(obs))
+    host = HostProblem(obs, est.lattice_for(obs))
+    p = np.array(list(cold.details["params"].values()))
+    rows = p + np.diag([0.01, -0.01, 0.0, 0.05, -0.1, 0.1])
+    batch = host.column_batch(rows)
+    for row, col in zip(rows, batch):
+        ref = device.column(row)
+        # the kernel's own tolerance against its float64 twin (ops/forward.py): 1e-3 of the peak
+        assert np.abs(col - ref).max() <= 1e-3 * np.abs(ref).max()
+        np.testing.assert_array_equal(col, host.column(row))  # a batch changes nothing
+
+
+def test_warm_start_agrees_with_the_cold_fit_within_its_sd(scored, cold):
+    start = np.array(list(cold.details["params"].values()))
+    start[:2] += (0.01, -0.01)  # a tracker's prediction is off by about this much
+    w = _estimate(scored, start)
+    assert w.details["warm_start"]["used"] and w.details["model"] == "upright plate"
+    sd = np.sqrt(np.diag(cold.covariance)[:2])
+    assert np.all(np.abs(w.position[:2] - cold.position[:2]) < sd), (w.position, cold.position)
+    # and it carries the same calibrated covariance (sandwich x Birge ratio), not a default
+    np.testing.assert_allclose(np.sqrt(np.diag(w.covariance)[:2]), sd, rtol=0.2)
+    assert np.isinf(w.covariance[2, 2]) and "birge_ratio" in w.details
+    assert "warm_start" not in cold.details  # a cold call is what it always was
+
+
+def test_a_far_start_falls_back_to_the_cold_fit(scored, cold):
+    start = np.array(list(cold.details["params"].values()))
+    start[:2] += (0.5, 0.4)
+    w = _estimate(scored, start)
+    info = w.details["warm_start"]
+    assert not info["used"] and "misses the data" in info["reason"]
+    np.testing.assert_array_equal(w.position, cold.position)  # the cold fit, bit for bit
+    np.testing.assert_array_equal(w.covariance, cold.covariance)
+
+
+def test_start_rows_are_checked(scored):
+    with pytest.raises(nl.InputError, match="start"):
+        ModelEstimator().estimate(scored, start=np.zeros((1, 5)))
+    with pytest.raises(nl.InputError, match="start"):
+        ModelEstimator(targets=2).estimate(scored, start=np.ones((1, 6)))
+
+
+def _track(runtime, n_frames, tracker_options=None, meddle=None):
+    from nlos_cl.tracking import MovingTarget, Trajectory, simulate_sequence
+    setup = nl.paper_setup()
+    walk = Trajectory([0, 1.0], [[3.5, 1.8, 0], [3.8, 2.2, 0]])
+    target = MovingTarget(nl.Target(nl.rectangle(centre=walk.at(0), cell_m=0.03)), walk)
+    frames = simulate_sequence(setup, target, n_frames=n_frames, fps=10, noise=nl.AWGN(10),
+                               seed=1, facet_size_m=0.03, backend=runtime,
+                               time_axis=nl.default_time_axis(setup, 1e-11))
+    tracker, used = None, []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for fr in frames:
+            tracker = tracker or Tracker(fr.signals, GRID, estimator="model",
+                                         **(tracker_options or {}))
+            if meddle is not None:
+                meddle(tracker)
+            tracker.update(fr.signals, fr.t_s)
+            details = tracker.last_measurements[0].source.details
+            used.append(details.get("warm_start", {}).get("used"))
+            err = np.linalg.norm(tracker.last_measurements[0].position[:2] - fr.truths[0][:2])
+            assert err < 0.05
+    return tracker, used
+
+
+def test_tracker_warm_starts_confirmed_tracks(runtime):
+    _, used = _track(runtime, 5)
+    assert used[:2] == [None, None]  # no confirmed track yet: cold, no start given
+    assert all(used[2:])  # then each frame from the track's last plate, moved
+    _, cold = _track(runtime, 3, {"warm_start": False})
+    assert cold == [None] * 3
+
+
+def test_tracker_falls_back_when_the_prediction_is_far_off(runtime):
+    def push(tracker):  # a track whose state is 0.6 m off: its start lands in another basin
+        for tr in tracker.tracks:
+            if tr.status == "confirmed":
+                tr.state[:2] += (0.4, 0.45)
+                tr.covariance[:2, :2] = 1e-4 * np.eye(2)
+    _, used = _track(runtime, 4, meddle=push)
+    assert used[2:] == [False, False]  # tried, refused by the misfit test, fitted cold
+
+
+def test_gate_fallback_sees_a_warm_fit_outside_every_gate():
+    track = Tracker.__new__(Tracker)  # only the prediction tuple matters here
+    x, P = np.array([3.0, 2.0, 0.1, 0.0]), np.diag([1e-4, 1e-4, 1e-2, 1e-2])
+    near, far = ([3.005, 2.0, 0.0], [3.2, 2.0, 0.0])
+
+    def measured(pos):
+        src = nl.LocatedTarget(np.array(pos), np.diag([1e-5, 1e-5, np.inf]),
+                               details={"warm_start": {"used": True}})
+        return kalman.measurement(src, 2, fallback_sigma_m=0.05, min_sigma_m=0.002)
+    assert not warm.outside_gates([measured(near)], [(track, x, P)], 0.999)
+    assert warm.outside_gates([measured(far)], [(track, x, P)], 0.999)
