@@ -9,8 +9,13 @@ import numpy as np
 import pytest
 
 from nlos_cl.apps import reproduce as rp
+from nlos_cl.apps.reproduce import beyond
 from nlos_cl.apps.reproduce import beyond_cases as bc
 from nlos_cl.apps.reproduce import beyond_report as br
+from nlos_cl.apps.reproduce import beyond_sweep
+from nlos_cl.apps.reproduce.beyond_runs import counter_for
+from nlos_cl.apps.reproduce.common import Settings
+from nlos_cl.errors import InputError
 from nlos_cl.estimators import LocatedTarget
 
 
@@ -107,3 +112,51 @@ def test_quick_run_numbers_are_sane(quick_run):
     height = [r for r in summary["summary"] if r["section"] == "height"]
     assert {"dz", "errline"} <= {r["measure"] for r in height}
     assert any("unobservable" in r["note"] for r in height if r["measure"] == "errline")
+
+
+def _same_rows(new, old) -> bool:
+    """Equal in every column but the model's wall time (NaN equal to NaN)."""
+    def cell(v):
+        return "nan" if isinstance(v, float) and math.isnan(v) else v
+    strip = [[{k: cell(v) for k, v in r.items() if k != "model_s"} for r in rows]
+             for rows in (new, old)]
+    return len(new) == len(old) and strip[0] == strip[1]
+
+
+def test_the_sweep_gives_the_old_loops_rows(tmp_path):
+    """One tiny case through the sweep engine (a runner study, in this process) against the
+    loop `reproduce beyond` ran before: simulate once, then run_frame + frame_rows per seed."""
+    from dataclasses import replace
+    s = replace(Settings.make(quick=True, seeds=2), facet_m=0.04, grid_step_m=0.04)
+    cfg = bc.config(True)
+    lay, size, pos = bc.layout(cfg, "paper"), cfg["paper_target"]["size"], (4.0, 2.0, 0.0)
+    entries = [beyond._entry("grid", "tiny", [beyond_sweep.frames("grid", "tiny", lay,
+                                                                  [(size, pos)], 2)]),
+               beyond._entry("photons", "tiny photons", [beyond_sweep.frames(
+                   "photons", "tiny photons", lay, [(size, pos)], 1, photons=1000)])]
+    beyond_sweep.run_entries(entries, cfg, s, tmp_path)
+    clean, truths = bc.simulate(lay, s, [(size, pos)]), np.asarray([pos])
+    old = [r for seed in (0, 1) for r in bc.frame_rows(
+        "grid", "tiny", lay, seed, bc.run_frame(clean, seed, lay, s.grid(), s), truths)]
+    frame = bc.run_frame(clean, 0, lay, s.grid(), s, noise=counter_for(clean, 1000))
+    old_photons = bc.frame_rows("photons", "tiny photons", lay, 0, frame, truths)
+    assert _same_rows(entries[0]["rows"], old) and _same_rows(entries[1]["rows"], old_photons)
+    assert entries[0]["rows"][0]["model_err3d_m"] < 0.1  # a real fit, not two equal failures
+    assert (tmp_path / beyond_sweep.FOLDER / "study.json").is_file()  # the table is kept
+    with pytest.raises(InputError, match="1 of 3 frame"):  # a failed run is not dropped
+        import pyarrow as pa
+        runs = pa.table({"run_id": [0, 1, 2], "result": ["[]", None, "[]"],
+                         "failure": ["", "ValueError: x", ""]})
+        beyond_sweep.fill(entries, runs)
+
+
+def test_the_quick_study_is_one_run_per_frame():
+    from nlos_cl.sweep import load_study
+    s = Settings.make(quick=True)
+    cfg = bc.config(True)
+    entries = [e for _, fn in beyond.SECTIONS for e in fn(cfg, s)]
+    study = load_study(beyond_sweep.study(entries, cfg, s))
+    frames = sum(len(f["seeds"]) for e in entries for f in e["frames"])
+    assert study.n_runs == frames and frames >= 8
+    seeds = [v["seed"] for _, v in study.runs()]
+    assert seeds[-1] == 1000  # the coverage case's seeds start at 1000

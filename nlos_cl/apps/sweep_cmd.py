@@ -79,7 +79,8 @@ def _report(result, as_json: bool) -> None:
     where = f"on {result.workers} worker(s)" if result.workers else "in this process"
     print(f"sweep: {done} runs in {result.wall_s:.1f} s {where}, "
           f"{result.tasks} tasks ({result.n_skipped} done before); {result.n_failed} failed")
-    print(f"table: {result.out}/runs.parquet   summary: {result.summary}")
+    summary = f"   summary: {result.summary}" if result.summary else ""  # none: a runner's
+    print(f"table: {result.out}/runs.parquet{summary}")
     for figure in result.figures:
         print(f"figure: {figure}")
     if result.n_failed:

@@ -8,12 +8,17 @@ a time (resumable), then summarised and plotted.
     table = result.table()                                      # a pyarrow.Table, one row per run
 
 `nlos_cl.sweep` is both this package and the function: calling the module calls `sweep`, and
-the function carries `load_study`, `read_table` and `example_text`, so `nl.sweep(...)` and
-`nl.sweep.read_table(...)` work whichever of the two an import left under that name.
+the function carries `load_study`, `read_table`, `example_text` and `worker_cache`, so
+`nl.sweep(...)` and `nl.sweep.read_table(...)` work whichever of the two an import left under
+that name.
 
-Modules: study (the file format, the runs), runs (what a worker does), engine (Dask, writing,
-progress), results (the Parquet table, the summary), plots. Dask and pyarrow load only when a
-study runs or a table is read.
+A study may instead name a `runner`, any importable function, whose axes are its keyword
+parameters and whose return values the table keeps as JSON (runner.py; `worker_cache` keeps a
+worker's expensive part, e.g. a clean simulation, for the runs that share it).
+
+Modules: study (the file format, the runs), runner (studies of a function), runs (what a worker
+does), engine (Dask, writing, progress), results (the Parquet table, the summary), plots. Dask
+and pyarrow load only when a study runs or a table is read.
 """
 from __future__ import annotations
 
@@ -21,6 +26,7 @@ import sys
 import types
 from importlib import resources
 
+from .runner import RunnerStudy, worker_cache
 from .study import Study, load_study
 
 
@@ -43,6 +49,7 @@ def example_text() -> str:
 
 
 sweep.load_study, sweep.read_table, sweep.example_text = load_study, read_table, example_text
+sweep.worker_cache = worker_cache
 
 
 class _CallableModule(types.ModuleType):
@@ -52,4 +59,5 @@ class _CallableModule(types.ModuleType):
 
 sys.modules[__name__].__class__ = _CallableModule
 
-__all__ = ["Study", "load_study", "sweep", "read_table", "example_text"]
+__all__ = ["Study", "RunnerStudy", "load_study", "sweep", "read_table", "example_text",
+           "worker_cache"]

@@ -18,6 +18,7 @@ from pathlib import Path
 
 from ..errors import InputError, require
 from . import results
+from .runner import RunnerStudy
 from .runs import run_batch, worker_info
 from .study import SPECIAL, Study, check_scenes, load_study
 
@@ -56,7 +57,8 @@ def sweep(study, out, *, workers: int | None = None, scheduler: str | None = Non
     study = load_study(study)
     out = Path(out)
     done = _prepare(out, study, resume)
-    check_scenes(study)
+    if not isinstance(study, RunnerStudy):  # a runner was checked when the study was loaded
+        check_scenes(study)
     pending = [(rid, v) for rid, v in study.runs() if rid not in done]
     start = time.perf_counter()
     n_workers, n_tasks, run_s = 0, 0, 0.0
@@ -108,14 +110,17 @@ def _prepare(out: Path, study: Study, resume: bool) -> set:
 
 
 def make_batches(study: Study, pending, batch_size: int | None, n_workers: int) -> list:
-    """Runs grouped by simulated scene (the axes that change the scene, not its noise), in
-    run_id order within a scene, then packed into batches of at most `batch_size`: whole scenes
-    together while they fit (a worker simulates each scene once), a larger scene cut into equal
-    parts. The default size gives each worker >= 8 tasks and at most 32 runs a task."""
+    """Runs grouped by simulated scene (the axes that change the scene, not its noise; for a
+    runner study every axis but `seed`), in run_id order within a scene, then packed into
+    batches of at most `batch_size`: whole scenes together while they fit (a worker simulates
+    each scene once), a larger scene cut into equal parts. The default size gives each worker
+    >= 8 tasks and at most 32 runs a task."""
     if not batch_size:
         batch_size = max(1, min(32, math.ceil(len(pending) / (8 * max(n_workers, 1)))))
     scene_axes = [a.name for a in study.axes
                   if a.path not in SPECIAL and not a.path.startswith(("noise", "description"))]
+    if isinstance(study, RunnerStudy):  # a function's runs: those that differ only in seed
+        scene_axes = [a.name for a in study.axes if a.name != "seed"]
     scenes: dict = {}
     for run in sorted(pending, key=lambda r: r[0]):
         key = json.dumps([run[1][n] for n in scene_axes], default=str)

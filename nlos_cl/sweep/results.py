@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pyarrow as pa
 
+from .runner import COLUMNS as RUNNER_COLUMNS, RunnerStudy
 from .runs import record_columns
 from .study import Study
 
@@ -38,7 +39,11 @@ def axis_cell(value, kind: pa.DataType):
 def schema(study: Study) -> pa.Schema:
     fields = [pa.field("run_id", pa.int64())]
     fields += [pa.field(a.name, axis_type(a.values)) for a in study.axes]
-    fields += [pa.field(c, pa.float64()) for c in record_columns(study.settings["record"])]
+    if isinstance(study, RunnerStudy):  # result (JSON text), t_run_s, t_cpu_s
+        fields += [pa.field(c, pa.string() if c == "result" else pa.float64())
+                   for c in RUNNER_COLUMNS]
+    else:
+        fields += [pa.field(c, pa.float64()) for c in record_columns(study.settings["record"])]
     return pa.schema(fields + [pa.field("failure", pa.string())])
 
 

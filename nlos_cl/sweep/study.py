@@ -142,10 +142,8 @@ def substitute(base: dict, assignments) -> dict:
                         "check the path against docs/scene-files.md")
             if nxt is None:
                 node[step] = copy.deepcopy(value)
-            else:
-                if isinstance(step, str) and step not in node:
-                    node[step] = {}
-                node = node[step]
+            else:  # a missing mapping on the way is made
+                node = node.setdefault(step, {}) if isinstance(step, str) else node[step]
     return scene
 
 
@@ -224,16 +222,16 @@ def assignments(plan: dict, values: dict) -> dict:
     return {plan["paths"][n]: scaled(v, scales.get(n)) for n, v in values.items()}
 
 
-def _group(i: int, spec) -> tuple:
+def _group(i: int, spec, axis=_axis) -> tuple:  # axis: runner studies parse their own
     if isinstance(spec, dict) and set(spec) == {"zip"}:
         require(isinstance(spec["zip"], list) and spec["zip"], f"axes[{i}].zip",
                 "expected a list of axes", "write zip: [{path: .., values: ..}, ...]")
-        group = tuple(_axis(f"axes[{i}].zip[{j}]", s) for j, s in enumerate(spec["zip"]))
+        group = tuple(axis(f"axes[{i}].zip[{j}]", s) for j, s in enumerate(spec["zip"]))
         lengths = {len(a.values) for a in group}
         require(len(lengths) == 1, f"axes[{i}].zip", f"zipped axes differ in length "
                 f"({sorted(lengths)})", "give every zipped axis the same number of values")
         return group
-    return (_axis(f"axes[{i}]", spec),)
+    return (axis(f"axes[{i}]", spec),)
 
 
 def _seeds(value) -> tuple:
@@ -299,7 +297,10 @@ def load_study(source, base_dir=None) -> Study:
         base_dir = path.parent if base_dir is None else Path(base_dir)
     else:
         raw, base_dir = source, Path(base_dir or ".")
-    require(isinstance(raw, dict) and "scene" in raw, "study", "needs a `scene`",
+    if isinstance(raw, dict) and "runner" in raw:  # a function's study: nlos_cl/sweep/runner.py
+        from .runner import load_runner_study
+        return load_runner_study(raw, base_dir)
+    require(isinstance(raw, dict) and "scene" in raw, "study", "needs a `scene` (or a `runner`)",
             "write scene: a scene file path, or the scene's keys inline")
     unknown = sorted(set(raw) - TOP)
     require(not unknown, f"study.{unknown[0] if unknown else ''}", "is not a known key",
