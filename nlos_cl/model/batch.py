@@ -6,7 +6,8 @@ Why: a warm-started fit (a tracker's next frame, nlos_cl.model.warm) needs ~25 m
 evaluations of a tiny problem (3 detectors x ~80 samples, 1,536 point facets). One call of
 the registered `forward` op costs ~1 ms there whatever the work (launches, two read-backs)
 plus ~0.7 ms of cell statistics on the host; a Jacobian's columns or a covariance's 11 plates
-in one host call cost about as much as two single calls. The device path stays the cold fit's.
+in one host call cost about as much as two single calls. ModelEstimator(model_on='auto')
+uses it for plate fits (cold and warm) with up to HOST_DETECTORS detectors.
 
 Same model as `Problem.column`: each plate's own cell statistics (`plate.cell_model`: Gauss
 points pulled in, shared blur, per-detector shift), its own pulse width, bins integrated over
@@ -29,8 +30,8 @@ from ..ops.forward import REACH_SIGMAS, SUB_BINS_PER_SIGMA
 class HostProblem(Problem):
     """A `Problem` (plates only) whose model runs on the host, a batch of rows per call."""
 
-    def __init__(self, obs, lattice=(16, 24)):
-        super().__init__(obs, None, lattice)
+    def __init__(self, obs, lattice=(16, 24), backend=None):
+        super().__init__(obs, backend, lattice)  # backend: for the closed shapes' Problems
         floor = math.sqrt(max(obs.sigma0_m ** 2 - obs.box_excess_m2, 1e-300))
         # one sub-bin count per observation (from the narrowest pulse any plate can have):
         # a plate's histograms do not depend on which batch it is evaluated in
@@ -179,7 +180,7 @@ def _taps(dsub, sigma, pad, os_):
     """(D, B, os, 2 pad + 1): what a unit weight at the centre of phase p of the sub-bins i
     bins after bin k's window start puts into bin k: erf((m + os - 1/2) s) - erf((m - 1/2) s),
     m = (pad - i) os - p, s = dsub / (sqrt 2 sigma); erf evaluated once per distinct m."""
-    from scipy.special import erf
+    from ..erf import erf  # not SciPy's: its import is a seventh of a one-shot locate
     m = (pad - np.arange(2 * pad + 1))[None, :] * os_ - np.arange(os_)[:, None]  # (os, span)
     lowest = int(m.min())
     grid = np.arange(lowest, int(m.max()) + os_ + 1) - 0.5

@@ -30,6 +30,13 @@ MODELS = {"plate": "upright plate", "box": "upright box", "ellipsoid": "upright 
 SEARCH_DETECTORS = 64
 # Residual evaluations of a warm-started fit (nlos_cl.model.warm; Jacobians not counted).
 WARM_NFEV = 10
+# model_on="auto": plate fits with up to this many detectors evaluate the model on the host
+# (nlos_cl.model.batch, a Jacobian's plates in one call), larger ones with the forward op on
+# the device. On the paper's scene a forward call costs ~2 ms of launches and read-backs for
+# ~240 samples a detector; the host's batched float64 model gives the same fit (costs within
+# 1e-4) 3-5x faster (one-shot `nlos-cl locate`: docs/performance.md).
+HOST_DETECTORS = 64
+MODEL_ON = ("auto", "host", "device")
 
 
 class ModelEstimator:
@@ -37,14 +44,16 @@ class ModelEstimator:
     nlos_cl.model.select). `likelihood`: 'gauss' (AWGN; the data are compared after a Gauss
     filter of window h_s), 'poisson' (photon counts in `raw`), or 'auto' (counts when `raw`
     holds non-negative whole numbers). `backend`: where the forward model runs while fitting
-    (default: the scored frame's backend). warm_nfev: the evaluation budget of a warm-started
-    fit (`estimate(scored, start=...)`)."""
+    (default: the scored frame's backend). model_on: 'device' (the forward op on `backend`),
+    'host' (plates evaluated in float64 NumPy, many per call: nlos_cl.model.batch) or 'auto'
+    (host for up to HOST_DETECTORS detectors; closed shapes always on the device). warm_nfev:
+    the evaluation budget of a warm-started fit (`estimate(scored, start=...)`)."""
 
     name = "model"
 
     def __init__(self, targets=1, *, likelihood="auto", h_s=PAPER_H_S, pulse_fwhm_s=70e-12,
                  jitter_s=30e-12, lattice=None, max_targets=3, backend=None, final_nfev=30,
-                 closed="auto", warm_nfev=WARM_NFEV):
+                 closed="auto", warm_nfev=WARM_NFEV, model_on="auto"):
         require(targets == "auto" or (isinstance(targets, int) and targets >= 1), "targets",
                 f"must be a positive integer or 'auto', got {targets!r}", "pass e.g. 1 or 'auto'")
         require(likelihood in ("auto", "gauss", "poisson"), "likelihood",
@@ -52,7 +61,9 @@ class ModelEstimator:
         require(closed in ("auto", True, False), "closed", f"must be 'auto', True or False, got "
                 f"{closed!r}", "pass 'auto' (a box where one plate misses the data), True or "
                 "False")
-        self.closed = closed
+        require(model_on in MODEL_ON, "model_on", f"must be one of {MODEL_ON}, got "
+                f"{model_on!r}", "pass 'auto' (host for small problems), 'host' or 'device'")
+        self.closed, self.model_on = closed, model_on
         self.targets, self.likelihood, self.h_s = targets, likelihood, float(h_s)
         self.pulse_sigma_s = float(pulse_fwhm_s) / FWHM_PER_SIGMA
         self.jitter_s, self.lattice = float(jitter_s), lattice
@@ -96,7 +107,8 @@ class ModelEstimator:
         fitted, warm_info = None, None
         if start is not None:
             from .warm import warm_fit
-            fitted, warm_info = warm_fit(self, obs, self._start_rows(start), free, z0)
+            fitted, warm_info = warm_fit(self, obs, self._start_rows(start), free, z0,
+                                          scored.backend)
             clock["warm_fit"] = time.perf_counter()
         if fitted is None:
             fitted = self._cold(scored, obs, paper, free, z0, clock)
@@ -115,7 +127,7 @@ class ModelEstimator:
     def _cold(self, scored, obs, paper, free, z0, clock):
         """The full fit: starts, short fits, final fit, covariance, plate or closed shape.
         (problem, chosen problem, result, free, (cov_all, info), history)."""
-        problem = Problem(obs, self.backend or scored.backend, self.lattice_for(obs))
+        problem = self.problem(obs, self.backend or scored.backend)
         result, history = self._fit(problem, paper.targets[0].position, free, z0)
         clock["fit"] = time.perf_counter()
         cov = covariance(problem, result, free)
@@ -127,6 +139,16 @@ class ModelEstimator:
                                                         cov, self.closed)
             clock["box"] = time.perf_counter()
         return problem, chosen, result, free, cov, history
+
+    def problem(self, obs, backend):
+        """The plates' Problem: the model on the host or with the forward op on `backend`
+        (model_on); a HostProblem keeps `backend` for the closed shapes."""
+        lattice = self.lattice_for(obs)
+        if self.model_on == "host" or (self.model_on == "auto"
+                                       and len(obs.spots) <= HOST_DETECTORS):
+            from .batch import HostProblem
+            return HostProblem(obs, lattice, backend=backend)
+        return Problem(obs, backend, lattice)
 
     def lattice_for(self, obs):
         return self.lattice or (GAUSS_LATTICE if obs.mode == "gauss" else POISSON_LATTICE)

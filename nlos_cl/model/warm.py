@@ -6,9 +6,8 @@ the centroid start, a lattice of 20-40 yaws and sizes, three short fits, then th
 Levenberg-Marquardt fit. Where the previous frame's plate is known and the target moved a few
 cm, the start is already in the basin, so only the final fit runs, with `warm_nfev`
 evaluations (stopping on a statistical scale, WARM_ATOL), then the covariance (the same
-sandwich and Birge-ratio calibration as a cold fit). With up to HOST_DETECTORS detectors
-the model runs on the host, a Jacobian's plates in one call (nlos_cl.model.batch): per-call
-overhead, not work, dominates such small problems.
+sandwich and Birge-ratio calibration as a cold fit), on the estimator's `problem` (the host's
+batched model for up to HOST_DETECTORS detectors with model_on='auto', as a cold fit).
 
 Fallback: where the warm fit misses the data (the Birge ratio above the 99.9 % point of its
 noise distribution: `select.misfit`, the test that also sends a cold fit on to the closed
@@ -22,7 +21,6 @@ import numpy as np
 
 from .fit import covariance, fit
 
-HOST_DETECTORS = 64  # above this the warm fit's model runs on the estimator's backend
 # Stop when a step's predicted cost decrease (cost = chi^2 / 2 for whitened residuals, or the
 # deviance / 2) is below this: what is left moved the centre by <= 0.015 sd (starts 0.5-4 sd
 # off, paper's scene, 10 dB; 0.005 took 1-3 more evaluations for ~0.005 sd). The cold fit's
@@ -31,18 +29,14 @@ HOST_DETECTORS = 64  # above this the warm fit's model runs on the estimator's b
 WARM_ATOL = 0.05
 
 
-def warm_fit(est, obs, rows, free, z0):
+def warm_fit(est, obs, rows, free, z0, backend=None):
     """(fitted, info): fitted as ModelEstimator._cold returns it, or None where the warm fit
     misses the data (the caller then fits cold); info: what was tried (details['warm_start'])."""
-    from .batch import HostProblem
-    from .likelihood import Problem
     from .select import closed_or_plate, misfit
     rows = np.array(rows, dtype=np.float64)
     if not free[2]:
         rows[:, 2] = z0  # height unobservable: held on the search plane, as a cold fit holds it
-    lattice = est.lattice_for(obs)
-    problem = HostProblem(obs, lattice) if len(obs.spots) <= HOST_DETECTORS else \
-        Problem(obs, est.backend, lattice)
+    problem = est.problem(obs, est.backend or backend)
     result = fit(problem, rows, free, est.warm_nfev, atol=WARM_ATOL)
     cov = covariance(problem, result, free)
     inadequate, birge = misfit(problem, result, free, cov[1])
