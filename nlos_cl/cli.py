@@ -148,7 +148,9 @@ def _locate_args(p):
     p.add_argument("--h-ns", type=H_NS, default=0.65, help="Gauss filter window h (ns)")
     p.add_argument("--log", action="store_true", help="sum of logs (many detectors)")
     p.add_argument("--background", help="capture without the target, subtracted first")
-    p.add_argument("--negatives", default="clip", choices=["clip", "floor", "keep"])
+    p.add_argument("--negatives", default="keep", choices=["keep", "clip", "floor"],
+                   help="bins below 0 after --background: keep (default; clipping biases the "
+                   "model estimator), clip to 0, or floor")
     p.add_argument("--calibration", help="CSV of (path m, peak time s) pairs: fit Eq. 26")
     p.add_argument("--map", help="save the probability map (.npz)")
     p.add_argument("--force", action="store_true", help="let --map replace a non-.npz file")

@@ -96,11 +96,13 @@ def with_calibration(histograms: HistogramSet, calibration: PathCalibration) -> 
 # ---------------------------------------------------------------------------- background
 
 def subtract_background(histograms: HistogramSet, background: HistogramSet, *,
-                        negatives: str = "clip", floor: float = 0.0) -> HistogramSet:
+                        negatives: str = "keep", floor: float = 0.0) -> HistogramSet:
     """Signal minus a capture without the target (or a reference frame), bin by bin.
 
-    negatives: 'clip' sets bins below 0 to 0; 'floor' sets bins below `floor` to `floor`;
-    'keep' keeps them (the filter and the scoring clip negatives anyway).
+    negatives: 'keep' (default) keeps bins below 0: the filter averages noise on both sides of
+    zero and the paper's scoring ignores negatives, while clipping leaves a positive offset the
+    model estimator's noise model does not have (nlos_cl.tracking.background says what it did);
+    'clip' sets them to 0; 'floor' sets bins below `floor` to `floor`.
     """
     require(negatives in ("clip", "floor", "keep"), "negatives",
             f"must be 'clip', 'floor' or 'keep', got {negatives!r}", "pick one of the three")

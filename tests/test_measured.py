@@ -66,10 +66,11 @@ def test_background_subtraction_modes():
     background[:, 5] = 9.0  # an unstable background spike
     measured = hist_of(signal + background + np.linspace(-0.5, 0.5, 50))
     bg = hist_of(background + np.linspace(-0.5, 0.5, 50)[::-1])
-    clipped = nl.subtract_background(measured, bg)
+    clipped = nl.subtract_background(measured, bg, negatives="clip")
     assert clipped.data.min() >= 0 and clipped.data[0, 20] == pytest.approx(5.0, abs=1.1)
-    kept = nl.subtract_background(measured, bg, negatives="keep")
+    kept = nl.subtract_background(measured, bg)  # the default keeps negatives
     assert kept.data.min() < 0
+    np.testing.assert_array_equal(np.maximum(kept.data, 0), clipped.data)
     floored = nl.subtract_background(measured, bg, negatives="floor", floor=-0.1)
     assert floored.data.min() == pytest.approx(-0.1)
     assert np.array_equal(measured.data, signal + background + np.linspace(-0.5, 0.5, 50))

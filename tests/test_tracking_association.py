@@ -54,6 +54,28 @@ def test_smoother_halves_the_per_frame_error_and_ends_on_the_filter():
     assert np.all(np.diag(points[10].covariance)[:2] < filtered_var)
 
 
+def test_fixed_lag_equals_the_full_smoother_at_that_frame():
+    """Tracker.lagged(L) after frame k is the RTS smoother's frame k - L as the full record
+    would give it then (the backward pass needs no frame older than k - L), and lag 0 is the
+    filter's own state."""
+    rng = np.random.default_rng(3)
+    tr = Tracker(_layout(), estimator="paper", motion=ConstantVelocity(accel_sigma=0.047))
+    lag = 4
+    for k in range(30):
+        t = 0.1 * k
+        z = np.array([2 + 0.2 * t, 1 + 0.3 * t, 0]) + np.r_[0.008 * rng.standard_normal(2), 0]
+        (track,) = tr.step([_target(z, 0.008)], t)
+        np.testing.assert_allclose(tr.lagged(0)[1].position, track.position, atol=1e-12)
+        point = tr.lagged(lag)[1]
+        assert point.frame == max(k - lag, 0)
+        full = {p.frame: p for p in tr.smooth()[1]}  # everything up to frame k
+        np.testing.assert_allclose(point.position, full[point.frame].position, atol=1e-10)
+        np.testing.assert_allclose(point.covariance[:2, :2],
+                                   full[point.frame].covariance[:2, :2], atol=1e-14)
+    with pytest.raises(nl.InputError, match="lag"):
+        tr.lagged(-1)
+
+
 def test_screen_drops_misfits_and_vague_measurements_and_merges_duplicates():
     kw = dict(fallback_sigma_m=0.05, min_sigma_m=0.002)
     ms = [measurement(_target(p, s, b), 2, **kw) for p, s, b in [

@@ -6,7 +6,11 @@ the wall return without the target); `BackgroundRemover(alpha=0.05)` subtracts a
 running mean of the past frames, updated in place on the device after each frame (b <- b +
 alpha (frame - b)): static clutter is learnt, a moving target is not (it stays ~1/alpha frames
 in one place at most). In running mode the first frame only starts the mean: its output is zero.
-Negatives are clipped at 0 (the filter and the scoring would clip them anyway) unless clip=False.
+Negatives are kept by default (clip=False): the Gauss filter averages the noise on both sides of
+zero and the paper's scoring ignores negative values, while clipping would leave a positive
+offset that no estimator's noise model has. The model estimator fits it as a deep closed
+shape: on the tracking notebook's person-sized box the clipped frames gave centres 0.36-0.73 m
+behind the body, the kept ones 0.08-0.10 m. clip=True clips at 0.
 """
 from __future__ import annotations
 
@@ -18,7 +22,7 @@ from ..errors import require
 class BackgroundRemover:
     """`remover(signals) -> Signals` (the same backend, in the background's units)."""
 
-    def __init__(self, reference=None, *, alpha: float = 0.05, clip: bool = True,
+    def __init__(self, reference=None, *, alpha: float = 0.05, clip: bool = False,
                  backend=None):
         require(isinstance(alpha, (int, float)) and not isinstance(alpha, bool)
                 and math.isfinite(alpha) and 0 < alpha <= 1, "alpha", "the running mean's "

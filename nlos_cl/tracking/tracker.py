@@ -80,20 +80,25 @@ class Track:
             c[2, 2] = math.inf
         return c
 
-    def smoothed(self) -> list:
+    def smoothed(self, last: int | None = None) -> list:
         """The track's history smoothed offline (Rauch-Tung-Striebel, the filter's own model):
         a `Smoothed(frame, t_s, position, covariance, velocity)` per frame of the history, each
-        using the frames after it as well. Costs one small solve per frame."""
+        using the frames after it as well. Costs one small solve per frame. last: only the
+        last `last` frames (the backward pass needs nothing older: the first of them is the
+        fixed-lag estimate, `Tracker.lagged`)."""
         d = self.dims
         n = 2 * d
+        steps, history = list(self.steps), list(self.history)
+        if last is not None:
+            steps, history = steps[-last:], history[-last:]
         filtered, predicted = [], []
-        for row in self.steps:  # unpack: x (n), P (n^2), x_pred (n), P_pred (n^2), dt
+        for row in steps:  # unpack: x (n), P (n^2), x_pred (n), P_pred (n^2), dt
             filtered.append((row[:n], row[n:n + n * n].reshape(n, n)))
             predicted.append((kalman.ConstantVelocity.transition(row[-1], d),
                               row[n + n * n:2 * n + n * n], row[2 * n + n * n:-1].reshape(n, n)))
         smooth = kalman.rts_smooth(filtered, predicted)
         out = []
-        for h, (x, P) in zip(self.history, smooth):
+        for h, (x, P) in zip(history, smooth):
             view = Track(self.id, x, P, self.plane_z)
             out.append(Smoothed(h[0], h[1], view.position, view.position_covariance,
                                 view.velocity))
@@ -170,6 +175,15 @@ class Tracker:
         """Every track seen so far (live, then the last 100 deleted) smoothed offline:
         {id: Track.smoothed()}. The causal filter's states (`update`) are left as they are."""
         return {t.id: t.smoothed() for t in self.finished + self.tracks}
+
+    def lagged(self, lag: int) -> dict:
+        """Fixed-lag smoothing, for real time with a latency of `lag` frames: {id: Smoothed}
+        of each live track at the frame `lag` frames before its last (or at its first frame,
+        if younger), using every frame since. Exactly what `smooth()` would say of that frame
+        now; O(lag) per track and call."""
+        require(isinstance(lag, int) and lag >= 0, "lag", f"must be a whole number of frames "
+                f">= 0, got {lag!r}", "pass e.g. 3 (0: the filter's own state)")
+        return {t.id: t.smoothed(last=lag + 1)[0] for t in self.tracks if t.steps}
 
     # ------------------------------------------------------------------ per frame
     def update(self, frame, t_s: float | None = None) -> list[Track]:
