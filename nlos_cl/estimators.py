@@ -79,6 +79,8 @@ class Scored:
     n_detectors: int
     signals: object  # the filtered Signals that were scored
     raw: object = None  # the unfiltered Signals, where the caller passed them (model fits)
+    paper: object = None  # the paper's Estimate, where the Locator's fused search made it
+    # (for estimators with `needs_only_paper_estimate`: then `scores` is None)
 
 
 class Estimator(Protocol):

@@ -178,9 +178,16 @@ class Locator:
                     "build a Locator for this layout")
         mode = self._mode() if self._search.useful else "exhaustive"  # (no coarse grid)
         start = time.perf_counter()
-        if not return_map and type(self.estimator) is PaperArgmax and (
-                mode == "exhaustive" or self._search.fusable(sig.n_detectors)):
+        fusable = not return_map and (mode == "exhaustive"
+                                      or self._search.fusable(sig.n_detectors))
+        if fusable and type(self.estimator) is PaperArgmax:
             estimate, full = self._fused(sig, mode), None
+        elif fusable and getattr(self.estimator, "needs_only_paper_estimate", False):
+            # a model fit starts from the paper's estimate: the fused search's one read
+            scored = Scored(sig.backend, None, self.grid, self.log_mode, sig.n_detectors, sig,
+                            None if raw is None else as_signals(raw, sig.backend),
+                            paper=self._fused(sig, mode))
+            estimate, full = self.estimator.estimate(scored), None
         else:
             raw = None if raw is None else as_signals(raw, sig.backend)
             scored = self._scored(sig, raw, return_map, mode)
@@ -205,8 +212,8 @@ class Locator:
         else:
             index, best = found.index, found.score
         self.last_search = found
-        return self.estimator.from_patch(index, best, patch, self.grid, self.log_mode,
-                                         sig.n_detectors)
+        return PaperArgmax().from_patch(index, best, patch, self.grid, self.log_mode,
+                                        sig.n_detectors)
 
     # ------------------------------------------------------------ "auto": measured choice
     def _mode(self) -> str:

@@ -50,6 +50,9 @@ class ModelEstimator:
     the evaluation budget of a warm-started fit (`estimate(scored, start=...)`)."""
 
     name = "model"
+    # The scored frame is used only for the paper's estimate (the starts' second candidate, the
+    # no-signal test): a Locator may hand it over from its fused search, with no score map.
+    needs_only_paper_estimate = True
 
     def __init__(self, targets=1, *, likelihood="auto", h_s=PAPER_H_S, pulse_fwhm_s=70e-12,
                  jitter_s=30e-12, lattice=None, max_targets=3, backend=None, final_nfev=30,
@@ -97,7 +100,7 @@ class ModelEstimator:
         from there (nlos_cl.model.warm), and the full fit replaces it where it misses the data.
         details["warm_start"] says which (only when `start` was given)."""
         clock = {"start": time.perf_counter()}
-        paper = PaperArgmax().estimate(scored)  # also rejects frames with no signal
+        paper = scored.paper or PaperArgmax().estimate(scored)  # rejects frames with no signal
         clock["argmax"] = time.perf_counter()
         obs = self.observation(scored)
         clock["data"] = time.perf_counter()

@@ -27,6 +27,7 @@ class StartedEstimator:
         self.estimator, self.start = estimator, None
         self.name = estimator.name
         self.local = getattr(estimator, "local", False)
+        self.needs_only_paper_estimate = getattr(estimator, "needs_only_paper_estimate", False)
 
     def estimate(self, scored):
         return self.estimator.estimate(scored, start=self.start)
