@@ -10,23 +10,22 @@ math.erf), and erf(x) = 1 to within 2e-17 beyond LIMIT. Odd symmetry gives x < 0
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
 
 STEP = 1.0 / 1024
 LIMIT = 6.0
-_TABLE: tuple | None = None
 
 
+@functools.cache
 def _table():
-    global _TABLE
-    if _TABLE is None:
-        x = np.arange(int(LIMIT / STEP) + 2) * STEP
-        value = np.array([math.erf(v) for v in x])
-        slope = (2.0 / math.sqrt(math.pi)) * np.exp(-x * x) * STEP  # per table step
-        _TABLE = (value, slope)
-    return _TABLE
+    """(erf, its derivative per table step) at x = 0, STEP, ..., built once (~2 ms)."""
+    x = np.arange(int(LIMIT / STEP) + 2) * STEP
+    value = np.array([math.erf(v) for v in x])
+    slope = (2.0 / math.sqrt(math.pi)) * np.exp(-x * x) * STEP
+    return value, slope
 
 
 def erf(x) -> np.ndarray:

@@ -180,16 +180,15 @@ class Locator:
         start = time.perf_counter()
         fusable = not return_map and (mode == "exhaustive"
                                       or self._search.fusable(sig.n_detectors))
+        raw = None if raw is None else as_signals(raw, sig.backend)
         if fusable and type(self.estimator) is PaperArgmax:
             estimate, full = self._fused(sig, mode), None
         elif fusable and getattr(self.estimator, "needs_only_paper_estimate", False):
             # a model fit starts from the paper's estimate: the fused search's one read
             scored = Scored(sig.backend, None, self.grid, self.log_mode, sig.n_detectors, sig,
-                            None if raw is None else as_signals(raw, sig.backend),
-                            paper=self._fused(sig, mode))
+                            raw, paper=self._fused(sig, mode))
             estimate, full = self.estimator.estimate(scored), None
         else:
-            raw = None if raw is None else as_signals(raw, sig.backend)
             scored = self._scored(sig, raw, return_map, mode)
             estimate = self._in_grid(self.estimator.estimate(scored))
             full = sig.backend.to_numpy(scored.scores) if return_map else None

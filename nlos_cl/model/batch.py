@@ -19,6 +19,7 @@ the peak (the kernel's bound), and float64 has no float32 path rounding.
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 
@@ -42,7 +43,6 @@ class HostProblem(Problem):
 
     def column_batch(self, rows) -> np.ndarray:
         """(B, D, n) unit-amplitude histograms of B plates (rows (B, 6))."""
-        import time
         t = time.perf_counter()
         rows = np.atleast_2d(np.asarray(rows, np.float64))
         obs = self.obs

@@ -100,7 +100,9 @@ class ModelEstimator:
         from there (nlos_cl.model.warm), and the full fit replaces it where it misses the data.
         details["warm_start"] says which (only when `start` was given)."""
         clock = {"start": time.perf_counter()}
-        paper = scored.paper or PaperArgmax().estimate(scored)  # rejects frames with no signal
+        paper = scored.paper  # the Locator's fused search, or (no map read yet) from the scores
+        if paper is None:
+            paper = PaperArgmax().estimate(scored)  # also rejects frames with no signal
         clock["argmax"] = time.perf_counter()
         obs = self.observation(scored)
         clock["data"] = time.perf_counter()

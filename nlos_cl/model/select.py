@@ -215,7 +215,8 @@ def closed_or_plate(problem, plate_result, free, final_nfev, plate_cov, closed="
     """Plate or closed shape for one target. The closed shapes (CLOSED) are fitted only where
     the plate, re-seated (`reseat_plate`), still misses the data (`misfit`) or closed=True;
     the one of lowest cost (they share the parameters) is kept where its one more parameter
-    (depth) passes the BIC test in units of its own residual variance (as `accepts`). plate_cov: covariance(...) of the plate.
+    (depth) passes the BIC test in units of its own residual variance (as `accepts`).
+    plate_cov: covariance(...) of the plate.
     Returns (problem, result, free, (cov_all, info)) of the chosen model."""
     inadequate, birge = misfit(problem, plate_result, free, plate_cov[1])
     if inadequate and closed is not True:  # a misfit plate is re-seated first

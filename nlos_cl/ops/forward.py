@@ -159,14 +159,14 @@ def deposit_taps(os_, half, dpath, sigma_path) -> np.ndarray:
     """(OS, 2 T + 1): taps[p][t], twice the pulse energy that a unit weight at the centre of
     sub-bin phase p, t bins into the deposit window, puts into the bin (float64 erf).
     A few hundred values, cached (a model fit asks for the same table ~100 times) and
-    computed with math.erf: SciPy's import (~0.1 s) would dominate a one-shot `locate`."""
+    computed with nlos_cl.erf: SciPy's import (~0.1 s) would dominate a one-shot `locate`."""
+    from ..erf import erf
     dsub = dpath / os_
     p = np.arange(os_)[:, None]
     t = np.arange(2 * half + 1)[None, :]
     edge = lambda k: ((half - t + k) * os_ - p - 0.5) * dsub  # noqa: E731
     inv = 1.0 / (math.sqrt(2.0) * sigma_path)
-    erf = np.frompyfunc(math.erf, 1, 1)
-    taps = (erf(edge(1) * inv) - erf(edge(0) * inv)).astype(np.float64)
+    taps = erf(edge(1) * inv) - erf(edge(0) * inv)
     taps.flags.writeable = False
     return taps
 

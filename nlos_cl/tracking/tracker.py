@@ -88,9 +88,7 @@ class Track:
         fixed-lag estimate, `Tracker.lagged`)."""
         d = self.dims
         n = 2 * d
-        steps, history = list(self.steps), list(self.history)
-        if last is not None:
-            steps, history = steps[-last:], history[-last:]
+        steps, history = _tail(self.steps, last), _tail(self.history, last)
         filtered, predicted = [], []
         for row in steps:  # unpack: x (n), P (n^2), x_pred (n), P_pred (n^2), dt
             filtered.append((row[:n], row[n:n + n * n].reshape(n, n)))
@@ -103,6 +101,13 @@ class Track:
             out.append(Smoothed(h[0], h[1], view.position, view.position_covariance,
                                 view.velocity))
         return out
+
+
+def _tail(record: deque, last: int | None) -> list:
+    """The last `last` entries (all if None), read from the right: O(last), not O(len)."""
+    if last is None:
+        return list(record)
+    return list(itertools.islice(reversed(record), last))[::-1]
 
 
 class Smoothed(NamedTuple):

@@ -25,9 +25,11 @@ class StartedEstimator:
 
     def __init__(self, estimator):
         self.estimator, self.start = estimator, None
-        self.name = estimator.name
-        self.local = getattr(estimator, "local", False)
-        self.needs_only_paper_estimate = getattr(estimator, "needs_only_paper_estimate", False)
+
+    def __getattr__(self, name):  # name, local, needs_only_paper_estimate, ...: the estimator's
+        if name == "estimator":  # not set yet (copy, unpickling): no recursion
+            raise AttributeError(name)
+        return getattr(self.estimator, name)
 
     def estimate(self, scored):
         return self.estimator.estimate(scored, start=self.start)
