@@ -4,7 +4,7 @@ of the package uses (captures today, sequences and study tables next)."""
 from __future__ import annotations
 
 import os
-import tempfile
+import secrets
 from pathlib import Path
 
 from .errors import InputError, require
@@ -51,8 +51,10 @@ def atomic_write(path, write, *, keep_unless=None, force: bool = False, what: st
     before = _identity(path)
     tmp = None
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-        os.close(fd)
+        while tmp is None:  # the name is bound before the file exists (see _create)
+            tmp = str(path.parent / f".{path.name}.{secrets.token_hex(8)}.tmp")
+            if not _create(tmp):
+                tmp = None  # taken (another writer's): never ours to remove
         write(tmp)
         with open(tmp, "rb+") as fh:
             os.fsync(fh.fileno())
@@ -68,6 +70,17 @@ def atomic_write(path, write, *, keep_unless=None, force: bool = False, what: st
         if tmp is not None and os.path.exists(tmp):
             os.unlink(tmp)
     return path
+
+
+def _create(tmp: str) -> bool:
+    """Create the empty temporary `tmp` (False if the name is taken). atomic_write binds the
+    name first: with tempfile.mkstemp a Ctrl-C landing after the file was made but before its
+    name was bound left the file behind (seen once in CI under repeated SIGINT)."""
+    try:
+        os.close(os.open(tmp, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o600))
+    except FileExistsError:
+        return False
+    return True
 
 
 def _identity(path: Path):
