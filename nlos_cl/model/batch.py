@@ -5,8 +5,8 @@ vectorised over a batch of parameter rows.
 Why: a warm-started fit (a tracker's next frame, nlos_cl.model.warm) needs ~25 model
 evaluations of a tiny problem (3 detectors x ~80 samples, 1,536 point facets). One call of
 the registered `forward` op costs ~1 ms there whatever the work (launches, two read-backs)
-plus ~0.7 ms of cell statistics on the host; a Jacobian's columns or a covariance's 11 plates
-in one host call cost about as much as two single calls. ModelEstimator(model_on='auto')
+plus ~0.7 ms of cell statistics on the host; a Jacobian's 5 plates in one host call cost
+about as much as three single ones. ModelEstimator(model_on='auto')
 uses it for plate fits (cold and warm) with up to HOST_DETECTORS detectors.
 
 Same model as `Problem.column`: each plate's own cell statistics (`plate.cell_model`: Gauss
@@ -15,6 +15,11 @@ their width. The deposit splits each point's weight linearly between the two sub
 its path (sub-bins of at most sigma / SUB_BINS_PER_SIGMA, as the kernel), then correlates with
 the bin-integrated pulse per sub-bin phase; the split errs by <= (dsub / sigma)^2 / 8 = 2e-4 of
 the peak (the kernel's bound), and float64 has no float32 path rounding.
+
+Half a plate's cost is its cell statistics (the Gauss points' paths to STAT_SPOTS spots). A
+Jacobian's or a covariance's moved plates borrow their unmoved plate's statistics
+(`column_batch(rows, like)`, remembered from the call that evaluated it): a warm stream frame
+26.5 -> 21 ms (with CHUNK_ROWS), derivatives within 0.2 % (nlos_cl.model.fit's docstring).
 """
 from __future__ import annotations
 
@@ -27,9 +32,20 @@ from . import plate
 from .likelihood import Problem
 from ..ops.forward import REACH_SIGMAS, SUB_BINS_PER_SIGMA
 
+# Rows per NumPy pass. A pass's temporaries grow with its rows, and past ~6 plates (3 spots,
+# 1,536 points each) glibc's allocator maps and unmaps them on every call: 11 rows took 6.2 ms
+# in one pass, 3.8 ms as 6 + 5 (3.3 ms with MALLOC_MMAP_THRESHOLD_ raised; 6 rows 1.9 ms either
+# way). A warm stream frame: 24.8 -> 23.0 ms (chunks of 3, 4, 5, 8: 24.1-24.4 ms).
+CHUNK_ROWS = 6
+
 
 class HostProblem(Problem):
     """A `Problem` (plates only) whose model runs on the host, a batch of rows per call."""
+
+    # The fit's Jacobian (fit._Objective.jac) evaluates its moved plates with the unmoved
+    # plate's cell statistics: d(model)/d(parameter) at frozen blur, shift and pull-in, half
+    # the work of a column. Only the Jacobian: residuals and the covariance use each plate's own.
+    borrows_statistics = True
 
     def __init__(self, obs, lattice=(16, 24), backend=None):
         super().__init__(obs, backend, lattice)  # backend: for the closed shapes' Problems
@@ -37,17 +53,29 @@ class HostProblem(Problem):
         # one sub-bin count per observation (from the narrowest pulse any plate can have):
         # a plate's histograms do not depend on which batch it is evaluated in
         self.os = max(1, int(math.ceil(float(np.max(obs.dpath)) * SUB_BINS_PER_SIGMA / floor)))
+        self._stats = {}  # row bytes -> its cell statistics (_remember, _statistics_of)
 
     def column(self, p) -> np.ndarray:
         return self.column_batch(np.asarray(p, float)[None])[0]
 
-    def column_batch(self, rows) -> np.ndarray:
-        """(B, D, n) unit-amplitude histograms of B plates (rows (B, 6))."""
-        t = time.perf_counter()
+    def column_batch(self, rows, like=None) -> np.ndarray:
+        """(B, D, n) unit-amplitude histograms of B plates (rows (B, 6)). like: None, or
+        (B, 6) rows whose cell statistics each plate borrows instead of its own (a Jacobian's
+        plates, each a small step from `like`: fit._Objective.jac; the statistics of rows
+        evaluated in the last calls are remembered, so they cost nothing there)."""
         rows = np.atleast_2d(np.asarray(rows, np.float64))
+        if len(rows) > CHUNK_ROWS:  # see CHUNK_ROWS
+            return np.concatenate([self.column_batch(
+                rows[i:i + CHUNK_ROWS], None if like is None else like[i:i + CHUNK_ROWS])
+                for i in range(0, len(rows), CHUNK_ROWS)])
+        t = time.perf_counter()
         obs = self.obs
-        points, normal, area, blur2, shift = _plate_points(rows, self.lattice, obs.spots,
-                                                           obs.laser)
+        stats = None if like is None else self._statistics_of(np.atleast_2d(like))
+        points, normal, area, stats = _plate_points(rows, self.lattice, obs.spots, obs.laser,
+                                                    stats)
+        if like is None:
+            self._remember(rows, stats)
+        _, blur2, shift = stats
         sigma = np.sqrt(obs.sigma0_m ** 2 + blur2 - obs.box_excess_m2)  # (B,)
         path, weight = _paths(points.reshape(len(rows), -1, 3), normal, area / 4.0, obs.spots,
                               obs.laser)
@@ -56,6 +84,21 @@ class HostProblem(Problem):
         self.calls += len(rows)
         self.model_s += time.perf_counter() - t
         return np.where(obs.valid[None], hist, 0.0)
+
+    def _remember(self, rows, stats):
+        if len(self._stats) > 64:
+            self._stats.clear()
+        for row, keep, blur2, shift in zip(rows, *stats):
+            self._stats[row.tobytes()] = (keep, blur2, shift)
+
+    def _statistics_of(self, rows):
+        """(keep, blur2, shift) stacked over rows, computed for rows not remembered."""
+        new = np.unique(np.array([r for r in rows if r.tobytes() not in self._stats]), axis=0)
+        if len(new):
+            obs = self.obs
+            self._remember(new, _plate_points(new, self.lattice, obs.spots, obs.laser)[3])
+        got = [self._stats[r.tobytes()] for r in rows]
+        return tuple(np.stack([g[i] for g in got]) for i in range(3))
 
     def columns(self, params) -> np.ndarray:
         return self.column_batch(np.reshape(params, (-1, plate.N_PARAMS)))
@@ -85,12 +128,23 @@ def _gauss_offsets(eu, ev):
                     axis=1)
 
 
-def _plate_points(rows, lattice, spots, laser):
+def _plate_points(rows, lattice, spots, laser, stats=None):
     """Per plate what plate.cell_model gives the forward call: points (B, 4, C, 3), the
-    plate's normal (B, 3) and cell area (B,), the blur^2 (B,) and the shift (B, D)."""
+    plate's normal (B, 3) and cell area (B,), and its cell statistics (keep (B, C), blur^2
+    (B,), shift (B, D)): computed here, or `stats` given (another plate's, broadcast)."""
     centres, normal, area, eu, ev = _cells(rows, lattice)
-    b, c = centres.shape[:2]
     offsets = _gauss_offsets(eu, ev)[:, :, None, :]  # (B, 4, 1, 3)
+    if stats is None:
+        stats = _cell_statistics(centres, offsets, normal, area, spots, laser)
+    keep, blur2, shift = (np.broadcast_to(a, (len(rows),) + a.shape[1:]) for a in stats)
+    points = centres[:, None] + keep[:, None, :, None] * offsets
+    return points, normal, area, (keep, blur2, shift)
+
+
+def _cell_statistics(centres, offsets, normal, area, spots, laser):
+    """plate.cell_model's statistics of each cell's Gauss points: keep (B, C) (how far the
+    points are pulled in), the blur^2 (B,) and the shift (B, D)."""
+    b, c = centres.shape[:2]
     some = np.unique(np.linspace(0, len(spots) - 1, min(len(spots), plate.STAT_SPOTS)).round()
                      ).astype(int)
     full = (centres[:, None] + offsets).reshape(b, 4 * c, 3)  # the cells' Gauss points
@@ -113,8 +167,7 @@ def _plate_points(rows, lattice, spots, laser):
         basis = np.hstack([np.ones((len(spots), 1)), spots - spots.mean(axis=0)])
         coef, *_ = np.linalg.lstsq(basis[some], shift.T, rcond=None)
         shift = (basis @ coef).T
-    points = centres[:, None] + keep[:, None, :, None] * offsets
-    return points, normal, area, blur2, shift
+    return keep, blur2, shift
 
 
 def _paths(points, normal, area, spots, laser):
