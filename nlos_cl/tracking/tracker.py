@@ -173,7 +173,8 @@ class Tracker:
         self.tracks: list[Track] = []  # live
         self.finished: list[Track] = []  # deleted, most recent last (at most 100 kept)
         self.frame_index, self.t_s = -1, None
-        self.last_location, self.last_measurements = None, []
+        # the last frame's Location, measurements and filtered Signals (a display's joint map)
+        self.last_location, self.last_measurements, self.last_filtered = None, [], None
         self._ids = itertools.count(1)
 
     def smooth(self) -> dict:
@@ -231,7 +232,7 @@ class Tracker:
         if self.background is not None:
             sig = self.background(sig)
             if getattr(self.background, "alpha", 0) > 0 and self.background.frames_seen == 1:
-                self.last_location, self.last_measurements = None, []
+                self.last_location, self.last_measurements, self.last_filtered = None, [], None
                 return []  # a running mean's first frame: nothing learnt to subtract yet
         predicted = None
         if self._started is not None and t_s is not None:
@@ -248,7 +249,8 @@ class Tracker:
         if self._started is not None:
             self._started.start = None if predicted is None else warm.start_rows(predicted)
         try:
-            location = self.locator(self.gauss(sig), raw=sig)
+            self.last_filtered = self.gauss(sig)
+            location = self.locator(self.last_filtered, raw=sig)
         except InputError as exc:
             if NO_SIGNAL not in str(exc):
                 raise
