@@ -35,6 +35,7 @@ from nlos_cl.model import ModelEstimator
 from nlos_cl.tracking import (BackgroundRemover, ConstantVelocity, MovingTarget, SensorNoise,
                               Tracker, Trajectory, read_sequence, simulate_sequence,
                               write_sequence)
+from nlos_cl.tracking.bounds import CIRCLE, LINE, causal_bound
 
 FACET, DT, FPS, SNR_DB = 0.02, 10e-12, 10, 10
 GRID = nl.Grid.from_ranges(x=(1.5, 5.5), y=(0.5, 4.5), step_m=0.01)
@@ -67,6 +68,13 @@ def trajectories(span=5.0):
             "curved": Trajectory(np.linspace(0, span, 21), curve)}
 
 
+def bound_paths(span=5.0):
+    """Each path's family and true parameters for the causal bound (bound_ratio): the straight
+    path's line, the curved path's circle (its 21 waypoints lie on it)."""
+    return {"straight": (LINE, (3.0, 1.5, 1.0 / span, 1.5 / span)),
+            "curved": (CIRCLE, (2.0, 3.0, 1.5, 0.0, math.pi / 2 / span))}
+
+
 def run(setup, moving, estimator, *, n_frames, seed=0, static=(), background=None,
         max_tracks=1, noise=None):
     """[(SimFrame, measured positions, {id: filtered position})] per frame, the tracker, and
@@ -83,7 +91,8 @@ def run(setup, moving, estimator, *, n_frames, seed=0, static=(), background=Non
                               max_tracks=max_tracks, frame_interval_s=1 / FPS, **TRACKING)
         tracks = tracker.update(fr.signals, fr.t_s)
         out.append((fr, [m.position for m in tracker.last_measurements],
-                    {t.id: t.position for t in tracks}))
+                    {t.id: t.position for t in tracks},
+                    [_xy_covariance(m) for m in tracker.last_measurements]))
         for point in tracker.lagged(LAG).values():
             lagged.setdefault(point.frame, []).append(point.position)
     return out, tracker, lagged
@@ -97,7 +106,7 @@ def errors(result, tracker, lagged, first=5):
         for point in points:
             smoothed.setdefault(point.frame, []).append(point.position)
     raw, trk, lag, smo = [], [], [], []
-    for fr, meas, tracks in result[first:]:
+    for fr, meas, tracks, _ in result[first:]:
         truth = fr.truths[0][:2]
         near = lambda ps: min((np.linalg.norm(p[:2] - truth) for p in ps),  # noqa: E731
                               default=np.nan)
@@ -110,16 +119,42 @@ def errors(result, tracker, lagged, first=5):
     return np.array(raw), np.array(trk), np.array(lag[:len(lag) - LAG]), np.array(smo)
 
 
+def _xy_covariance(m):
+    """A Kalman measurement's x-y covariance (its R, min_sigma_m included)."""
+    at = [list(m.axes).index(a) for a in (0, 1)]
+    return m.R[np.ix_(at, at)]
+
+
+def bound_ratio(result, path, first=5):
+    """The causal Cramer-Rao bound (nlos_cl.tracking.bounds) for a target known to follow
+    `path` = (family, true parameters), with each frame's reported measurement covariance
+    (the one nearest the truth), as a ratio to those covariances: sqrt(sum tr B_k / sum tr
+    R_k) over the frames after `first`. The best RMS ratio any causal tracker could expect."""
+    family, params = path
+    t = np.array([fr.t_s for fr, *_ in result])
+    covs = []
+    for fr, meas, _, cov in result:
+        near = [np.linalg.norm(p[:2] - fr.truths[0][:2]) for p in meas]
+        covs.append(cov[int(np.argmin(near))] if near else np.full((2, 2), np.nan))
+    covs = np.array(covs)
+    bound = causal_bound(family, params, t, covs)[first:]
+    seen = np.all(np.isfinite(covs[first:]), axis=(1, 2))
+    if not seen.any():
+        return math.nan
+    return math.sqrt(np.trace(bound[seen], axis1=1, axis2=2).sum()
+                     / np.trace(covs[first:][seen], axis1=1, axis2=2).sum())
+
+
 def rms(e):
     return float(np.sqrt(np.nanmean(np.square(e))))
 
 
-def _row(name, raw, trk, lag, smo):
+def _row(name, raw, trk, lag, smo, bound=math.nan):
     """A table row; a frame where no track (or measurement) is near counts as missing, and a
     case with missing frames fails the goal."""
     if np.all(np.isnan(trk)):
         return (f"| {name} | {rms(raw):.4f} / {np.nanmax(raw):.4f} | no track | no track | "
-                f"no track | - | no / no / no |")
+                f"no track | - | - | no / no / no |")
     # each column against the per-frame error of the same frames (the lag column is shorter)
     ratio = lambda e: rms(e) / rms(raw[:len(e)])  # noqa: E731
     ok = lambda e: (ratio(e) <= 0.5 and np.nanmax(e) <= 0.10  # noqa: E731
@@ -129,15 +164,15 @@ def _row(name, raw, trk, lag, smo):
     ratios = " / ".join(f"{ratio(e):.2f}" for e in (trk, lag, smo))
     met = " / ".join("yes" if ok(e) else "no" for e in (trk, lag, smo))
     return (f"| {name} | {rms(raw):.4f} / {np.nanmax(raw):.4f} | {rms(trk):.4f} / "
-            f"{np.nanmax(trk):.4f}{missing} | {cells} | {ratios} | {met} |")
+            f"{np.nanmax(trk):.4f}{missing} | {cells} | {ratios} | {bound:.2f} | {met} |")
 
 
 # Fixed-lag smoothing's latency (frames): Tracker.lagged(LAG), i.e. 0.5 s at 10 fps
 LAG = 5
 HEAD = (f"| per-frame RMS / max (m) | filter RMS / max (m) | fixed lag {LAG} RMS / max (m) | "
-        "smoother RMS / max (m) | ratio filter / lag / smoother | goal met filter / lag / "
-        "smoother |")
-SEP = "|---|---|---|---|---|---|---|"
+        "smoother RMS / max (m) | ratio filter / lag / smoother | causal bound | goal met "
+        "filter / lag / smoother |")
+SEP = "|---|---|---|---|---|---|---|---|"
 
 
 def lines(quick):
@@ -149,8 +184,8 @@ def lines(quick):
             for est in ("paper", "model"):
                 res, tracker, lagged = run(setup, MovingTarget(target, traj), est,
                                            n_frames=n, seed=1)
-                print(_row(f"{tname}, {lname}, {est}", *errors(res, tracker, lagged)),
-                      flush=True)
+                print(_row(f"{tname}, {lname}, {est}", *errors(res, tracker, lagged),
+                           bound=bound_ratio(res, bound_paths()[tname])), flush=True)
 
 
 def crossing(quick):
@@ -175,7 +210,7 @@ def crossing(quick):
 
 
 def _nearest(entry, k, radius=0.15):
-    fr, _, tracks = entry
+    fr, _, tracks, _ = entry
     best = min(tracks.items(), key=lambda kv: np.linalg.norm(kv[1][:2] - fr.truths[k][:2]),
                default=(None, None))
     ok = best[0] is not None and np.linalg.norm(best[1][:2] - fr.truths[k][:2]) < radius
@@ -204,7 +239,8 @@ def box(quick):
         for name, static, bg in cases:
             res, tracker, lagged = run(setup, moving, est, n_frames=n, seed=1, static=static,
                                        background=bg, noise=noise)
-            print(_row(f"{name}, {est}", *errors(res, tracker, lagged)), flush=True)
+            print(_row(f"{name}, {est}", *errors(res, tracker, lagged),
+                       bound=bound_ratio(res, bound_paths()["straight"])), flush=True)
 
 
 def _reference(setup, clutter, axis, noise, frames=100):

@@ -82,15 +82,18 @@ def test_two_targets_keep_their_identities_through_a_crossing():
     frames = simulate_sequence(setup, moving, n_frames=15, fps=10, noise=nl.AWGN(10), seed=0,
                                facet_size_m=FACET, time_axis=nl.default_time_axis(setup, 10e-12))
     grid = nl.Grid.from_ranges(x=(1.5, 5.5), y=(0.5, 4.5), step_m=0.01)
-    tracker = None
+    tracker, warm = None, 0
     for frame in frames:
         tracker = tracker or Tracker(frame.signals, grid, estimator=ModelEstimator(targets=2),
                                      motion=ConstantVelocity(accel_sigma=0.047), max_tracks=2,
                                      max_birge_ratio=2.0, max_misses=20)
         tracks = tracker.update(frame.signals, frame.t_s)
+        warm += any((m.source.details or {}).get("warm_start", {}).get("used")
+                    for m in tracker.last_measurements)
         if frame.index == 3:
             ids = [_nearest(tracks, p) for p in frame.truths]
     assert len(tracks) == 2 and ids[0] != ids[1]
+    assert warm >= 3  # two-plate fits warm-started from both tracks (nlos_cl.tracking.warm)
     # 0.15 m: half a square; the tracks coast up to ~1 s through the crossing
     assert [_nearest(tracks, p, 0.15) for p in frame.truths] == ids
 
