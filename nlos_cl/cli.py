@@ -196,6 +196,10 @@ def _track_args(p):
     p.add_argument("--smooth", action="store_true",
                    help="offline: with --json, print every frame's tracks smoothed with the "
                         "later frames (Rauch-Tung-Striebel), after the last frame")
+    p.add_argument("--lag", type=_number("lag", "pass a number of frames, e.g. 5", minimum=0,
+                                         integer=True), default=0, metavar="L",
+                   help="real time with a latency: with --json, each frame's line L frames "
+                        "later, fixed-lag smoothed with them")
     p.add_argument("--force", action="store_true", help="replace an existing --video file")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 

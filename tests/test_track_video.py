@@ -10,7 +10,7 @@ import pytest
 from PIL import Image
 
 import nlos_cl as nl
-from nlos_cl.apps import track
+from nlos_cl.apps import track, track_video
 from nlos_cl.backend import NumpyBackend
 from nlos_cl.cli import parser
 from nlos_cl.tracking import read_sequence, write_sequence
@@ -41,7 +41,7 @@ def _track(walk, *extra):
 @pytest.fixture(scope="module")
 def recorded(walk, tmp_path_factory):
     """One `--json --video` run, with every map handed to the drawing recorded."""
-    records, draw = [], track._Video.draw
+    records, draw = [], track_video.Video.draw
 
     def spy(self, frame, tracks, measurements, scores):
         records.append((frame.index, frame.truths, self.grid, self.log_mode,
@@ -49,7 +49,7 @@ def recorded(walk, tmp_path_factory):
         return draw(self, frame, tracks, measurements, scores)
     gif = tmp_path_factory.mktemp("video") / "tracks.gif"
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(track._Video, "draw", spy)
+        mp.setattr(track_video.Video, "draw", spy)
         capture = _Stdout()
         with capture:
             assert _track(walk, "--json", "--video", str(gif)) == 0
@@ -96,12 +96,12 @@ def test_display_scale_is_the_same_for_products_and_log_sums():
     rng = np.random.default_rng(0)
     factors = rng.uniform(0.05, 1.0, (3, 20, 30))  # three detectors' normalised likelihoods
     product, log_sum = factors.prod(axis=0), np.log(factors).sum(axis=0)
-    shown = track._display(product, False, 3)
-    np.testing.assert_allclose(shown, track._display(log_sum, True, 3), rtol=1e-12)
+    shown = track_video._display(product, False, 3)
+    np.testing.assert_allclose(shown, track_video._display(log_sum, True, 3), rtol=1e-12)
     np.testing.assert_allclose(shown, (product / product.max()) ** (1 / 3))
     assert shown.max() == pytest.approx(1.0) and shown.min() > 0.05
-    assert not track._display(np.zeros((4, 5)), False, 3).any()  # no signal: a dark map
-    assert track._display(None, False, 3) is None
+    assert not track_video._display(np.zeros((4, 5)), False, 3).any()  # no signal: a dark map
+    assert track_video._display(None, False, 3) is None
 
 
 def _frames(gif):
@@ -120,7 +120,7 @@ def test_gif_has_a_frame_per_tracked_frame_and_shows_the_map(walk, recorded, tmp
     h, w, _ = frames[0].shape
     inner = lambda f: f[int(0.3 * h):int(0.7 * h), int(0.2 * w):int(0.6 * w)]  # noqa: E731
     # without the map (blank under the tracks), with --smooth: the video stays causal
-    monkeypatch.setattr(track, "joint_map", lambda tracker: None)
+    monkeypatch.setattr(track_video, "joint_map", lambda tracker: None)
     blank = tmp_path / "blank.gif"
     assert _track(walk, "--json", "--smooth", "--max-frames", "3", "--video", str(blank)) == 0
     smoothed = [json.loads(x) for x in capsys.readouterr().out.splitlines() if x[:1] == "{"]
@@ -155,14 +155,14 @@ def test_bad_video_paths_are_refused_before_tracking(walk, tmp_path, monkeypatch
 @pytest.mark.parametrize("interrupt", [KeyboardInterrupt, RuntimeError])
 def test_interrupted_video_leaves_no_file_and_no_temporary(walk, tmp_path, monkeypatch,
                                                            interrupt):
-    grab, calls = track._GifWriter.grab_frame, []
+    grab, calls = track_video._GifWriter.grab_frame, []
 
     def failing(self):
         calls.append(1)
         if len(calls) == 2:
             raise interrupt("frame 2")
         return grab(self)
-    monkeypatch.setattr(track._GifWriter, "grab_frame", failing)
+    monkeypatch.setattr(track_video._GifWriter, "grab_frame", failing)
     new, old = tmp_path / "new.gif", tmp_path / "old.gif"
     old.write_bytes(b"old")
     for path, force in ((new, []), (old, ["--force"])):
@@ -170,7 +170,7 @@ def test_interrupted_video_leaves_no_file_and_no_temporary(walk, tmp_path, monke
         with pytest.raises(interrupt):
             _track(walk, "--max-frames", "4", "--video", str(path), *force)
     assert sorted(os.listdir(tmp_path)) == ["old.gif"] and old.read_bytes() == b"old"
-    monkeypatch.setattr(track._GifWriter, "grab_frame", grab)  # a complete write replaces it
+    monkeypatch.setattr(track_video._GifWriter, "grab_frame", grab)  # a complete write replaces it
     assert _track(walk, "--max-frames", "2", "--video", str(old), "--force") == 0
     assert sorted(os.listdir(tmp_path)) == ["old.gif"] and Image.open(old).n_frames == 2
 

@@ -148,3 +148,45 @@ def test_track_command_smooths_offline(tmp_path, capsys):
     # the last frame has no later frames: the same; earlier ones see the later frames
     np.testing.assert_allclose(pos(smoothed[-1]), pos(causal[-1]), atol=1e-5)
     assert max(np.abs(pos(s) - pos(c)).max() for s, c in zip(smoothed[2:-1], causal[2:-1])) > 1e-4
+
+
+def test_track_command_prints_fixed_lag_lines(tmp_path, capsys):
+    """`nlos-cl track F --json --lag 3`: frame k's line after frame k + 3, with what
+    Tracker.lagged(3) says of frame k then (the API run on the same file); the last 3 frames
+    at the end with lags 2, 1, 0 (lag 0: the filter's own state, the causal line)."""
+    from nlos_cl.apps import track
+    from nlos_cl.cli import parser
+    from nlos_cl.tracking import MovingTarget, Trajectory, simulate_sequence
+    setup = nl.paper_setup()
+    walk = Trajectory([0, 1.2], [[3, 1.5, 0], [3.5, 2.5, 0]])
+    target = MovingTarget(nl.Target(nl.rectangle(centre=walk.at(0), cell_m=0.03)), walk)
+    frames = simulate_sequence(setup, target, n_frames=12, fps=10, noise=nl.AWGN(10), seed=0,
+                               facet_size_m=0.03, time_axis=nl.default_time_axis(setup, 1e-11))
+    path = write_sequence(tmp_path / "walk.h5", frames)
+    out = {}
+    for lag in (0, 3):
+        args = parser().parse_args(["track", str(path), "--json", "--no-progress", "--lag",
+                                    str(lag)])
+        capsys.readouterr()
+        assert track.main(args) == 0
+        out[lag] = [json.loads(x) for x in capsys.readouterr().out.splitlines()
+                    if x.startswith("{")]
+    causal, lagged = out[0], out[3]
+    assert [e["frame"] for e in lagged] == list(range(12))
+    assert [e["lag_frames"] for e in lagged] == [3] * 9 + [2, 1, 0]
+    # the API: the same tracker settings as the command's defaults
+    seq = read_sequence(path)
+    tracker = track._tracker(args, seq, nl.resolve_backend(None))
+    expected = {}
+    for fr in seq:
+        tracker.update(fr.histograms, fr.t_s)
+        for s in tracker.lagged(3).values():
+            expected[s.frame] = seq.frame.from_internal(s.position)
+    for e in lagged[3:9]:  # frames whose track is older than 3 frames
+        np.testing.assert_allclose(e["tracks"][0]["position"], expected[e["frame"]], atol=2e-5)
+    np.testing.assert_allclose(lagged[-1]["tracks"][0]["position"],
+                               causal[-1]["tracks"][0]["position"], atol=1e-5)
+    assert max(abs(np.array(a["tracks"][0]["position"]) - b["tracks"][0]["position"]).max()
+               for a, b in zip(lagged[3:9], causal[3:9])) > 1e-4
+    with pytest.raises(nl.InputError, match="--lag"):
+        track.main(parser().parse_args(["track", str(path), "--lag", "2"]))  # without --json

@@ -1,0 +1,214 @@
+"""`nlos-cl track --video`: the animation written while tracking (nlos_cl/apps/track.py drives
+it): each frame's joint map (the Locator's scores over the whole grid, shown as `_display`
+says) under the tracks (2-sigma error ellipses, trails), the measurements and the truths, in
+our frame's x/y plane, one frame in memory at a time; the file appears only when complete.
+It scores the whole grid once more each frame (the tracker's own search need not score every
+cell), so --video costs that much extra per frame.
+"""
+from __future__ import annotations
+
+
+def check_video_path(args) -> None:
+    from pathlib import Path
+
+    from ..errors import require
+    path = Path(args.video)
+    require(path.suffix in (".gif", ".mp4"), "--video", f"{path} is neither .gif nor .mp4",
+            "pass e.g. tracks.gif")
+    require(path.parent.is_dir(), "--video", f"the folder {path.parent} does not exist",
+            "pass a path in an existing folder")
+    require(args.force or not path.exists(), "--video", f"{path} exists",
+            "pick another path, or pass --force to replace it")
+    if path.suffix == ".mp4":  # before any tracking, not after the last frame
+        from matplotlib import animation
+        require(animation.writers.is_available("ffmpeg"), "--video", "an .mp4 needs ffmpeg, "
+                "which is not on the PATH", "install ffmpeg, or write a .gif")
+
+
+def joint_map(tracker):
+    """The last frame's joint map (tracker.locator.scores of its filtered signals: the product
+    over detectors of each cell's filtered signal, or the sum of their logs in log mode) as
+    (ny, nx) float64, the maximum over z for a 3D grid; None where the frame had no filtered
+    signals (a running mean's first frame)."""
+    sig = tracker.last_filtered
+    if sig is None:
+        return None
+    nx, ny, nz = tracker.grid.shape
+    scores = sig.backend.to_numpy(tracker.locator.scores(sig)).reshape(nz, ny, nx)
+    return scores.max(axis=0)
+
+
+def _display(scores, log_mode: bool, n_detectors: int):
+    """A joint map for the eye, in [0, 1]: the geometric mean over detectors of the normalised
+    likelihood, over its frame's peak (product ** (1/N), or exp(log sum / N) in log mode; the
+    same picture either way). A product of N peaked factors is a lone spot: its N-th root keeps
+    the spot brightest but shows its spread and the other near-intersections too, and a frame's
+    own peak fixes the scale whatever the signal's strength. Zeros where there is no map."""
+    import numpy as np
+    if scores is None:
+        return None
+    top = float(scores.max())
+    if log_mode:
+        return np.exp((scores - top) / n_detectors) if top > float(scores.min()) else \
+            np.zeros_like(scores)
+    return (np.maximum(scores, 0.0) / top) ** (1.0 / n_detectors) if top > 0 else \
+        np.zeros_like(scores)
+
+
+class Video:
+    """`with Video(path, tmp, tracker) as v: v.add(frame, tracks, measurements, tracker)` per
+    frame: each frame drawn and written as it comes (nothing kept per frame), into `tmp`
+    (atomic_write's temporary). An .mp4 goes through ffmpeg, which picks the format by suffix:
+    written beside as tmp.mp4, moved onto tmp by close(); an exception removes it."""
+
+    FPS, DPI = 10, 100
+
+    def __init__(self, path: str, tmp: str, tracker):
+        from ..plotting import pyplot
+        self.grid, self.log_mode = tracker.grid, tracker.locator.log_mode
+        self.n_detectors = tracker.layout.n_detectors
+        self.tmp, self.named = tmp, (f"{tmp}.mp4" if path.endswith(".mp4") else None)
+        self.plt = pyplot()
+        self.fig, self.ax = self.plt.subplots(figsize=(6, 5), dpi=self.DPI,
+                                              layout="constrained")
+        self.image, self.overlay = self._axes(), []
+        self.fig.draw_without_rendering()  # lay out once for every frame (was 1/3 of a frame)
+        self.fig.set_layout_engine("none")
+        if self.named is None:
+            self.writer = _GifWriter(fps=self.FPS)
+        else:
+            from matplotlib import animation
+            self.writer = animation.FFMpegWriter(fps=self.FPS)
+        self._saving = None
+
+    def __enter__(self):
+        saving = self.writer.saving(self.fig, self.named or self.tmp, self.DPI)
+        try:
+            saving.__enter__()  # ffmpeg starts, or the GIF opens
+        except BaseException:
+            self.plt.close(self.fig)
+            raise
+        self._saving = saving
+        return self
+
+    def __exit__(self, *exc):
+        import os
+        try:
+            if self._saving is not None:
+                saving, self._saving = self._saving, None
+                saving.__exit__(*exc)  # the writer's finish(): ffmpeg ends, the GIF's trailer
+            if exc[0] is None and self.named is not None:
+                os.replace(self.named, self.tmp)
+        finally:
+            if self.named is not None and os.path.exists(self.named):
+                os.unlink(self.named)
+            self.plt.close(self.fig)
+        return False
+
+    def close(self):
+        self.__exit__(None, None, None)
+
+    def add(self, frame, tracks, measurements, tracker) -> None:
+        """Draw this frame (the tracker's last: its joint map) and write it to the video."""
+        self.draw(frame, tracks, measurements, joint_map(tracker))
+        self.writer.grab_frame()
+
+    def _axes(self):
+        """The map's image (updated per frame), colour bar, labels and legend."""
+        import numpy as np
+        from matplotlib import patheffects
+        from matplotlib.lines import Line2D
+        (x, y, _), (sx, sy, _) = self.grid.axes(), self.grid.step
+        image = self.ax.imshow(np.zeros(self.grid.shape[1::-1]), origin="lower", cmap="magma",
+                               vmin=0.0, vmax=1.0, aspect="equal",  # (fine grids: smoothed)
+                               extent=(x[0] - sx / 2, x[-1] + sx / 2, y[0] - sy / 2,
+                                       y[-1] + sy / 2))
+        plane = "max over z" if self.grid.shape[2] > 1 else f"z = {self.grid.origin[2]:g} m"
+        self.fig.colorbar(image, ax=self.ax, shrink=0.8, label=f"(joint likelihood / frame's "
+                          f"peak) ^ (1/{self.n_detectors}), {plane}")
+        self.ax.set(xlabel="x (m)", ylabel="y (m), distance from the wall")
+        self.ax.set_title("frame 0, t = 0.00 s", fontsize=10)  # (laid out with a title)
+        edge = [patheffects.withStroke(linewidth=2.5, foreground="black")]  # seen on the peak
+        self.style = {"truth": dict(ls="", marker="+", color="lime", ms=10, mew=1.5),
+                      "measurement": dict(ls="", marker="x", color="white", ms=6, mew=1.5),
+                      "track, 2-sigma ellipse": dict(color="cyan", lw=1.2)}
+        for style in self.style.values():
+            style["path_effects"] = edge
+        self.ax.legend(handles=[Line2D([], [], label=k, **v) for k, v in self.style.items()],
+                       loc="upper right", fontsize=7, framealpha=0.6)
+        return image
+
+    def draw(self, frame, tracks, measurements, scores) -> None:
+        """Redraw the figure for one frame; scores: joint_map's (ny, nx) map or None."""
+        import numpy as np
+        shown = _display(scores, self.log_mode, self.n_detectors)
+        self.image.set_data(np.zeros(self.grid.shape[1::-1]) if shown is None else shown)
+        for artist in self.overlay:
+            artist.remove()
+        ax, drawn, (truth, meas, track) = self.ax, [], self.style.values()
+        ax.set_title(f"frame {frame.index}, t = {frame.t_s:.2f} s"
+                     + (" (no map)" if shown is None else ""), fontsize=10)
+        if frame.truths is not None:
+            drawn += ax.plot(frame.truths[:, 0], frame.truths[:, 1], **truth)
+        for m in measurements:
+            drawn += ax.plot(*m.position[:2], **meas)
+        ang = np.linspace(0, 2 * np.pi, 60)
+        for t in tracks:  # trail: the last 30 positions; dotted ellipse: a tentative track
+            trail = np.array([(h[2], h[3]) for h in list(t.history)[-30:]]).reshape(-1, 2)
+            w, v = np.linalg.eigh(t.covariance[:2, :2])
+            ell = v @ (2 * np.sqrt(np.maximum(w, 0))[:, None] * [np.cos(ang), np.sin(ang)])
+            p = t.position
+            drawn += ax.plot(trail[:, 0], trail[:, 1], color="cyan", lw=0.8, alpha=0.8)
+            drawn += ax.plot(p[0] + ell[0], p[1] + ell[1], **track,
+                             ls="-" if t.status == "confirmed" else ":")
+            drawn.append(ax.annotate(str(t.id), p[:2], color="cyan", fontsize=9,
+                                     xytext=(5, 5), textcoords="offset points",
+                                     path_effects=track["path_effects"]))
+        self.overlay = drawn
+
+
+class _GifWriter:
+    """A GIF written frame by frame, with matplotlib's writer interface (saving, grab_frame):
+    matplotlib's PillowWriter keeps every frame in memory until the last (0.9 MB each at 600 x
+    500 pixels). Each frame gets its own 256-colour palette (fast octree), through
+    Pillow's GIF frame encoder (GifImagePlugin.getheader / getdata)."""
+
+    def __init__(self, fps: int):
+        self.fps, self.fig, self.dpi, self._fh, self._frames = fps, None, None, None, 0
+
+    def saving(self, fig, outfile, dpi):
+        import contextlib
+
+        @contextlib.contextmanager
+        def context():
+            self.fig, self.dpi, self._frames = fig, dpi, 0
+            self._fh = open(outfile, "wb")
+            try:
+                yield self
+            finally:
+                self.finish()
+        return context()
+
+    def grab_frame(self) -> None:
+        from io import BytesIO
+
+        from PIL import GifImagePlugin, Image
+        buf = BytesIO()
+        self.fig.savefig(buf, format="rgba", dpi=self.dpi)
+        w, h = self.fig.get_size_inches()
+        size = int(w * self.dpi + 1e-8), int(h * self.dpi + 1e-8)
+        im = Image.frombuffer("RGBA", size, buf.getbuffer(), "raw", "RGBA", 0, 1)
+        im = im.convert("RGB").quantize(256, method=Image.Quantize.FASTOCTREE)  # ~5x median cut
+        ms = int(round(1000 / self.fps))
+        if self._frames == 0:  # the first frame's palette as the global one, loop forever
+            self._fh.write(b"".join(GifImagePlugin.getheader(im, None, {"loop": 0,
+                                                                        "duration": ms})[0]))
+        self._fh.write(b"".join(GifImagePlugin.getdata(im, (0, 0), duration=ms,
+                                                       include_color_table=True)))
+        self._frames += 1
+
+    def finish(self) -> None:
+        if self._fh is not None:
+            fh, self._fh = self._fh, None
+            with fh:
+                fh.write(b";")  # the GIF trailer
