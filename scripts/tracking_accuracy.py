@@ -7,7 +7,8 @@ Sections: lines (straight/curved, paper and 8-spot layouts, paper and model esti
 causal filter and the offline RTS smoother), crossing (two targets, 8 spots, model estimator
 with targets=2, 10 seeds), box (a static box with and without background removal), speed
 (frames/s, 3 x 4,096 bins, 512^2 grid, host frames to track states), memory (peak RSS tracking
-a 10,000-frame sequence file). --update-doc writes each section's output into docs/tracking.md
+a 10,000-frame sequence file), synthetic (the constant-velocity filter alone on the bound's
+line and circle with white 8 mm errors: what its process noise allows). --update-doc writes each section's output into docs/tracking.md
 between its markers (<!-- tracking_accuracy:NAME --> ... <!-- /tracking_accuracy:NAME -->).
 --cold: trackers with warm_start=False (every model fit from the frame's data alone: the
 numbers before warm starts, for comparison; not for --update-doc).
@@ -188,6 +189,36 @@ def lines(quick):
                            bound=bound_ratio(res, bound_paths()[tname])), flush=True)
 
 
+def synthetic(quick):
+    """The constant-velocity filter alone (Tracker.step, no estimator) on the two paths of the
+    causal bound (bound_paths: 50 frames at 10 fps) measured with white 8 mm errors, seeds x
+    process noises: what the motion model allows. Ratio: filter RMS / per-frame RMS after
+    frame 5, pooled over the seeds."""
+    from nlos_cl.tracking import kalman
+    seeds, sigma, t = (5 if quick else 30), 0.008, np.arange(50) / FPS
+    paths = bound_paths()
+    layout = nl.simulate(nl.paper_scene(facet_size_m=0.05)).layout  # (only its geometry)
+    print("\n| accel_sigma | " + " | ".join(f"{n}: filter / per frame" for n in paths)
+          + " |\n|---|" + "---|" * len(paths))
+    for accel in (0.005, 0.01, 0.02, 0.047, 0.07, 0.1):
+        cells = []
+        for family, params in paths.values():
+            truth, filtered, measured = family(params, t), [], []
+            for seed in range(seeds):
+                rng = np.random.default_rng(seed)
+                tracker = Tracker(layout, GRID, frame_interval_s=1 / FPS,
+                                  motion=ConstantVelocity(accel_sigma=accel))
+                for k, tk in enumerate(t):
+                    z = truth[k] + sigma * rng.standard_normal(2)
+                    m = kalman.Measurement(np.arange(2), z, sigma ** 2 * np.eye(2), np.r_[z, 0])
+                    (track,) = tracker.step([m], tk)
+                    if k >= 5:
+                        filtered.append(np.sum((track.position[:2] - truth[k]) ** 2))
+                        measured.append(np.sum((z - truth[k]) ** 2))
+            cells.append(f"{math.sqrt(np.mean(filtered) / np.mean(measured)):.2f}")
+        print(f"| {accel} | " + " | ".join(cells) + " |", flush=True)
+
+
 def crossing(quick):
     n, seeds = (16, 3) if quick else (20, 10)
     setup = layouts()["8-spot"]
@@ -309,7 +340,7 @@ def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--quick", action="store_true")
     p.add_argument("--only", nargs="*", default=None,
-                   choices=["lines", "crossing", "box", "speed", "memory"])
+                   choices=["lines", "crossing", "box", "speed", "memory", "synthetic"])
     p.add_argument("--update-doc", action="store_true",
                    help="write each section's output into docs/tracking.md at its markers")
     p.add_argument("--cold", action="store_true",
@@ -319,7 +350,7 @@ def main(argv=None):
         TRACKING["warm_start"] = False
     warnings.simplefilter("ignore")  # collinear spots: the model estimator's height warning
     print(f"device: {nl.resolve_backend().name}; {os.cpu_count()} CPU cores")
-    for name in args.only or ["speed", "memory", "lines", "box", "crossing"]:
+    for name in args.only or ["speed", "memory", "lines", "synthetic", "box", "crossing"]:
         t0 = time.perf_counter()
         buffer = io.StringIO()
         with contextlib.redirect_stdout(_Tee(sys.stdout, buffer)):
