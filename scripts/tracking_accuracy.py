@@ -8,8 +8,9 @@ causal filter and the offline RTS smoother), crossing (two targets, 8 spots, mod
 with targets=2, 10 seeds), box (a static box with and without background removal), speed
 (frames/s, 3 x 4,096 bins, 512^2 grid, host frames to track states), memory (peak RSS tracking
 a 10,000-frame sequence file), synthetic (the constant-velocity filter alone on the bound's
-line and circle with white 8 mm errors: what its process noise allows). --update-doc writes each section's output into docs/tracking.md
-between its markers (<!-- tracking_accuracy:NAME --> ... <!-- /tracking_accuracy:NAME -->).
+line and circle with white 8 mm errors: what its process noise allows). --update-doc writes
+each section's output into docs/tracking.md between its markers
+(<!-- tracking_accuracy:NAME --> ... <!-- /tracking_accuracy:NAME -->).
 --cold: trackers with warm_start=False (every model fit from the frame's data alone: the
 numbers before warm starts, for comparison; not for --update-doc).
 """
@@ -36,7 +37,7 @@ from nlos_cl.model import ModelEstimator
 from nlos_cl.tracking import (BackgroundRemover, ConstantVelocity, MovingTarget, SensorNoise,
                               Tracker, Trajectory, read_sequence, simulate_sequence,
                               write_sequence)
-from nlos_cl.tracking.bounds import CIRCLE, LINE, causal_bound
+from nlos_cl.tracking import bounds
 
 FACET, DT, FPS, SNR_DB = 0.02, 10e-12, 10, 10
 GRID = nl.Grid.from_ranges(x=(1.5, 5.5), y=(0.5, 4.5), step_m=0.01)
@@ -60,20 +61,21 @@ def layouts():
             "8-spot": nl.Setup(detector_spots=circle((-1.0, 0, 0), 0.5, 8))}
 
 
+def bound_paths(span=5.0):
+    """The two paths as families of nlos_cl.tracking.bounds with their true parameters, `span`
+    s long: a line from (3, 1.5) to (4, 3), a quarter circle of 1.5 m around (2, 3)."""
+    return {"straight": (bounds.line, (3.0, 1.5, 1.0 / span, 1.5 / span)),
+            "curved": (bounds.circle, (2.0, 3.0, 1.5, 0.0, math.pi / 2 / span))}
+
+
 def trajectories(span=5.0):
     """The two paths, `span` s long (50 frames at 10 fps; --quick runs their first 20 frames,
-    at the same speed)."""
-    arc = np.linspace(0, np.pi / 2, 21)
-    curve = np.stack([2.0 + 1.5 * np.sin(arc), 1.5 + 1.5 * (1 - np.cos(arc)), 0 * arc], 1)
-    return {"straight": Trajectory([0, span], [[3.0, 1.5, 0], [4.0, 3.0, 0]]),
-            "curved": Trajectory(np.linspace(0, span, 21), curve)}
-
-
-def bound_paths(span=5.0):
-    """Each path's family and true parameters for the causal bound (bound_ratio): the straight
-    path's line, the curved path's circle (its 21 waypoints lie on it)."""
-    return {"straight": (LINE, (3.0, 1.5, 1.0 / span, 1.5 / span)),
-            "curved": (CIRCLE, (2.0, 3.0, 1.5, 0.0, math.pi / 2 / span))}
+    at the same speed): the line's end points, 21 waypoints on the circle."""
+    out = {}
+    for (name, (family, params)), n in zip(bound_paths(span).items(), (2, 21)):
+        t = np.linspace(0, span, n)
+        out[name] = Trajectory(t, np.column_stack([family(params, t), np.zeros(n)]))
+    return out
 
 
 def run(setup, moving, estimator, *, n_frames, seed=0, static=(), background=None,
@@ -138,7 +140,7 @@ def bound_ratio(result, path, first=5):
         near = [np.linalg.norm(p[:2] - fr.truths[0][:2]) for p in meas]
         covs.append(cov[int(np.argmin(near))] if near else np.full((2, 2), np.nan))
     covs = np.array(covs)
-    bound = causal_bound(family, params, t, covs)[first:]
+    bound = bounds.causal_bound(family, params, t, covs)[first:]
     seen = np.all(np.isfinite(covs[first:]), axis=(1, 2))
     if not seen.any():
         return math.nan

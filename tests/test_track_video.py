@@ -1,5 +1,7 @@
 """`nlos-cl track SEQ --video out.gif`: each frame's joint map (the Locator's) under the tracks,
 written frame by frame into an atomic write."""
+import contextlib
+import io
 import json
 import os
 import shutil
@@ -48,29 +50,12 @@ def recorded(walk, tmp_path_factory):
                         None if scores is None else scores.copy()))
         return draw(self, frame, tracks, measurements, scores)
     gif = tmp_path_factory.mktemp("video") / "tracks.gif"
-    with pytest.MonkeyPatch.context() as mp:
+    out = io.StringIO()  # (a module-scoped fixture cannot use capsys)
+    with pytest.MonkeyPatch.context() as mp, contextlib.redirect_stdout(out):
         mp.setattr(track_video.Video, "draw", spy)
-        capture = _Stdout()
-        with capture:
-            assert _track(walk, "--json", "--video", str(gif)) == 0
-    return gif, records, capture.lines()
-
-
-class _Stdout:
-    """Collects print()ed lines (a module-scoped fixture cannot use capsys)."""
-
-    def __enter__(self):
-        import contextlib
-        import io
-        self.buf = io.StringIO()
-        self._redirect = contextlib.redirect_stdout(self.buf)
-        self._redirect.__enter__()
-
-    def __exit__(self, *exc):
-        return self._redirect.__exit__(*exc)
-
-    def lines(self):
-        return [json.loads(x) for x in self.buf.getvalue().splitlines() if x.startswith("{")]
+        assert _track(walk, "--json", "--video", str(gif)) == 0
+    return gif, records, [json.loads(x) for x in out.getvalue().splitlines()
+                          if x.startswith("{")]
 
 
 @pytest.mark.filterwarnings("ignore:height .z. is unobservable")

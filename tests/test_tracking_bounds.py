@@ -5,7 +5,7 @@ import pytest
 
 from nlos_cl.errors import InputError
 from nlos_cl.model.lm import least_squares
-from nlos_cl.tracking.bounds import CIRCLE, LINE, causal_bound
+from nlos_cl.tracking.bounds import causal_bound, circle, line
 
 T = np.arange(50) * 0.1
 UNIT = np.broadcast_to(np.eye(2), (50, 2, 2))
@@ -14,7 +14,7 @@ UNIT = np.broadcast_to(np.eye(2), (50, 2, 2))
 def test_line_bound_is_the_least_squares_endpoint_variance():
     """A line fitted to k + 1 equally spaced unit-variance points: the fitted end point's
     variance is (4k + 2) / ((k + 1)(k + 2)) per axis; one point cannot fix a line."""
-    bound = causal_bound(LINE, (3, 1.5, 0.2, 0.3), T, UNIT)
+    bound = causal_bound(line, (3, 1.5, 0.2, 0.3), T, UNIT)
     assert np.all(np.isinf(bound[0]))
     k = np.arange(1, 50)
     expected = (4 * k + 2) / ((k + 1) * (k + 2))
@@ -29,16 +29,16 @@ def test_circle_bound_matches_monte_carlo_fits():
     sample variance's relative sd is sqrt(2 / 400) = 7 % per axis; 25 % is > 3 sd of the sum."""
     truth = np.array([2.0, 3.0, 1.5, 0.0, np.pi / 10])
     sigma, k = 0.01, 15
-    bound = causal_bound(CIRCLE, truth, T, sigma ** 2 * UNIT)[k]
+    bound = causal_bound(circle, truth, T, sigma ** 2 * UNIT)[k]
     rng = np.random.default_rng(4)
     t = T[:k + 1]
-    clean = CIRCLE(truth, t)
+    clean = circle(truth, t)
     ends = []
     for _ in range(400):
         y = clean + sigma * rng.standard_normal(clean.shape)
-        fit = least_squares(lambda p: (CIRCLE(p, t) - y).ravel(), truth, ftol=1e-12,
+        fit = least_squares(lambda p: (circle(p, t) - y).ravel(), truth, ftol=1e-12,
                             xtol=1e-12)
-        ends.append(CIRCLE(fit.x, t[-1:])[0])
+        ends.append(circle(fit.x, t[-1:])[0])
     measured = np.cov(np.array(ends).T)
     assert np.trace(measured) == pytest.approx(np.trace(bound), rel=0.25)
     assert np.trace(bound) < sigma ** 2 * 2  # better than one frame's measurement
@@ -47,11 +47,11 @@ def test_circle_bound_matches_monte_carlo_fits():
 def test_a_frame_without_measurement_adds_nothing():
     cov = np.array(UNIT)
     cov[7] = np.nan
-    with_gap = causal_bound(LINE, (0, 0, 1, 1), T, cov)
-    without = causal_bound(LINE, (0, 0, 1, 1), np.delete(T, 7), np.delete(UNIT, 7, axis=0))
+    with_gap = causal_bound(line, (0, 0, 1, 1), T, cov)
+    without = causal_bound(line, (0, 0, 1, 1), np.delete(T, 7), np.delete(UNIT, 7, axis=0))
     np.testing.assert_allclose(with_gap[8:], without[7:], rtol=1e-9)
 
 
 def test_covariances_of_the_wrong_shape_are_refused():
     with pytest.raises(InputError, match="covariances"):
-        causal_bound(LINE, (0, 0, 1, 1), T, np.ones((49, 2, 2)))
+        causal_bound(line, (0, 0, 1, 1), T, np.ones((49, 2, 2)))

@@ -122,19 +122,24 @@ def test_truncated_sequence_is_refused(tmp_path):
         list(read_sequence(cut))
 
 
-def test_track_command_smooths_offline(tmp_path, capsys):
-    from nlos_cl.apps import track
-    from nlos_cl.cli import parser
+@pytest.fixture(scope="module")
+def walk_file(tmp_path_factory):
+    """12 frames (10 fps, 10 dB) of a plate walking 1.1 m on the paper's setup, as a file."""
     from nlos_cl.tracking import MovingTarget, Trajectory, simulate_sequence
     setup = nl.paper_setup()
     walk = Trajectory([0, 1.2], [[3, 1.5, 0], [3.5, 2.5, 0]])
     target = MovingTarget(nl.Target(nl.rectangle(centre=walk.at(0), cell_m=0.03)), walk)
     frames = simulate_sequence(setup, target, n_frames=12, fps=10, noise=nl.AWGN(10), seed=0,
                                facet_size_m=0.03, time_axis=nl.default_time_axis(setup, 1e-11))
-    path = write_sequence(tmp_path / "walk.h5", frames)
+    return write_sequence(tmp_path_factory.mktemp("walk") / "walk.h5", frames)
+
+
+def test_track_command_smooths_offline(walk_file, capsys):
+    from nlos_cl.apps import track
+    from nlos_cl.cli import parser
     lines = {}
     for smooth in (False, True):  # through the parser: `nlos-cl track F --json --smooth`
-        args = parser().parse_args(["track", str(path), "--json", "--estimator", "paper",
+        args = parser().parse_args(["track", str(walk_file), "--json", "--estimator", "paper",
                                     "--no-progress"] + (["--smooth"] if smooth else []))
         assert args.smooth is smooth
         capsys.readouterr()
@@ -150,22 +155,15 @@ def test_track_command_smooths_offline(tmp_path, capsys):
     assert max(np.abs(pos(s) - pos(c)).max() for s, c in zip(smoothed[2:-1], causal[2:-1])) > 1e-4
 
 
-def test_track_command_prints_fixed_lag_lines(tmp_path, capsys):
+def test_track_command_prints_fixed_lag_lines(walk_file, capsys):
     """`nlos-cl track F --json --lag 3`: frame k's line after frame k + 3, with what
     Tracker.lagged(3) says of frame k then (the API run on the same file); the last 3 frames
     at the end with lags 2, 1, 0 (lag 0: the filter's own state, the causal line)."""
     from nlos_cl.apps import track
     from nlos_cl.cli import parser
-    from nlos_cl.tracking import MovingTarget, Trajectory, simulate_sequence
-    setup = nl.paper_setup()
-    walk = Trajectory([0, 1.2], [[3, 1.5, 0], [3.5, 2.5, 0]])
-    target = MovingTarget(nl.Target(nl.rectangle(centre=walk.at(0), cell_m=0.03)), walk)
-    frames = simulate_sequence(setup, target, n_frames=12, fps=10, noise=nl.AWGN(10), seed=0,
-                               facet_size_m=0.03, time_axis=nl.default_time_axis(setup, 1e-11))
-    path = write_sequence(tmp_path / "walk.h5", frames)
     out = {}
     for lag in (0, 3):
-        args = parser().parse_args(["track", str(path), "--json", "--no-progress", "--lag",
+        args = parser().parse_args(["track", str(walk_file), "--json", "--no-progress", "--lag",
                                     str(lag)])
         capsys.readouterr()
         assert track.main(args) == 0
@@ -175,7 +173,7 @@ def test_track_command_prints_fixed_lag_lines(tmp_path, capsys):
     assert [e["frame"] for e in lagged] == list(range(12))
     assert [e["lag_frames"] for e in lagged] == [3] * 9 + [2, 1, 0]
     # the API: the same tracker settings as the command's defaults
-    seq = read_sequence(path)
+    seq = read_sequence(walk_file)
     tracker = track._tracker(args, seq, nl.resolve_backend(None))
     expected = {}
     for fr in seq:
@@ -189,4 +187,4 @@ def test_track_command_prints_fixed_lag_lines(tmp_path, capsys):
     assert max(abs(np.array(a["tracks"][0]["position"]) - b["tracks"][0]["position"]).max()
                for a, b in zip(lagged[3:9], causal[3:9])) > 1e-4
     with pytest.raises(nl.InputError, match="--lag"):
-        track.main(parser().parse_args(["track", str(path), "--lag", "2"]))  # without --json
+        track.main(parser().parse_args(["track", str(walk_file), "--lag", "2"]))  # without --json

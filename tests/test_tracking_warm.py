@@ -88,7 +88,8 @@ def test_jacobian_plates_borrow_the_base_plate_statistics(scored, cold):
     borrowed = objective.jac(theta)
     result = model_fit.fit(host, p[None], free, 10)
     cov_borrowed = model_fit.covariance(host, result, free)[0]
-    host.borrows_statistics = False  # the exact derivatives: every moved plate its own
+    own = HostProblem.column_batch  # the exact derivatives: every moved plate its own
+    host.column_batch = lambda rows, like=None: own(host, rows)
     exact = objective.jac(theta)
     cov_exact = model_fit.covariance(host, result, free)[0]
     err = np.linalg.norm(borrowed - exact, axis=0) / np.linalg.norm(exact, axis=0)

@@ -48,9 +48,10 @@ def _tracker(args, seq, backend):
                    frame_interval_s=interval, backend=backend)
 
 
-def _entry(frame, tracks, measurements, cframe, smoothed=None) -> dict:
+def _entry(frame, tracks, measurements, cframe, smoothed=None, mark=None) -> dict:
     """One frame's JSON object; `smoothed`: {(id, frame): Smoothed} replaces the filter's
-    position, velocity and covariance where it holds the track."""
+    position, velocity and covariance where it holds the track; `mark`: keys added (what
+    replaced them: {"smoothed": true} or {"lag_frames": L})."""
     import numpy as np
 
     from .files import _covariance_json
@@ -67,8 +68,7 @@ def _entry(frame, tracks, measurements, cframe, smoothed=None) -> dict:
              "measurements": [r5(cframe.from_internal(x.position)) for x in measurements],
              "truths": None if frame.truths is None else
              [r5(cframe.from_internal(p)) for p in frame.truths]}
-    if smoothed is not None:
-        entry["smoothed"] = True
+    entry.update(mark or {})
     return entry
 
 
@@ -76,15 +76,15 @@ def main(args) -> int:
     from ..backend import resolve_backend
     from ..safe_io import atomic_write
     from ..tracking import read_sequence
+    from ..errors import require
+    require(not (args.lag and (args.smooth or not args.json)), "--lag", "prints fixed-lag "
+            "lines with --json, and --smooth already uses every later frame",
+            "pass --json --lag N without --smooth")
     seq = read_sequence(args.file)
     backend = resolve_backend(args.device)
     if args.video:
         from .track_video import check_video_path
         check_video_path(args)
-    from ..errors import require
-    require(not (args.lag and (args.smooth or not args.json)), "--lag", "prints fixed-lag "
-            "lines with --json, and --smooth already uses every later frame",
-            "pass --json --lag N without --smooth")
     tracker = _tracker(args, seq, backend)
     stop = len(seq) if args.max_frames is None else min(args.max_frames, len(seq))
     kept = []
@@ -101,7 +101,8 @@ def main(args) -> int:
         smoothed = {(tid, s.frame): s for tid, points in tracker.smooth().items()
                     for s in points}
         for frame, tracks, measurements in kept:
-            print(json.dumps(_entry(frame, tracks, measurements, seq.frame, smoothed)))
+            print(json.dumps(_entry(frame, tracks, measurements, seq.frame, smoothed,
+                                    {"smoothed": True})))
     if not args.json:
         for t in tracker.tracks:
             where = [round(float(v), 3) for v in seq.frame.from_internal(t.position)]
@@ -127,7 +128,7 @@ def _loop(args, seq, tracker, stop, video) -> list:
             tracks = tracker.update(frame.histograms, frame.t_s)
             # small: the frame's header (no histograms), tracks and measurements
             header = (replace(frame, histograms=None), [copy.copy(t) for t in tracks],
-                      tracker.last_measurements)
+                      tracker.last_measurements) if args.json else None
             if args.json and args.smooth:
                 kept.append(header)
             elif args.json and lag:
@@ -137,7 +138,7 @@ def _loop(args, seq, tracker, stop, video) -> list:
             elif args.json:
                 print(json.dumps(_entry(*header, seq.frame)), flush=True)
             if video is not None:
-                video.add(frame, tracks, tracker.last_measurements, tracker)
+                video.add(frame, tracks, tracker.last_measurements)
             bar.update(1)
     finally:
         bar.close()
@@ -151,7 +152,4 @@ def _loop(args, seq, tracker, stop, video) -> list:
 def _print_lagged(header, lagged, lag, cframe) -> None:
     """A frame's line with its tracks' fixed-lag estimates ({id: Smoothed}, Tracker.lagged)."""
     smoothed = {(tid, s.frame): s for tid, s in lagged.items()}
-    entry = _entry(*header, cframe, smoothed)
-    del entry["smoothed"]
-    entry["lag_frames"] = lag
-    print(json.dumps(entry), flush=True)
+    print(json.dumps(_entry(*header, cframe, smoothed, {"lag_frames": lag})), flush=True)

@@ -56,16 +56,16 @@ def _display(scores, log_mode: bool, n_detectors: int):
 
 
 class Video:
-    """`with Video(path, tmp, tracker) as v: v.add(frame, tracks, measurements, tracker)` per
-    frame: each frame drawn and written as it comes (nothing kept per frame), into `tmp`
+    """`with Video(path, tmp, tracker) as v: v.add(frame, tracks, measurements)` after each
+    tracker.update: each frame drawn and written as it comes (nothing kept per frame), into `tmp`
     (atomic_write's temporary). An .mp4 goes through ffmpeg, which picks the format by suffix:
-    written beside as tmp.mp4, moved onto tmp by close(); an exception removes it."""
+    written beside as tmp.mp4, moved onto tmp on leaving the `with`; an exception removes it."""
 
     FPS, DPI = 10, 100
 
     def __init__(self, path: str, tmp: str, tracker):
         from ..plotting import pyplot
-        self.grid, self.log_mode = tracker.grid, tracker.locator.log_mode
+        self.tracker, self.grid, self.log_mode = tracker, tracker.grid, tracker.locator.log_mode
         self.n_detectors = tracker.layout.n_detectors
         self.tmp, self.named = tmp, (f"{tmp}.mp4" if path.endswith(".mp4") else None)
         self.plt = pyplot()
@@ -105,12 +105,9 @@ class Video:
             self.plt.close(self.fig)
         return False
 
-    def close(self):
-        self.__exit__(None, None, None)
-
-    def add(self, frame, tracks, measurements, tracker) -> None:
+    def add(self, frame, tracks, measurements) -> None:
         """Draw this frame (the tracker's last: its joint map) and write it to the video."""
-        self.draw(frame, tracks, measurements, joint_map(tracker))
+        self.draw(frame, tracks, measurements, joint_map(self.tracker))
         self.writer.grab_frame()
 
     def _axes(self):

@@ -40,12 +40,10 @@ CHUNK_ROWS = 6
 
 
 class HostProblem(Problem):
-    """A `Problem` (plates only) whose model runs on the host, a batch of rows per call."""
-
-    # The fit's Jacobian (fit._Objective.jac) evaluates its moved plates with the unmoved
-    # plate's cell statistics: d(model)/d(parameter) at frozen blur, shift and pull-in, half
-    # the work of a column. Only the Jacobian: residuals and the covariance use each plate's own.
-    borrows_statistics = True
+    """A `Problem` (plates only) whose model runs on the host, a batch of rows per call.
+    A Jacobian's or a covariance's moved plates (`column_batch(rows, like)`) are evaluated with
+    the unmoved plate's cell statistics: d(model)/d(parameter) at frozen blur, shift and
+    pull-in, half the work of a column; residuals use each plate's own."""
 
     def __init__(self, obs, lattice=(16, 24), backend=None):
         super().__init__(obs, backend, lattice)  # backend: for the closed shapes' Problems
@@ -93,9 +91,9 @@ class HostProblem(Problem):
 
     def _statistics_of(self, rows):
         """(keep, blur2, shift) stacked over rows, computed for rows not remembered."""
-        new = np.unique(np.array([r for r in rows if r.tobytes() not in self._stats]), axis=0)
-        if len(new):
-            obs = self.obs
+        new = {r.tobytes(): r for r in rows if r.tobytes() not in self._stats}
+        if new:
+            obs, new = self.obs, np.array(list(new.values()))
             self._remember(new, _plate_points(new, self.lattice, obs.spots, obs.laser)[3])
         got = [self._stats[r.tobytes()] for r in rows]
         return tuple(np.stack([g[i] for g in got]) for i in range(3))
@@ -131,14 +129,13 @@ def _gauss_offsets(eu, ev):
 def _plate_points(rows, lattice, spots, laser, stats=None):
     """Per plate what plate.cell_model gives the forward call: points (B, 4, C, 3), the
     plate's normal (B, 3) and cell area (B,), and its cell statistics (keep (B, C), blur^2
-    (B,), shift (B, D)): computed here, or `stats` given (another plate's, broadcast)."""
+    (B,), shift (B, D)): computed here, or given (`stats`: other plates', one per row)."""
     centres, normal, area, eu, ev = _cells(rows, lattice)
     offsets = _gauss_offsets(eu, ev)[:, :, None, :]  # (B, 4, 1, 3)
     if stats is None:
         stats = _cell_statistics(centres, offsets, normal, area, spots, laser)
-    keep, blur2, shift = (np.broadcast_to(a, (len(rows),) + a.shape[1:]) for a in stats)
-    points = centres[:, None] + keep[:, None, :, None] * offsets
-    return points, normal, area, (keep, blur2, shift)
+    points = centres[:, None] + stats[0][:, None, :, None] * offsets
+    return points, normal, area, stats
 
 
 def _cell_statistics(centres, offsets, normal, area, spots, laser):

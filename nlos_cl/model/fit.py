@@ -13,8 +13,9 @@ Birge ratio max(1, RSS / E[RSS]) where E[RSS] = tr((I - H) C): when the model do
 the data to within the noise, the covariance grows by the measured excess. Photon counts: the
 inverse Fisher information of the Poisson likelihood. Both include the linear factors.
 
-A problem that `borrows_statistics` (the host's HostProblem) evaluates the moved plates of a
-Jacobian or a covariance with the unmoved plate's cell statistics (nlos_cl.model.batch):
+Jacobians and covariances tell `column_batch` which row each moved plate steps from (`like`);
+the host's HostProblem then evaluates the moved plates with the unmoved plate's cell
+statistics (nlos_cl.model.batch):
 derivatives at frozen blur and shift, within 0.2 % of the exact ones per column and per sd
 (tests/test_tracking_warm.py), for half the work of a column. Residuals are always exact, so
 the fitted parameters do not depend on it beyond the solver's tolerance.
@@ -86,10 +87,7 @@ class _Objective:
         like = np.array([full[k] for k, _ in which])
         rows = like.copy()
         rows[np.arange(len(which)), [i for _, i in which]] += self.steps
-        if getattr(self.problem, "borrows_statistics", False):
-            moved_cols = self.problem.column_batch(rows, like)  # (see HostProblem)
-        else:
-            moved_cols = self.problem.column_batch(rows)
+        moved_cols = self.problem.column_batch(rows, like)
         base = self.problem.residual(cols, lin)
         out = []
         for (k, _), col, step in zip(which, moved_cols, self.steps):
@@ -133,16 +131,13 @@ def _mean_jacobian(problem, params, lin, free):
     steps = shape_of(problem).STEPS
     which = [(k, i) for k in range(len(params)) for i in np.flatnonzero(free)]
     rows = [p.copy() for p in params]  # the targets, then hi, lo, parameter after parameter
+    like = list(params)  # the row each one steps from
     for k, i in which:
         for sign in (1.0, -1.0):
             rows.append(params[k].copy())
             rows[-1][i] += sign * steps[i]
-    if getattr(problem, "borrows_statistics", False):  # (see HostProblem)
-        like = [params[k] for k in range(len(params))] + [params[k] for k, _ in which
-                                                           for _ in (1, 2)]
-        evaluated = problem.column_batch(np.array(rows), np.array(like))
-    else:
-        evaluated = problem.column_batch(np.array(rows))
+            like.append(params[k])
+    evaluated = problem.column_batch(np.array(rows), np.array(like))
     cols, moved = evaluated[:len(params)], evaluated[len(params):]
     blocks = [lin[k] * (moved[2 * n] - moved[2 * n + 1]) / (2 * steps[i])
               for n, (k, i) in enumerate(which)]

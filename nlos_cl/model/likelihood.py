@@ -43,9 +43,11 @@ class Problem:
     def columns(self, params) -> np.ndarray:
         return np.stack([self.column(p) for p in np.reshape(params, (-1, self.shape.N_PARAMS))])
 
-    def column_batch(self, rows) -> np.ndarray:
+    def column_batch(self, rows, like=None) -> np.ndarray:
         """(B, D, n): `column` of each parameter row, in order (one forward call each here;
-        nlos_cl.model.batch.HostProblem evaluates them all in one host call)."""
+        nlos_cl.model.batch.HostProblem evaluates them all in one host call). like: the rows
+        each one is a small step from (a Jacobian's), which a problem may use to share work
+        between them (HostProblem: their cell statistics); here every row is exact."""
         return np.stack([self.column(p) for p in rows])
 
     # ------------------------------------------------------------------ linear factors

@@ -10,8 +10,8 @@ out, the straight line's bound is 0.42 x the per-frame error, a constant-speed c
 on a curve even a tracker that knows the target walks a circle cannot halve the error without
 waiting for later frames (a fixed-lag smoother can: docs/tracking.md).
 
-    from nlos_cl.tracking.bounds import LINE, causal_bound
-    bound = causal_bound(LINE, (x0, y0, vx, vy), t_s, covariances)   # (F, 2, 2)
+    from nlos_cl.tracking.bounds import causal_bound, line
+    bound = causal_bound(line, (x0, y0, vx, vy), t_s, covariances)   # (F, 2, 2)
 """
 from __future__ import annotations
 
@@ -32,9 +32,6 @@ def circle(params, t):
     cx, cy, r, phase, omega = params
     a = phase + omega * t
     return np.stack([cx + r * np.sin(a), cy - r * np.cos(a)], axis=1)
-
-
-LINE, CIRCLE = line, circle
 
 
 def _jacobian(path, params, t, step=1e-6):

@@ -128,10 +128,10 @@ class Tracker:
     frame: a HistogramSet (uploaded) or Signals, unfiltered. t_s: the frame's time (default:
     the previous one + frame_interval_s). background: a BackgroundRemover or None. max_tracks:
     how many targets may be followed at once (the model estimator finds several with
-    estimator=ModelEstimator(targets=K)). warm_start: with the model estimator (one target), fit
-    each frame from the confirmed track's last plate moved to its prediction (nlos_cl.tracking.
-    warm; ~10x faster), else from the data alone. See the
-    module docstring for the rest."""
+    estimator=ModelEstimator(targets=K)). warm_start: with the model estimator (a fixed
+    number of targets), fit each frame from the confirmed tracks' last plates moved to their
+    predictions (nlos_cl.tracking.warm; ~10x faster), else from the data alone. See the module
+    docstring for the rest."""
 
     def __init__(self, layout, grid=None, *, estimator="paper", motion=None,
                  h_s: float = PAPER_H_S, log_mode: bool | None = None, background=None,

@@ -39,7 +39,7 @@ def can_start(estimator) -> bool:
     """Does the tracker warm-start this estimator? The model estimator with a fixed number of
     targets (not 'auto') and plates allowed. K >= 2 targets start from K tracks' plates (the
     two-target crossing, docs/tracking.md: identities kept in 10 of 10 seeds warm, 9 of 10
-    cold, at 0.25 s against 1.41 s a frame)."""
+    cold, at 0.19 s against 1.41 s a frame)."""
     if getattr(estimator, "name", None) != "model":
         return False  # (and the paper's tracker never imports nlos_cl.model)
     from ..model import ModelEstimator
