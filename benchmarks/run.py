@@ -1,7 +1,7 @@
 """Run the benchmark: python benchmarks/run.py [--smoke] [--out docs] (same as `nlos-cl bench`)."""
 import sys
 
-from nlos_cl.cli import main
+from nlos_cl.apps.cli import main
 
 if __name__ == "__main__":
     sys.exit(main(["bench", *sys.argv[1:]]))

@@ -34,7 +34,7 @@
 #endif
 
 #ifdef GGX_A2
-// GGX microfacet lobe over a diffuse base (nlos_cl.reflectance.GGX): f / scale =
+// GGX microfacet lobe over a diffuse base (nlos_cl.physics.reflectance.GGX): f / scale =
 // KD + KS a^2 / ((n.h)^2 (a^2 - 1) + 1)^2 G1(l) G1(v) / (4 cos_l cos_v); called only where
 // both cosines are positive.
 inline float ggx_g1(const float c)

@@ -9,28 +9,41 @@ from __future__ import annotations
 import importlib
 
 _EXPORTS = {
-    ".backend": ("NumpyBackend", "resolve_backend"),
-    ".capture": ("read_capture", "write_capture"),
-    ".constants": ("SPEED_OF_LIGHT", "PAPER_H_S"),
-    ".errors": ("DeviceError", "InputError"),
-    ".estimators": ("Estimate", "LocatedTarget", "Location", "PaperArgmax"),
-    ".grid": ("Grid",),
-    ".histograms": ("HistogramSet", "Layout"),
-    ".layouts": ("height_observable",),
-    ".measured": ("CalibrationFit", "PhotonCounter", "fit_calibration", "peak_times",
-                  "subtract_background", "with_calibration"),
-    ".meshes": ("box", "l_block", "load_mesh", "rectangle", "sphere"),
-    ".noise": ("AWGN",),
+    ".core.constants": ("SPEED_OF_LIGHT", "PAPER_H_S"),
+    ".core.errors": ("DeviceError", "InputError"),
+    ".core.geometry": ("Facets",),
+    ".core.grid": ("Grid",),
+    ".core.histograms": ("HistogramSet", "Layout"),
+    ".core.paths": ("PathAxis", "PathCalibration", "TimeAxis", "default_time_axis"),
+    ".physics.layouts": ("height_observable",),
+    ".physics.meshes": ("box", "l_block", "load_mesh", "rectangle", "sphere"),
+    ".physics.noise": ("AWGN", "PhotonCounter"),
+    ".physics.reflectance": ("GGX", "Lambertian"),
+    ".physics.scene": ("Pulse", "Scene", "Setup", "Target", "paper_scene", "paper_setup"),
     ".ops": ("OPERATIONS",),
-    ".paths": ("PathAxis", "PathCalibration", "TimeAxis", "default_time_axis"),
-    ".pipeline": ("add_noise", "gauss_filter", "gauss_fit", "locate", "simulate"),
-    ".plans": ("GaussFilter", "Locator"),
-    ".reflectance": ("GGX", "Lambertian"),
-    ".geometry": ("Facets",),
-    ".scene": ("Pulse", "Scene", "Setup", "Target", "paper_scene", "paper_setup"),
-    ".signals": ("Signals", "upload"),
+    ".ops.backend": ("NumpyBackend", "resolve_backend"),
+    ".ops.signals": ("Signals", "upload"),
+    ".io.calibration": ("CalibrationFit", "fit_calibration", "peak_times", "with_calibration"),
+    ".io.ytal.capture": ("read_capture", "write_capture"),
+    ".simulation.frame": ("add_noise", "simulate"),
+    ".localization.api": ("gauss_filter", "gauss_fit", "locate"),
+    ".localization.background": ("subtract_background",),
+    ".localization.estimate": ("Estimate", "LocatedTarget", "Location"),
+    ".localization.filter": ("GaussFilter",),
+    ".localization.locator": ("Locator",),
+    ".localization.paper": ("PaperArgmax",),
     ".sweep": ("sweep",),
 }
+# Modules that lived at the top level before the layer folders (nl.runtime, `from nlos_cl
+# import layouts`): still reachable under their old names.
+_MOVED = {"constants": ".core.constants", "errors": ".core.errors", "erf": ".core.erf",
+          "geometry": ".core.geometry", "grid": ".core.grid", "paths": ".core.paths",
+          "histograms": ".core.histograms", "scene": ".physics.scene",
+          "meshes": ".physics.meshes", "reflectance": ".physics.reflectance",
+          "visibility": ".physics.visibility", "layouts": ".physics.layouts",
+          "noise": ".physics.noise", "devices": ".device.devices", "runtime": ".device.runtime",
+          "backend": ".ops.backend", "signals": ".ops.signals", "capture": ".io.ytal.capture",
+          "scenefile": ".io.scenefile", "search": ".localization.search", "model": ".localization.model"}
 _WHERE = {name: module for module, names in _EXPORTS.items() for name in names}
 __all__ = sorted(_WHERE)
 __version__ = "0.1.0"
@@ -40,7 +53,9 @@ def __getattr__(name):
     module = _WHERE.get(name)
     if module is not None:
         value = getattr(importlib.import_module(module, __name__), name)
-    else:  # a submodule: nl.runtime, nl.capture, ...
+    elif name in _MOVED:
+        value = importlib.import_module(_MOVED[name], __name__)
+    else:  # a submodule: nl.core, nl.tracking, ...
         try:
             value = importlib.import_module(f".{name}", __name__)
         except ModuleNotFoundError as exc:

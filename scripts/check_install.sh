@@ -9,5 +9,5 @@ trap 'rm -rf "$tmp"' EXIT
 python3 -m venv "$tmp/venv"
 "$tmp/venv/bin/python" -m pip install -q "$repo"
 cd "$tmp"
-"$tmp/venv/bin/python" -c 'import nlos_cl.runtime as r, pathlib; print("kernels from", r.resources.files("nlos_cl.kernels"))'
+"$tmp/venv/bin/python" -c 'import nlos_cl.device.runtime as r, pathlib; print("kernels from", r.resources.files("nlos_cl.kernels"))'
 "$tmp/venv/bin/nlos-cl" info

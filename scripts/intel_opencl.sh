@@ -22,7 +22,7 @@
 #   bundled copy included, and by Khronos' loader) at it. An ICD in pyopencl's own folder
 #   (PyPI's pocl-binary-distribution) stays visible either way.
 # * With both visible, the default device stays PoCL (same type; PoCL's version ranks higher
-#   in nlos_cl.devices); PYOPENCL_CTX=intel (platform "Intel(R) OpenCL") selects Intel's.
+#   in nlos_cl.device.devices); PYOPENCL_CTX=intel (platform "Intel(R) OpenCL") selects Intel's.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -69,7 +69,7 @@ echo "$env_line" > "$prefix/env.sh"
 # Check: both implementations must now be listed in one process.
 OCL_ICD_VENDORS=$vendors "$py" - >&2 <<'EOF'
 import sys
-from nlos_cl.devices import list_devices
+from nlos_cl.device.devices import list_devices
 entries = list_devices()
 for e in entries:
     print("intel_opencl:   " + e.label)

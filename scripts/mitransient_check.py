@@ -39,8 +39,8 @@ DEVICE = [-0.75, 20 / math.sqrt(2), 20 / math.sqrt(2)]
 def scenes():
     """name -> (list of (mesh, reflectance spec)) built with nlos_cl (in .venv)."""
     import nlos_cl as nl
-    from nlos_cl.meshes import l_block
-    from nlos_cl.reflectance import GGX
+    from nlos_cl.physics.meshes import l_block
+    from nlos_cl.physics.reflectance import GGX
     lam = lambda m, f=0.1284: (m, {"model": "lambertian", "brdf": f})  # noqa: E731
     return {
         "reference": [lam(nl.rectangle(0.004, 0.004, centre=(1.0, 1.5, 0.0), cell_m=0.01))],
@@ -59,7 +59,7 @@ def scenes():
 
 def export(out: Path, names, facet_m: float = 0.01):
     all_scenes, nl, GGX = scenes()
-    from nlos_cl.reflectance import from_spec
+    from nlos_cl.physics.reflectance import from_spec
     setup = nl.paper_setup(detector_spots=SPOTS)
     for name in names:
         parts = all_scenes[name]

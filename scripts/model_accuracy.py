@@ -18,9 +18,9 @@ import warnings
 import numpy as np
 
 import nlos_cl as nl
-from nlos_cl.model import ModelEstimator
-from nlos_cl.model.estimator import GAUSS_LATTICE
-from nlos_cl.model.plate import plate_facets
+from nlos_cl.localization.model import ModelEstimator
+from nlos_cl.localization.model.estimator import GAUSS_LATTICE
+from nlos_cl.localization.model.plate import plate_facets
 
 PAPER_SPOTS = [[-0.5, 0, 0], [-1.0, 0, 0], [-1.5, 0, 0]]
 TRIANGLE = [[-0.5, 0, 0], [-1.0, 0, 0.5], [-1.0, 0, -0.5]]

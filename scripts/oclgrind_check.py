@@ -48,10 +48,10 @@ ARGS = parse_args() if __name__ == "__main__" else parse_args([])
 # Build every program afresh, so that oclgrind's compiler messages are what this run sees.
 os.environ.setdefault("PYOPENCL_NO_CACHE", "1")
 
-from nlos_cl.backend import NumpyBackend  # noqa: E402  (after the environment above is set)
+from nlos_cl.ops.backend import NumpyBackend  # noqa: E402  (after the environment above is set)
 from nlos_cl.ops import OPERATIONS  # noqa: E402
 from nlos_cl.ops.base import run_example  # noqa: E402
-from nlos_cl.runtime import Runtime  # noqa: E402
+from nlos_cl.ops.opencl_backend import OpenCLBackend as Runtime  # noqa: E402
 
 KERNELS_DIR = Path(__file__).resolve().parent.parent / "kernels"
 FAILURES: list[str] = []
@@ -143,7 +143,7 @@ def canary(rt) -> int:
     """Run a kernel with a known data race and a known out-of-bounds write, in this context
     and in a second one, so that the wrapper can confirm that oclgrind's checks are on and
     that every context's findings reach their own log."""
-    from nlos_cl.runtime import cl
+    from nlos_cl.device.runtime import cl
     for runtime in (rt, new_runtime("canary2", rt.device)):
         program = cl.Program(runtime.context, CANARY).build()
         out = runtime.empty((4,))

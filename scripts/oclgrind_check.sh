@@ -52,7 +52,7 @@ log="$dir/oclgrind.log"
 canary_prefix="$dir/canary.log"
 rm -f "$log".* "$canary_prefix".*
 
-# Only the oclgrind device is visible; PoCL's cache fix in nlos_cl.devices is not needed, but a
+# Only the oclgrind device is visible; PoCL's cache fix in nlos_cl.device.devices is not needed, but a
 # writable cache folder keeps every library quiet.
 export XDG_CACHE_HOME=${XDG_CACHE_HOME:-/tmp/xdgcache-oclgrind}
 export OCL_ICD_VENDORS="$icd"

@@ -21,11 +21,10 @@ from dataclasses import replace
 from pathlib import Path
 
 import nlos_cl as nl
-from nlos_cl import plotting
+from nlos_cl.apps import plotting
 from nlos_cl.apps import reproduce as rp
 from nlos_cl.apps.reproduce import _write_csv  # reproduce's own CSV writer
-from nlos_cl.apps.reproduce.common import (METHODS, PAPER, Result, flat, paper_position_row,
-                                           paper_target, run_trials, stats, title)
+from nlos_cl.apps.reproduce.common import METHODS, PAPER, Result, flat, paper_position_row, paper_target, run_trials, stats, title
 from nlos_cl.apps.reproduce.fig10 import fig10_result
 
 

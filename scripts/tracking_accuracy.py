@@ -32,11 +32,9 @@ from pathlib import Path
 import numpy as np
 
 import nlos_cl as nl
-from nlos_cl.layouts import circle
-from nlos_cl.model import ModelEstimator
-from nlos_cl.tracking import (BackgroundRemover, ConstantVelocity, MovingTarget, SensorNoise,
-                              Tracker, Trajectory, read_sequence, simulate_sequence,
-                              write_sequence)
+from nlos_cl.physics.layouts import circle
+from nlos_cl.localization.model import ModelEstimator
+from nlos_cl.tracking import BackgroundRemover, ConstantVelocity, MovingTarget, SensorNoise, Tracker, Trajectory, read_sequence, simulate_sequence, write_sequence
 from nlos_cl.tracking import bounds
 
 FACET, DT, FPS, SNR_DB = 0.02, 10e-12, 10, 10

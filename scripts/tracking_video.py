@@ -14,8 +14,8 @@ import sys
 from pathlib import Path
 
 import nlos_cl as nl
-from nlos_cl import layouts
-from nlos_cl.capture import write_capture
+from nlos_cl.physics import layouts
+from nlos_cl.io.ytal.capture import write_capture
 from nlos_cl.tracking import MovingTarget, Trajectory, simulate_sequence, write_sequence
 
 
@@ -43,7 +43,7 @@ def main(argv=None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     scene(args.out)
     video = args.video or str(args.out / "walk.gif")
-    cmd = [sys.executable, "-m", "nlos_cl.cli", "track", str(args.out / "walk.h5"), "--json",
+    cmd = [sys.executable, "-m", "nlos_cl.apps.cli", "track", str(args.out / "walk.h5"), "--json",
            "--estimator", "model", "--background", str(args.out / "room.h5"),
            "--region", "-6", "-0.5", "-0.5", "0.5", "0.3", "5", "--step", "0.05",
            "--video", video, "--force", "--no-progress"]

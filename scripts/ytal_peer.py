@@ -8,8 +8,8 @@
     by an independent plate-scatterer model (no nlos_cl code); nlos_cl locates each:
     - `nlos-cl locate F.h5 --json` with no option: the position is taken in the frame the JSON
       declares (`frame`; none declared = the file's frame, as issue 10 requires);
-    - the Python API: frames.default_region + read_capture_with_frame + nl.gauss_filter +
-      nl.locate (+ frames.zoom_region when the region's step was coarsened), converted back to
+    - the Python API: region.default_region + read_capture_with_frame + nl.gauss_filter +
+      nl.locate (+ region.zoom_region when the region's step was coarsened), converted back to
       the file's frame.
 Exit 1 when any error exceeds TOLERANCE_M (or the backprojection misses); 0 otherwise.
 """
@@ -46,17 +46,17 @@ API_CHECK = r"""
 import json, sys
 import nlos_cl as nl
 from nlos_cl import frames
-from nlos_cl.capture import read_capture_with_frame
+from nlos_cl.io.ytal.capture import read_capture_with_frame
 out = []
 for path in sys.argv[1:]:
     (h,), frame = read_capture_with_frame(path)
-    grid = frames.default_region(h, %(h)r)
+    grid = region.default_region(h, %(h)r)
     filtered = nl.gauss_filter(h, %(h)r)
     loc = nl.locate(filtered, grid, estimator="paper")
-    zoom = grid.step[0] > frames.region_step(h, %(h)r)
-    edge = frames.on_region_edge(loc.position, grid)
+    zoom = grid.step[0] > region.region_step(h, %(h)r)
+    edge = region.on_region_edge(loc.position, grid)
     if zoom:
-        loc = nl.locate(filtered, frames.zoom_region(loc.position, grid, h, %(h)r),
+        loc = nl.locate(filtered, region.zoom_region(loc.position, grid, h, %(h)r),
                         estimator="paper")
     out.append({"position": frame.from_internal(loc.position).tolist(), "frame": frame.name,
                 "cells": grid.n_cells, "step_m": grid.step[0], "zoomed": bool(zoom),
@@ -160,7 +160,7 @@ def check_ytal_reads_nlos(folder: Path) -> bool:
     5 cm plate within BP_CELLS voxels of its centre."""
     ok = True
     paper, small = folder / "nlos_paper.h5", folder / "nlos_small.h5"
-    for made in (run_nlos("-m", "nlos_cl.cli", "simulate", "--out", str(paper), "--facet", "0.02"),
+    for made in (run_nlos("-m", "nlos_cl.apps.cli", "simulate", "--out", str(paper), "--facet", "0.02"),
                  run_nlos("-c", SMALL_PLATE, str(small))):
         if made.returncode != 0:
             print(f"(a) nlos_cl could not write its capture: {made.stderr.strip()[-400:]}")
@@ -179,7 +179,7 @@ def check_ytal_reads_nlos(folder: Path) -> bool:
 
 
 def cli_position(path):
-    found = run_nlos("-m", "nlos_cl.cli", "locate", str(path), "--json")
+    found = run_nlos("-m", "nlos_cl.apps.cli", "locate", str(path), "--json")
     if found.returncode != 0:
         return None, f"exit {found.returncode}: {found.stderr.strip()[-300:]}"
     answer = json.loads(found.stdout)

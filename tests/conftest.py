@@ -2,8 +2,8 @@ import numpy as np
 import pytest
 
 import nlos_cl as nl
-from nlos_cl.backend import NumpyBackend
-from nlos_cl.runtime import get_runtime
+from nlos_cl.ops.backend import NumpyBackend
+from nlos_cl.ops.opencl_backend import get_runtime
 
 C = nl.SPEED_OF_LIGHT
 
@@ -15,13 +15,13 @@ def runtime():
 
 
 def _device_specs():
-    from nlos_cl.devices import list_devices
+    from nlos_cl.device.devices import list_devices
     entries = list_devices()
     return [f"{e.platform_index}:{e.device_index}" for e in entries] or [None]
 
 
 def _device_label(spec):
-    from nlos_cl.devices import list_devices
+    from nlos_cl.device.devices import list_devices
     for e in list_devices():
         if spec == f"{e.platform_index}:{e.device_index}":
             return f"{spec}-{e.platform.name.split()[0]}"

@@ -12,11 +12,15 @@ import numpy as np
 import trimesh
 
 import nlos_cl as nl
-import nlos_cl.capture  # noqa: F401  (nl.capture, nl.measured, nl.frames)
-import nlos_cl.frames  # noqa: F401
-import nlos_cl.measured  # noqa: F401
-from nlos_cl import devices
-from nlos_cl.errors import DeviceError, InputError
+import nlos_cl.io.ytal.capture  # noqa: F401  (nl.capture)
+from nlos_cl.core import limits  # noqa: F401
+from nlos_cl.io import calibration, safe_write
+from nlos_cl.io.ytal import frames
+from nlos_cl.localization import region
+import nlos_cl.io.ytal.frames  # noqa: F401
+import nlos_cl.io.calibration  # noqa: F401
+from nlos_cl.device import devices
+from nlos_cl.core.errors import DeviceError, InputError
 
 C = nl.SPEED_OF_LIGHT
 SPOTS = nl.paper_setup().detector_spots
@@ -100,7 +104,7 @@ def concurrent_writers():
     def slow(tmp):
         nl.write_capture(path, histograms(2 * np.ones((3, 100))))
         Path(tmp).write_bytes(b"")
-    nl.safe_io.atomic_write(path, slow, what="capture")
+    safe_write.atomic_write(path, slow, what="capture")
 
 
 def huge_declared_capture():
@@ -133,7 +137,7 @@ def cli(*args):
     import contextlib
     import io
 
-    from nlos_cl.cli import main
+    from nlos_cl.apps.cli import main
     err = io.StringIO()
     with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
         try:
@@ -255,11 +259,11 @@ CASES = [
     ("two writers finishing the same capture at once", "by another writer while this one",
      concurrent_writers),
     ("a default search region for a single detector", "histograms.detector_spots",
-     lambda: nl.frames.default_region(one_detector())),
+     lambda: region.default_region(one_detector())),
     ("a default search region for a window that sees no hidden point", "time_axis",
-     lambda: nl.frames.default_region(histograms(np.ones((3, 100))))),
+     lambda: region.default_region(histograms(np.ones((3, 100))))),
     ("a grid in a capture's frame that reaches behind the wall", "grid.Z",
-     lambda: nl.frames.YTAL.grid([(-1, 1), (0, 0), (-1, 3)], step_m=0.1)),
+     lambda: frames.YTAL.grid([(-1, 1), (0, 0), (-1, 3)], step_m=0.1)),
     ("a confocal capture", "confocal",
      lambda: nl.read_capture(capture_file(replace_field("laser_grid_xyz",
                                                         nl.capture.to_ytal(SPOTS).astype(np.float32))))),
@@ -268,16 +272,16 @@ CASES = [
     ("calibration peak times in nanoseconds", "peak times in nanoseconds",
      lambda: nl.fit_calibration([2.5, 3.0, 3.5], [51.7, 53.4, 55.0])),
     ("a calibration CSV with one column", "has 1 column(s)",
-     lambda: nl.measured.read_calibration_pairs(write_file("pairs.csv", "2.5\n3.0\n3.5\n"))),
+     lambda: calibration.read_calibration_pairs(write_file("pairs.csv", "2.5\n3.0\n3.5\n"))),
     ("a calibration CSV with no rows", "has no rows",
-     lambda: nl.measured.read_calibration_pairs(write_file("pairs.csv", ""))),
+     lambda: calibration.read_calibration_pairs(write_file("pairs.csv", ""))),
     ("a calibration CSV with only a header", "has a header but no data rows",
-     lambda: nl.measured.read_calibration_pairs(write_file("pairs.csv", "path;time\n"))),
+     lambda: calibration.read_calibration_pairs(write_file("pairs.csv", "path;time\n"))),
     ("a calibration CSV with a text cell below the header", "line 3",
-     lambda: nl.measured.read_calibration_pairs(write_file("pairs.csv",
+     lambda: calibration.read_calibration_pairs(write_file("pairs.csv",
                                                            "path,time\n2.5,5e-8\n3.0,n/a\n"))),
     ("a calibration file that is binary", "is not a text file",
-     lambda: nl.measured.read_calibration_pairs(existing_file("pairs.csv", b"\x89PNG\x00\x01"))),
+     lambda: calibration.read_calibration_pairs(existing_file("pairs.csv", b"\x89PNG\x00\x01"))),
     ("a background recorded on another time axis", "background",
      lambda: nl.subtract_background(histograms(), histograms(np.ones((3, 80))))),
     ("a background shifted by one bin", "background.time_axis",

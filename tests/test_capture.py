@@ -7,7 +7,7 @@ import pytest
 import yaml
 
 import nlos_cl as nl
-from nlos_cl.capture import GRID_FORMATS, H_FORMATS, from_ytal, to_ytal
+from nlos_cl.io.ytal.capture import GRID_FORMATS, H_FORMATS, from_ytal, to_ytal
 
 C = nl.SPEED_OF_LIGHT
 GRID = nl.Grid.from_ranges(x=(2.5, 5.5), y=(0.5, 3.5), step_m=0.01)
@@ -191,7 +191,7 @@ def test_cli_simulate_then_locate(tmp_path):
     import subprocess
     import sys
     out = tmp_path / "c.h5"
-    run = lambda *a: subprocess.run([sys.executable, "-m", "nlos_cl.cli", *a],  # noqa: E731
+    run = lambda *a: subprocess.run([sys.executable, "-m", "nlos_cl.apps.cli", *a],  # noqa: E731
                                     capture_output=True, text=True, timeout=600)
     made = run("simulate", "--out", str(out), "--facet", "0.02", "--snr-db", "10")
     assert made.returncode == 0, made.stderr

@@ -5,8 +5,9 @@ import numpy as np
 import pytest
 
 import nlos_cl as nl
-from nlos_cl import frames
-from nlos_cl.capture import GRID_FORMATS, H_FORMATS
+from nlos_cl.io.ytal import frames
+from nlos_cl.localization import region
+from nlos_cl.io.ytal.capture import GRID_FORMATS, H_FORMATS
 
 C = nl.SPEED_OF_LIGHT
 
@@ -42,7 +43,7 @@ def test_grid_given_in_file_coordinates():
 
 def test_default_region_covers_both_sides_out_to_the_window():
     h = layout(PAPER)  # hidden path reach = c * (40/c + 18 ns) - 40 = 5.40 m
-    g = frames.default_region(h)
+    g = region.default_region(h)
     x, y, z = g.axes()
     reach = C * 1800 * 10e-12  # hidden path at the window's end
     A = reach / 2  # semi-major axis of every ellipse (foci O = 0 and D = (-d, 0, 0))
@@ -70,7 +71,7 @@ def test_default_region_covers_both_sides_out_to_the_window():
 
 def test_default_region_is_3d_when_height_is_observable_and_capped():
     h = layout([[-1, 0, 0], [1, 0, 0], [0, 0, 1]])
-    g = frames.default_region(h, max_cells=200_000)
+    g = region.default_region(h, max_cells=200_000)
     assert g.shape[2] > 1 and g.n_cells <= 200_000
     z = g.axes()[2]
     assert z[0] < -1 and z[-1] > 1  # below and above the spots
@@ -78,7 +79,7 @@ def test_default_region_is_3d_when_height_is_observable_and_capped():
 
 
 def test_vertical_line_of_spots_gives_the_plane_x_equal_their_x():
-    g = frames.default_region(layout([[0.3, 0, 0.5], [0.3, 0, 1.0]], laser=(0.3, 0, 0)))
+    g = region.default_region(layout([[0.3, 0, 0.5], [0.3, 0, 1.0]], laser=(0.3, 0, 0)))
     assert g.shape[0] == 1 and g.axes()[0][0] == pytest.approx(0.3) and g.shape[2] > 1
 
 
@@ -88,16 +89,16 @@ def test_vertical_line_of_spots_gives_the_plane_x_equal_their_x():
 ])
 def test_default_region_refuses_what_cannot_be_located(h, message):
     with pytest.raises(nl.InputError, match=message):
-        frames.default_region(h())
+        region.default_region(h())
 
 
 def test_on_region_edge():
     g = nl.Grid.from_ranges(x=(-1, 1), y=(0.1, 2), step_m=0.1)
-    assert not frames.on_region_edge([0.0, 1.0, 0.0], g)
-    assert frames.on_region_edge([-0.97, 1.0, 0.0], g)
-    assert frames.on_region_edge([0.0, 1.95, 0.0], g)
-    assert frames.on_region_edge([5.0, 1.0, 0.0], g)  # outside
-    assert not frames.on_region_edge([0.0, 1.0, 0.0], g)  # z: one cell, never an edge
+    assert not region.on_region_edge([0.0, 1.0, 0.0], g)
+    assert region.on_region_edge([-0.97, 1.0, 0.0], g)
+    assert region.on_region_edge([0.0, 1.95, 0.0], g)
+    assert region.on_region_edge([5.0, 1.0, 0.0], g)  # outside
+    assert not region.on_region_edge([0.0, 1.0, 0.0], g)  # z: one cell, never an edge
 
 
 def ytal_capture(path, hist, spots_ours):
@@ -130,18 +131,18 @@ def test_a_ytal_capture_locates_on_either_side_with_no_grid_given(runtime, tmp_p
     ytal_capture(tmp_path / "y.hdf5", hist, setup.detector_spots)
     (capture,), frame = nl.capture.read_capture_with_frame(tmp_path / "y.hdf5")
     assert frame is frames.YTAL
-    grid = frames.default_region(capture, 0.65e-9)
+    grid = region.default_region(capture, 0.65e-9)
     loc = nl.locate(nl.gauss_filter(capture, 0.65e-9, backend=runtime), grid, backend=runtime,
                      estimator="paper")
     found = frame.from_internal(loc.position)
     assert np.linalg.norm(found - truth_ytal) < 0.05, found
-    assert not frames.on_region_edge(loc.position, grid)
+    assert not region.on_region_edge(loc.position, grid)
 
 
 def test_zoom_region_refines_a_coarse_answer():
     h = layout([[-1, 0, 0], [1, 0, 0], [0, 0, 1]])
-    coarse = frames.default_region(h, max_cells=100_000)
-    fine = frames.zoom_region([0.5, 2.0, 0.3], coarse, h)
+    coarse = region.default_region(h, max_cells=100_000)
+    fine = region.zoom_region([0.5, 2.0, 0.3], coarse, h)
     assert fine.step[0] == 0.01 and fine.n_cells < 5_000_000
     lo, hi = [a[0] for a in fine.axes()], [a[-1] for a in fine.axes()]
     assert np.all(np.array(lo) <= [0.5, 2.0, 0.3]) and np.all(np.array(hi) >= [0.5, 2.0, 0.3])

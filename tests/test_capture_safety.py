@@ -15,8 +15,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import nlos_cl as nl
-from nlos_cl import capture
-from nlos_cl.frames import to_ytal
+from nlos_cl.io.ytal import capture, fields
+from nlos_cl.io.ytal.frames import to_ytal
 
 C = nl.SPEED_OF_LIGHT
 SPOTS = np.array([[-0.5, 0, 0], [-1.0, 0, 0], [-1.5, 0, 0]])
@@ -75,7 +75,7 @@ def test_interrupted_write_leaves_the_old_file(tmp_path, monkeypatch):
     def interrupted(f, h, *args):
         f["H"] = np.zeros((5, 3), np.float32)
         raise KeyboardInterrupt
-    monkeypatch.setattr(capture, "_write_fields", interrupted)
+    monkeypatch.setattr(capture, "write_fields", interrupted)
     with pytest.raises(KeyboardInterrupt):
         nl.write_capture(path, hist(2.0))
     assert path.read_bytes() == before and leftovers(tmp_path) == []
@@ -117,7 +117,7 @@ def test_concurrent_writer_is_told_its_scene_was_not_saved(tmp_path, monkeypatch
     """Writer A is slow; writer B replaces the file meanwhile. A must not silently discard B's
     scene: it refuses, says so, and B's file is what remains."""
     path = nl.write_capture(tmp_path / "a.h5", hist(1.0))
-    real = capture._write_fields
+    real = capture.write_fields
     calls = []
 
     def slow(f, h, *args):
@@ -125,7 +125,7 @@ def test_concurrent_writer_is_told_its_scene_was_not_saved(tmp_path, monkeypatch
         if len(calls) == 1:  # while A writes, B writes the same path and finishes first
             nl.write_capture(path, hist(3.0))
         real(f, h, *args)
-    monkeypatch.setattr(capture, "_write_fields", slow)
+    monkeypatch.setattr(capture, "write_fields", slow)
     with pytest.raises(nl.InputError, match="replaced by another writer") as info:
         nl.write_capture(path, hist(2.0))
     assert "NOT saved" in str(info.value)
@@ -161,7 +161,7 @@ def test_declared_size_beyond_memory_is_refused_before_reading(tmp_path):
     with h5py.File(path, "a") as f:
         del f["H"], f["H_format"]
         f.create_dataset("H", shape=(10 ** 9, 3), dtype=np.float32, chunks=(1024, 3))
-        capture._enum(f, "H_format", capture.H_FORMATS, "T_Si")
+        fields.enum(f, "H_format", fields.H_FORMATS, "T_Si")
     assert path.stat().st_size < 100_000
     import tracemalloc
     tracemalloc.start()
@@ -262,7 +262,7 @@ def test_a_large_sensor_grid_is_checked(tmp_path):
                           [0, 0, 0], nl.PathCalibration(C, [0.0]))
     path = nl.write_capture(tmp_path / "big.h5", big)
     assert nl.read_capture(path)[0].n_detectors == 128 * 128
-    from nlos_cl.frames import SAME_SPOT_M
-    from nlos_cl.geometry import coincident_pair
+    from nlos_cl.io.ytal.frames import SAME_SPOT_M
+    from nlos_cl.core.geometry import coincident_pair
     assert coincident_pair(spots, SAME_SPOT_M) is None
     assert coincident_pair(np.vstack([spots, spots[5000] + 1e-5]), SAME_SPOT_M) == (5000, len(spots))

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 import nlos_cl as nl
-from nlos_cl.errors import DeviceError
+from nlos_cl.core.errors import DeviceError
 from nlos_cl.ops.gauss_filter import gauss_taps
-from nlos_cl.runtime import Runtime
+from nlos_cl.ops.opencl_backend import OpenCLBackend as Runtime
 
 C = nl.SPEED_OF_LIGHT
 

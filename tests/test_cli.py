@@ -4,7 +4,7 @@ import sys
 
 
 def run(*args):
-    return subprocess.run([sys.executable, "-m", "nlos_cl.cli", *args], capture_output=True,
+    return subprocess.run([sys.executable, "-m", "nlos_cl.apps.cli", *args], capture_output=True,
                           text=True, timeout=600)
 
 

@@ -8,7 +8,7 @@ from pathlib import Path
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from nlos_cl.cli import main
+from nlos_cl.apps.cli import main
 
 # (command and fixed arguments, flag, how many values, whether 0 / negatives are refused)
 FLAGS = [

@@ -3,8 +3,8 @@ from types import SimpleNamespace
 
 import pytest
 
-from nlos_cl import devices
-from nlos_cl.errors import DeviceError
+from nlos_cl.device import devices
+from nlos_cl.core.errors import DeviceError
 
 cl = devices.cl
 

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 import nlos_cl as nl
-from nlos_cl.fit import fit_gaussians
+from nlos_cl.localization.gauss_fit import fit_gaussians
 
 
 def test_fit_recovers_a_known_gaussian_under_noise():

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 import nlos_cl as nl
-from nlos_cl import layouts
+from nlos_cl.physics import layouts
 
 
 def test_the_paper_line_is_a_line():

@@ -3,7 +3,8 @@ import numpy as np
 import pytest
 
 import nlos_cl as nl
-from nlos_cl.measured import PLANCK
+from nlos_cl.io import calibration
+from nlos_cl.physics.noise import PLANCK
 
 C = nl.SPEED_OF_LIGHT
 
@@ -147,7 +148,7 @@ PAIRS = [(2.5, 5.17e-8), (3.0, 5.34e-8), (3.5, 5.5e-8)]
     "Entfernung (m);Zeit (s, \xb5 genau)\n2.5;5.17e-8\n3.0;5.34e-8\n3.5;5.5e-8\n".encode("latin-1"),
 ])
 def test_calibration_csv_variants_parse(tmp_path, content):
-    paths, times = nl.measured.read_calibration_pairs(csv(tmp_path, content))
+    paths, times = calibration.read_calibration_pairs(csv(tmp_path, content))
     assert np.allclose(paths, [p for p, _ in PAIRS]) and np.allclose(times, [t for _, t in PAIRS])
 
 
@@ -163,14 +164,14 @@ def test_calibration_csv_variants_parse(tmp_path, content):
 ])
 def test_bad_calibration_csv_is_a_clear_error(tmp_path, content, message):
     with pytest.raises(nl.InputError, match="Fix:") as info:
-        nl.measured.read_calibration_pairs(csv(tmp_path, content))
+        calibration.read_calibration_pairs(csv(tmp_path, content))
     assert message in str(info.value), str(info.value)
 
 
 def test_calibration_csv_missing_or_a_folder(tmp_path):
     for path in (tmp_path / "nope.csv", tmp_path):
         with pytest.raises(nl.InputError, match="does not exist or is not a file"):
-            nl.measured.read_calibration_pairs(path)
+            calibration.read_calibration_pairs(path)
 
 
 def test_background_from_a_plain_ytal_file_is_accepted(runtime, tmp_path):

@@ -15,11 +15,11 @@ import numpy as np
 from scipy.stats import chi2
 
 import nlos_cl as nl
-from nlos_cl import layouts
-from nlos_cl.model import data, height_observable
-from nlos_cl.model.estimator import GAUSS_LATTICE
-from nlos_cl.model.fit import centre_covariance, covariance, fit
-from nlos_cl.model.likelihood import Problem
+from nlos_cl.physics import layouts
+from nlos_cl.localization.model import data, height_observable
+from nlos_cl.localization.model.estimator import GAUSS_LATTICE
+from nlos_cl.localization.model.fit import centre_covariance, covariance, fit
+from nlos_cl.localization.model.likelihood import Problem
 
 PAPER_SPOTS = [[-0.5, 0, 0], [-1.0, 0, 0], [-1.5, 0, 0]]
 CIRCLE8 = layouts.circle(centre=[-1.0, 0, 0], radius_m=0.5, count=8)

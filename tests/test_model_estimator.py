@@ -1,4 +1,4 @@
-"""The model-based estimator (nlos_cl.model) end to end: data from nl.simulate at the library's
+"""The model-based estimator (nlos_cl.localization.model) end to end: data from nl.simulate at the library's
 defaults (1 cm facets, 1 ps bins), located by fitting a coarse plate model."""
 import math
 import subprocess
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import nlos_cl as nl
-from nlos_cl.model import HEIGHT_WARNING, ModelEstimator, height_observable, plate_facets
+from nlos_cl.localization.model import HEIGHT_WARNING, ModelEstimator, height_observable, plate_facets
 
 GRID = nl.Grid.from_ranges(x=(0, 6), y=(0.01, 6), step_m=0.02)
 TRIANGLE = [[-0.5, 0, 0], [-1.0, 0, 0.5], [-1.0, 0, -0.5]]
@@ -96,15 +96,15 @@ def test_plate_facets_and_observability():
 
 
 def test_choosing_the_model_estimator_by_name_loads_scipy_only_then():
-    code = ("import sys, nlos_cl.estimators as e; assert 'scipy' not in sys.modules; "
+    code = ("import sys, nlos_cl.localization.estimators as e; assert 'scipy' not in sys.modules; "
             "m = e.as_estimator('model'); print(m.name)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "model"
 
 
 def test_the_default_estimator_is_the_model_fit_loaded_on_first_use():
-    code = ("import sys, nlos_cl.estimators as e; assert 'nlos_cl.model' not in sys.modules; "
-            "m = e.as_estimator(None); assert 'nlos_cl.model' in sys.modules; print(m.name)")
+    code = ("import sys, nlos_cl.localization.estimators as e; assert 'nlos_cl.localization.model' not in sys.modules; "
+            "m = e.as_estimator(None); assert 'nlos_cl.localization.model' in sys.modules; print(m.name)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "model"
     filtered, noisy = frame((4.0, 2.0, 0.0))
@@ -115,7 +115,7 @@ def test_the_default_estimator_is_the_model_fit_loaded_on_first_use():
 
 
 def test_box_model_is_the_plate_at_depth_zero():
-    from nlos_cl.model import box, plate
+    from nlos_cl.localization.model import box, plate
     spots, laser = np.array(TRIANGLE), np.zeros(3)
     p = np.array([3.0, 2.0, 0.3, 0.7, 1.1, 2.8])
     a = plate.model_facets(p, (16, 24), spots, laser)
@@ -129,7 +129,7 @@ def test_box_model_is_the_plate_at_depth_zero():
 
 
 def test_curved_shapes_cover_their_surface_and_cull_what_no_spot_sees():
-    from nlos_cl.model import cylinder, ellipsoid
+    from nlos_cl.localization.model import cylinder, ellipsoid
     # The cell areas sum to the surface's: a sphere's 4 pi r^2 within the midpoint rule's
     # error on 32 x 16 cells (measured 0.16 %); a cylinder's side and caps exactly (flat in
     # height, the caps' rings summed exactly by the midpoint rule in radius).

@@ -1,4 +1,4 @@
-"""nlos_cl.model.lm, the in-house bounded Levenberg-Marquardt that replaced SciPy's
+"""nlos_cl.localization.model.lm, the in-house bounded Levenberg-Marquardt that replaced SciPy's
 `least_squares` in the model fit (its import was ~0.25 s of a one-shot `nlos-cl locate`):
 the same optimum as SciPy's 'trf' on synthetic and real model problems, bounds never left,
 max_nfev never exceeded, bad options named."""
@@ -10,12 +10,12 @@ from scipy.optimize import least_squares as scipy_least_squares
 from scipy.optimize import lsq_linear
 
 import nlos_cl as nl
-from nlos_cl.errors import InputError
-from nlos_cl.model import data, plate
-from nlos_cl.model.estimator import GAUSS_LATTICE
-from nlos_cl.model.fit import _Objective, fit
-from nlos_cl.model.likelihood import Problem
-from nlos_cl.model.lm import least_squares
+from nlos_cl.core.errors import InputError
+from nlos_cl.localization.model import data, plate
+from nlos_cl.localization.model.estimator import GAUSS_LATTICE
+from nlos_cl.localization.model.fit import _Objective, fit
+from nlos_cl.localization.model.likelihood import Problem
+from nlos_cl.localization.model.lm import least_squares
 
 TIGHT = dict(ftol=1e-12, xtol=1e-12, gtol=1e-12)
 T = np.linspace(0.0, 4.0, 40)
@@ -76,7 +76,7 @@ def test_same_optimum_as_scipy_and_bounds_respected(name, fun, jac, x0, bounds, 
 
 @pytest.mark.parametrize("truth", [(4.0, 2.0), (1.0, 5.0), (-2.0, 0.5)])
 def test_ellipse_point_problem_as_scipy_solves_it(truth):
-    """The start finder's problem (nlos_cl.model.starts.ellipse_point, which still calls SciPy):
+    """The start finder's problem (nlos_cl.localization.model.starts.ellipse_point, which still calls SciPy):
     the point in front of the wall whose paths laser -> point -> spot match measured paths,
     numerical Jacobian, y >= 0.05: the same point from the same starts."""
     laser, spots = np.array([0.0, 0.0]), np.array([[-0.5, 0.0], [-1.0, 0.0], [-1.5, 0.0]])
@@ -200,9 +200,9 @@ def _hessian(problem, result, free):
 
 
 def test_table_erf_matches_math_erf():
-    """nlos_cl.erf (SciPy-free, for the host model) against math.erf: within 1e-13 absolute
+    """nlos_cl.core.erf (SciPy-free, for the host model) against math.erf: within 1e-13 absolute
     (its cubic Hermite bound is ~1e-14), odd, and 1 beyond the table."""
-    from nlos_cl.erf import erf
+    from nlos_cl.core.erf import erf
     rng = np.random.default_rng(1)
     x = np.concatenate([rng.uniform(-9, 9, 50_000), rng.normal(0, 0.5, 20_000),
                         [0.0, 1e-12, 5.999, 6.0, 6.5, 40.0]])

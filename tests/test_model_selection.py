@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 import nlos_cl as nl
-from nlos_cl import layouts
-from nlos_cl.model import ModelEstimator
+from nlos_cl.physics import layouts
+from nlos_cl.localization.model import ModelEstimator
 
 GRID = nl.Grid.from_ranges(x=(0, 6), y=(0.01, 6), step_m=0.02)
 PAIR = ((2.5, 2.0, 0.0), (3.5, 3.0, 0.0))
@@ -80,5 +80,5 @@ def test_chi2_point_without_scipy_matches_scipy(nu, rel):
     its known relative error, 2.3e-2 at nu = 2 falling to 3.7e-4 at 100 and ~1/nu^2 beyond,
     each bound about 10 % above it; far below the Birge ratio's own scatter, sqrt(2 / nu)."""
     from scipy.stats import chi2
-    from nlos_cl.model.select import _chi2_999
+    from nlos_cl.localization.model.select import _chi2_999
     assert _chi2_999(nu) == pytest.approx(chi2.ppf(0.999, nu), rel=rel)

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 import nlos_cl as nl
-from nlos_cl.meshes import l_block
-from nlos_cl.visibility import any_hit_brute, any_hit_numpy, visibility
+from nlos_cl.physics.meshes import l_block
+from nlos_cl.physics.visibility import any_hit_brute, any_hit_numpy, visibility
 from conftest import window_around
 
 

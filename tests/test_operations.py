@@ -3,10 +3,10 @@ examples and tolerances its own module states (nlos_cl/ops/<op>.py: `examples("c
 `examples("tiny")`, the latter reaching partial blocks, chunked groups and slabs)."""
 import pytest
 
-from nlos_cl.backend import NumpyBackend
+from nlos_cl.ops.backend import NumpyBackend
 from nlos_cl.ops import OPERATIONS
 from nlos_cl.ops.base import example_error
-from nlos_cl.runtime import Runtime
+from nlos_cl.ops.opencl_backend import OpenCLBackend as Runtime
 
 CASES = [(op.name, size, i) for op in OPERATIONS.values() for size in ("tiny", "check")
          for i in range(len(op.examples(size)))]

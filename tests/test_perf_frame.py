@@ -7,7 +7,8 @@ import pyopencl as cl
 import pytest
 
 import nlos_cl as nl
-from nlos_cl.plans import GaussFilter, Locator
+from nlos_cl.localization.filter import GaussFilter
+from nlos_cl.localization.locator import Locator
 from nlos_cl.tracking import Tracker
 
 from test_search import histograms

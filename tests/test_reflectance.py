@@ -1,11 +1,11 @@
-"""The glossy reflectance model (nlos_cl.reflectance.GGX) through the reflectance seam: kernel
+"""The glossy reflectance model (nlos_cl.physics.reflectance.GGX) through the reflectance seam: kernel
 against twin, and properties of the BRDF itself that no implementation detail can fake."""
 import numpy as np
 import pytest
 
 import nlos_cl as nl
-from nlos_cl.errors import InputError
-from nlos_cl.reflectance import GGX, from_spec
+from nlos_cl.core.errors import InputError
+from nlos_cl.physics.reflectance import GGX, from_spec
 from conftest import window_around
 
 
@@ -101,7 +101,7 @@ def test_diffuse_only_ggx_simulates_as_lambertian(reference):
 
 
 def test_glossy_target_from_a_scene_file():
-    from nlos_cl.scenefile import load_scene
+    from nlos_cl.io.scenefile import load_scene
     spec = load_scene({"targets": [{"shape": "rectangle", "position": [3, 1, 0],
                                     "reflectance": {"model": "ggx", "specular": 0.5,
                                                     "roughness": 0.2, "diffuse": 0.1}}]})

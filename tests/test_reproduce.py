@@ -17,7 +17,7 @@ def test_fwhm_of_a_gaussian():
 
 
 def test_fig10_quick_json_contract(tmp_path):
-    out = subprocess.run([sys.executable, "-m", "nlos_cl.cli", "reproduce", "fig10", "--quick",
+    out = subprocess.run([sys.executable, "-m", "nlos_cl.apps.cli", "reproduce", "fig10", "--quick",
                           "--json", "--out", str(tmp_path)], capture_output=True, text=True,
                          timeout=600)
     assert out.returncode == 0, out.stderr[-2000:]

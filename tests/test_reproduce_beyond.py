@@ -15,8 +15,8 @@ from nlos_cl.apps.reproduce import beyond_report as br
 from nlos_cl.apps.reproduce import beyond_sweep
 from nlos_cl.apps.reproduce.beyond_runs import counter_for
 from nlos_cl.apps.reproduce.common import Settings
-from nlos_cl.errors import InputError
-from nlos_cl.estimators import LocatedTarget
+from nlos_cl.core.errors import InputError
+from nlos_cl.localization.estimate import LocatedTarget
 
 
 def test_beyond_is_an_experiment_but_not_part_of_all():
@@ -77,7 +77,7 @@ def test_wilson_interval():
 def quick_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("beyond")
     doc = out / "report.md"
-    proc = subprocess.run([sys.executable, "-m", "nlos_cl.cli", "reproduce", "beyond", "--quick",
+    proc = subprocess.run([sys.executable, "-m", "nlos_cl.apps.cli", "reproduce", "beyond", "--quick",
                            "--json", "--out", str(out), "--doc", str(doc)],
                           capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr[-2000:]

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import nlos_cl as nl
-from nlos_cl.scenefile import load_scene
+from nlos_cl.io.scenefile import load_scene
 
 DOCS = Path(__file__).parent.parent / "docs" / "scenes"
 
@@ -59,7 +59,7 @@ def test_simulate_a_scene_file_then_locate_it(tmp_path):
     """The issue's example (a rectangle and a sphere) runs end to end and reports two targets;
     two 0.3 m squares 1.6 m apart on an 8-spot circle (the issue's two-target case, inside the
     plate model's validity: the sphere is a closed object) are both found within 0.10 m."""
-    run = lambda *a: subprocess.run([sys.executable, "-m", "nlos_cl.cli", *a],  # noqa: E731
+    run = lambda *a: subprocess.run([sys.executable, "-m", "nlos_cl.apps.cli", *a],  # noqa: E731
                                     capture_output=True, text=True, timeout=600)
     for name in ("two_targets", "two_squares"):
         out = tmp_path / f"{name}.h5"
@@ -81,7 +81,7 @@ def test_a_moving_scene_file_simulates_a_sequence(tmp_path):
     assert spec.moving and spec.trajectories[1] is None
     np.testing.assert_allclose(spec.scene.truths[0], [3, 1.5, 0], atol=1e-9)  # where it starts
     out = tmp_path / "walk.h5"
-    made = subprocess.run([sys.executable, "-m", "nlos_cl.cli", "simulate", str(DOCS / "walk.yaml"),
+    made = subprocess.run([sys.executable, "-m", "nlos_cl.apps.cli", "simulate", str(DOCS / "walk.yaml"),
                            "--frames", "4", "--fps", "2", "--out", str(out)],
                           capture_output=True, text=True, timeout=600)
     assert made.returncode == 0, made.stderr

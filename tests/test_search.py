@@ -8,9 +8,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import nlos_cl as nl
-from nlos_cl.estimators import PaperArgmax
-from nlos_cl.plans import Locator
-from nlos_cl.search import CoarseToFine, coarse_factor
+from nlos_cl.localization.paper import PaperArgmax
+from nlos_cl.localization.locator import Locator
+from nlos_cl.localization.search import CoarseToFine, coarse_factor
 
 SETTINGS = dict(deadline=None, derandomize=True,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
@@ -134,7 +134,7 @@ def test_fused_device_search_matches_the_host_side_search(runtime, log_mode, vol
 
 
 def test_auto_keeps_one_search_after_its_trials(runtime):
-    from nlos_cl.plans import AUTO_TRIALS
+    from nlos_cl.localization.locator import AUTO_TRIALS
     hist = histograms([(4.0, 2.0, 0.0)], [1.0], 3, 0.065, 0.02, 5)
     grid = nl.Grid.from_ranges(x=(2.5, 5.0), y=(1.0, 3.5), step_m=0.01)
     plan, exhaustive = Locator(hist.layout, grid, backend=runtime, estimator="paper"), Locator(
@@ -154,7 +154,7 @@ def test_auto_keeps_one_search_after_its_trials(runtime):
 def test_exhaustive_score_map_in_slabs(runtime, grid):
     """A map in several slabs (a device's allocation limit): argmax_patch reads the
     neighbourhood on the host, with the same answer as one slab."""
-    from nlos_cl.runtime import Runtime
+    from nlos_cl.ops.opencl_backend import OpenCLBackend as Runtime
     tiny = Runtime(max_alloc_bytes=24_000)
     hist = histograms([(3.5, 1.2, 0.0)], [1.0], 3, 0.065, 0.02, 8)
     a = Locator(hist.layout, grid, search="exhaustive", backend=runtime, estimator="paper")(hist)

@@ -149,7 +149,7 @@ def test_resume_after_kill(reference, tmp_path):
 
 
 def test_out_folder_is_not_overwritten(reference, tmp_path):
-    from nlos_cl.errors import InputError
+    from nlos_cl.core.errors import InputError
     (tmp_path / "study.json").write_text('{"fingerprint": "other"}')
     with pytest.raises(InputError, match="--resume"):
         sweep(STUDY, tmp_path, workers=1, progress=False)

@@ -8,7 +8,7 @@ import textwrap
 import pytest
 import yaml
 
-from nlos_cl.errors import InputError
+from nlos_cl.core.errors import InputError
 from nlos_cl.sweep import load_study, read_table, sweep, worker_cache
 from nlos_cl.sweep.engine import make_batches
 from nlos_cl.sweep.runner import RunnerStudy

@@ -3,7 +3,7 @@ import json
 
 import pytest
 
-from nlos_cl.errors import InputError
+from nlos_cl.core.errors import InputError
 from nlos_cl.sweep import load_study
 from nlos_cl.sweep.engine import make_batches
 from nlos_cl.sweep.study import assignments, check_scenes, parse_path, scene_of, substitute
@@ -91,7 +91,7 @@ def test_example_study_and_command(capsys):
 
     import nlos_cl as nl
     from nlos_cl.apps.sweep_cmd import _parser, main
-    from nlos_cl.scenefile import yaml_loader
+    from nlos_cl.io.scenefile import yaml_loader
     assert main(_parser().parse_args(["--example"])) == 0
     text = capsys.readouterr().out
     s = load_study(yaml.load(text, Loader=yaml_loader()))

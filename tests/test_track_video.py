@@ -13,8 +13,8 @@ from PIL import Image
 
 import nlos_cl as nl
 from nlos_cl.apps import track, track_video
-from nlos_cl.backend import NumpyBackend
-from nlos_cl.cli import parser
+from nlos_cl.ops.backend import NumpyBackend
+from nlos_cl.apps.cli import parser
 from nlos_cl.tracking import read_sequence, write_sequence
 
 N_FRAMES = 8

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import nlos_cl as nl
-from nlos_cl.estimators import LocatedTarget
+from nlos_cl.localization.estimate import LocatedTarget
 from nlos_cl.tracking import ConstantVelocity, SensorNoise, Tracker
 from nlos_cl.tracking.association import screen
 from nlos_cl.tracking.kalman import measurement

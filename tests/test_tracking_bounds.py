@@ -3,8 +3,8 @@ form and against Monte Carlo fits of a circle."""
 import numpy as np
 import pytest
 
-from nlos_cl.errors import InputError
-from nlos_cl.model.lm import least_squares
+from nlos_cl.core.errors import InputError
+from nlos_cl.localization.model.lm import least_squares
 from nlos_cl.tracking.bounds import causal_bound, circle, line
 
 T = np.arange(50) * 0.1

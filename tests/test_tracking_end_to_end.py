@@ -5,8 +5,7 @@ import warnings
 import numpy as np
 
 import nlos_cl as nl
-from nlos_cl.tracking import (BackgroundRemover, ConstantVelocity, MovingTarget, Tracker,
-                              Trajectory, read_sequence, simulate_sequence, write_sequence)
+from nlos_cl.tracking import BackgroundRemover, ConstantVelocity, MovingTarget, Tracker, Trajectory, read_sequence, simulate_sequence, write_sequence
 
 FACET = 0.03
 
@@ -71,8 +70,8 @@ def test_two_targets_keep_their_identities_through_a_crossing():
     wrong on most frames near the crossing (plates merged midway, Birge ratio >> 1); the
     screening and the one-blob rule let both tracks coast through, and the ids come out on the
     right targets (scripts/tracking_accuracy.py runs 10 seeds)."""
-    from nlos_cl.layouts import circle
-    from nlos_cl.model import ModelEstimator
+    from nlos_cl.physics.layouts import circle
+    from nlos_cl.localization.model import ModelEstimator
     setup = nl.Setup(detector_spots=circle((-1.0, 0, 0), 0.5, 8))
     paths = [Trajectory([0, 2], [[2.5, 2.0, 0], [3.5, 3.0, 0]]),
              Trajectory([0, 2], [[2.5, 3.0, 0], [3.5, 2.0, 0]])]

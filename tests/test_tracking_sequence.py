@@ -136,7 +136,7 @@ def walk_file(tmp_path_factory):
 
 def test_track_command_smooths_offline(walk_file, capsys):
     from nlos_cl.apps import track
-    from nlos_cl.cli import parser
+    from nlos_cl.apps.cli import parser
     lines = {}
     for smooth in (False, True):  # through the parser: `nlos-cl track F --json --smooth`
         args = parser().parse_args(["track", str(walk_file), "--json", "--estimator", "paper",
@@ -160,7 +160,7 @@ def test_track_command_prints_fixed_lag_lines(walk_file, capsys):
     Tracker.lagged(3) says of frame k then (the API run on the same file); the last 3 frames
     at the end with lags 2, 1, 0 (lag 0: the filter's own state, the causal line)."""
     from nlos_cl.apps import track
-    from nlos_cl.cli import parser
+    from nlos_cl.apps.cli import parser
     out = {}
     for lag in (0, 3):
         args = parser().parse_args(["track", str(walk_file), "--json", "--no-progress", "--lag",

@@ -1,4 +1,4 @@
-"""Warm-started model fits (nlos_cl.model.warm, nlos_cl.tracking.warm): the host model that
+"""Warm-started model fits (nlos_cl.localization.model.warm, nlos_cl.tracking.warm): the host model that
 runs them against the forward operation, a warm estimate against the cold one on the same
 frame, and both fallbacks (the estimator's misfit test, the tracker's gate). No timings."""
 import warnings
@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 import nlos_cl as nl
-from nlos_cl.estimators import Scored
-from nlos_cl.model import ModelEstimator
-from nlos_cl.model.batch import CHUNK_ROWS, HostProblem
-from nlos_cl.model.likelihood import Problem
+from nlos_cl.localization.estimate import Scored
+from nlos_cl.localization.model import ModelEstimator
+from nlos_cl.localization.model.batch import CHUNK_ROWS, HostProblem
+from nlos_cl.localization.model.likelihood import Problem
 from nlos_cl.tracking import Tracker, kalman, warm
 
 GRID = nl.Grid.from_ranges(x=(2, 6), y=(0.5, 4), step_m=0.02)
@@ -75,7 +75,7 @@ def test_jacobian_plates_borrow_the_base_plate_statistics(scored, cold):
     (frozen blur, shift, pull-in) stay within 0.5 % of the exact ones per column, per sd
     (measured 0.16 % and 0.22 % on the stream bench's frame; this 2 mm / 4 mrad step moves the
     statistics by that much, what the exact derivative adds)."""
-    from nlos_cl.model import fit as model_fit
+    from nlos_cl.localization.model import fit as model_fit
     est = ModelEstimator()
     obs = est.observation(scored)
     p = np.array(list(cold.details["params"].values()))

@@ -9,15 +9,15 @@ import warnings
 
 def _run_once(args, backend, grid):
     """Each stage timed to completion (the device queue drained after it)."""
-    from .. import pipeline as pl
-    from ..scene import paper_scene
+    import nlos_cl as nl
+    from ..physics.scene import paper_scene
     stages = (("scene", lambda _: paper_scene(position=tuple(args.position))),
-              ("simulate", lambda scene: (scene, pl.simulate(scene, backend=backend))),
-              ("noise", lambda v: v + (pl.add_noise(v[1], args.snr_db, args.seed),)),
-              ("gauss_filter", lambda v: v + (pl.gauss_filter(v[2], args.h_ns * 1e-9),)),
-              ("locate_paper", lambda v: v + (pl.locate(v[3], grid, estimator="paper",
+              ("simulate", lambda scene: (scene, nl.simulate(scene, backend=backend))),
+              ("noise", lambda v: v + (nl.add_noise(v[1], args.snr_db, args.seed),)),
+              ("gauss_filter", lambda v: v + (nl.gauss_filter(v[2], args.h_ns * 1e-9),)),
+              ("locate_paper", lambda v: v + (nl.locate(v[3], grid, estimator="paper",
                                                         return_map=bool(args.png)),)),
-              ("locate_model", lambda v: v + (pl.locate(v[3], grid, estimator="model",
+              ("locate_model", lambda v: v + (nl.locate(v[3], grid, estimator="model",
                                                         raw=v[2]),)))
     timings, value = {}, None
     with warnings.catch_warnings(record=True) as caught:
@@ -69,8 +69,8 @@ def _check_png(path_text: str) -> None:
     folder 'out' into 'out.png' beside it)."""
     from pathlib import Path
 
-    from ..errors import require
-    from ..safe_io import require_writable
+    from ..core.errors import require
+    from ..io.safe_write import require_writable
     path = Path(path_text)
     require_writable(path, what="--png")
     require(path.suffix.lower() in (".png", ".svg", ".pdf"), "--png", f"{path.name} has no "
@@ -78,8 +78,8 @@ def _check_png(path_text: str) -> None:
 
 
 def run(args) -> int:
-    from ..backend import resolve_backend
-    from ..grid import Grid
+    from ..ops.backend import resolve_backend
+    from ..core.grid import Grid
     if args.track:
         return run_track(args)
     if args.png:
@@ -89,7 +89,7 @@ def run(args) -> int:
     (scene, sim, noisy, filtered, paper, model), cold, notes = _run_once(args, backend, grid)
     warm = _run_once(args, backend, grid)[1]  # programs built, buffers pooled: steady state
     if args.png:
-        from ..plotting import demo_figure
+        from .plotting import demo_figure
         demo_figure(noisy.histograms(), filtered.histograms(), paper, args.png)
     estimates = _estimates(paper, model, warm)
     chosen = estimates[args.estimator]
@@ -116,12 +116,12 @@ def run_track(args) -> int:
     10 dB), simulated on the device, located per frame and tracked by a Kalman filter."""
     import numpy as np
 
-    from ..constants import SPEED_OF_LIGHT
-    from ..grid import Grid
-    from ..meshes import rectangle
-    from ..noise import AWGN
-    from ..paths import TimeAxis
-    from ..scene import Target, paper_setup
+    from ..core.constants import SPEED_OF_LIGHT
+    from ..core.grid import Grid
+    from ..physics.meshes import rectangle
+    from ..physics.noise import AWGN
+    from ..core.paths import TimeAxis
+    from ..physics.scene import Target, paper_setup
     from ..tracking import MovingTarget, Tracker, Trajectory, simulate_sequence
     setup, n_frames = paper_setup(), 30
     walk = MovingTarget(Target(rectangle(centre=(3.0, 1.5, 0.0), cell_m=0.02)),

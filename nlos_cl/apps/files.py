@@ -3,7 +3,7 @@ Eq. 26 calibration from measured (path, peak time) pairs.
 
 `locate` works in the capture's own frame: --region is given along the file's axes, and
 positions, covariances, truth and the region are reported in them (the JSON's `frame` says
-which). Without --region the search region is derived from the capture (nlos_cl.frames:
+which). Without --region the search region is derived from the capture (nlos_cl.io.ytal.frames:
 in front of the wall, around every spot, out to what the time window reaches); a coarse
 default region is refined around the answer, and an answer on the region's edge warns.
 """
@@ -15,11 +15,11 @@ import sys
 
 def _paper_spec(args):
     """The paper's scene from the command-line options, as a scene file would give it."""
-    from ..measured import PhotonCounter
-    from ..noise import AWGN
-    from ..paths import default_time_axis
-    from ..scene import paper_scene
-    from ..scenefile import SceneSpec
+    from ..physics.noise import PhotonCounter
+    from ..physics.noise import AWGN
+    from ..core.paths import default_time_axis
+    from ..physics.scene import paper_scene
+    from ..io.scenefile import SceneSpec
     scene = paper_scene(position=tuple(args.position or (4.0, 2.0, 0.0)),
                         facet_size_m=args.facet or 0.01)
     noise = None
@@ -32,21 +32,21 @@ def _paper_spec(args):
 
 
 def _scene_spec(args):
-    from ..errors import require
+    from ..core.errors import require
     if args.scene is None:
         return _paper_spec(args)
     clash = [f for f in ("position", "facet", "dt_ps", "snr_db", "seed") if getattr(args, f)
              is not None] + (["photons"] if args.photons else [])
     require(not clash, f"--{clash[0].replace('_', '-')}" if clash else "", "describes the "
             "paper's scene, but a scene file was given", "put it in the scene file instead")
-    from ..scenefile import load_scene
+    from ..io.scenefile import load_scene
     return load_scene(args.scene)
 
 
 def _simulate_frames(args, spec) -> int:
     """A sequence file: frame k at t = k / fps, moving targets on their trajectories, static
     ones (clutter) simulated once, per-frame noise seeded from the scene's seed."""
-    from ..backend import resolve_backend
+    from ..ops.backend import resolve_backend
     from ..tracking import MovingTarget, simulate_sequence, write_sequence
     scene = spec.scene
     moving = [MovingTarget(t, p) for t, p in zip(scene.targets, spec.trajectories) if p]
@@ -66,10 +66,10 @@ def _simulate_frames(args, spec) -> int:
 
 
 def simulate(args) -> int:
-    from .. import pipeline as pl
-    from ..backend import resolve_backend
-    from ..capture import write_capture
-    from ..errors import require
+    import nlos_cl as nl
+    from ..ops.backend import resolve_backend
+    from ..io.ytal.capture import write_capture
+    from ..core.errors import require
     spec = _scene_spec(args)
     require(args.frames is None or args.scene is not None, "--frames", "needs a scene file "
             "with moving targets", "give a scene file whose targets have a `trajectory:`")
@@ -79,9 +79,9 @@ def simulate(args) -> int:
                 "[...]}` in place of `position`")
         return _simulate_frames(args, spec)
     scene = spec.scene
-    signals = pl.simulate(scene, spec.time_axis, backend=resolve_backend(args.device))
+    signals = nl.simulate(scene, spec.time_axis, backend=resolve_backend(args.device))
     if spec.noise is not None:
-        signals = pl.add_noise(signals, model=spec.noise, seed=spec.seed)
+        signals = nl.add_noise(signals, model=spec.noise, seed=spec.seed)
     hist = signals.histograms()
     noise = repr(spec.noise) if spec.noise is not None else "none"
     truths = [[float(v) for v in t] for t in scene.truths]
@@ -97,16 +97,16 @@ def simulate(args) -> int:
 
 def _read(args):
     """The capture's sets (background subtracted, calibration applied) and its frame."""
-    from ..capture import read_capture, read_capture_with_frame
+    from ..io.ytal.capture import read_capture, read_capture_with_frame
     sets, frame = read_capture_with_frame(args.file)
     if args.background:
-        from ..measured import subtract_background
+        from ..localization.background import subtract_background
         backgrounds = read_capture(args.background)
         sets = [subtract_background(h, b, negatives=args.negatives)
                 for h, b in zip(sets, backgrounds)]
     calibration = None
     if args.calibration:  # (measured: imported only where a file asks for it)
-        from ..measured import fit_calibration, read_calibration_pairs, with_calibration
+        from ..io.calibration import fit_calibration, read_calibration_pairs, with_calibration
         calibration = fit_calibration(*read_calibration_pairs(args.calibration)).calibration
         sets = [with_calibration(h, calibration) for h in sets]
     return sets, frame, calibration
@@ -114,17 +114,17 @@ def _read(args):
 
 def _region(args, hist, frame):
     """(grid, was it derived) in our frame: --region along the file's axes, else the default."""
-    from ..frames import default_region, region_step
+    from ..localization.region import default_region, region_step
     h_s = args.h_ns * 1e-9
     if args.region is None:
         return default_region(hist, h_s), True
     a0, a1, b0, b1, c0, c1 = args.region
     step = args.step if args.step is not None else region_step(hist, h_s)
     grid = frame.grid(((a0, a1), (b0, b1), (c0, c1)), step)
-    from ..safe_io import memory_limit
+    from ..core.limits import memory_limit
     need = 4 * grid.n_cells
     if need > memory_limit():
-        from ..errors import InputError
+        from ..core.errors import InputError
         raise InputError(f"--region: {grid.n_cells:.3g} cells at a {step:g} m step need "
                          f"{need / 2**30:.1f} GiB for the score map, more than the "
                          f"{memory_limit() / 2**30:.1f} GiB allowed (half the memory available)."
@@ -135,7 +135,7 @@ def _region(args, hist, frame):
 def _estimator(args):
     if args.estimator == "paper":
         return "paper"
-    from ..model import ModelEstimator
+    from ..localization.model import ModelEstimator
     return ModelEstimator(targets=args.targets)
 
 
@@ -144,21 +144,21 @@ def _locate_one(args, hist, frame, backend):
     be coarsened), then the chosen estimator on the final grid; warnings collected."""
     import warnings as pywarnings
 
-    from .. import pipeline as pl
-    from ..frames import on_region_edge, region_step, zoom_region
-    from ..signals import upload
+    import nlos_cl as nl
+    from ..localization.region import on_region_edge, region_step, zoom_region
+    from ..ops.signals import upload
     region, derived = _region(args, hist, frame)
     log_mode = args.log or hist.n_detectors > 8  # products of many detectors underflow float32
     h_s = args.h_ns * 1e-9
     raw = upload(hist, backend)  # once: filtered here, and fitted by the model estimator
-    filtered = pl.gauss_filter(raw, h_s)
+    filtered = nl.gauss_filter(raw, h_s)
     grid = region
     if derived and min(region.step) > region_step(hist, h_s) * 1.001:
-        coarse = pl.locate(filtered, region, log_mode=log_mode, estimator="paper")
+        coarse = nl.locate(filtered, region, log_mode=log_mode, estimator="paper")
         grid = zoom_region(coarse.position, region, hist, h_s)
     with pywarnings.catch_warnings(record=True) as caught:
         pywarnings.simplefilter("always")
-        loc = pl.locate(filtered, grid, log_mode=log_mode, estimator=_estimator(args),
+        loc = nl.locate(filtered, grid, log_mode=log_mode, estimator=_estimator(args),
                         raw=raw, return_map=bool(args.map))
     notes = [str(w.message) for w in caught]
     if on_region_edge(loc.position, region):
@@ -211,7 +211,7 @@ def _save_map(args, i, n_sets, loc, grid):
 
     import numpy as np
 
-    from ..safe_io import atomic_write
+    from ..io.safe_write import atomic_write
     out = Path(args.map) if n_sets == 1 else Path(args.map).with_suffix(f".{i}.npz")
     x, y, z = grid.axes()
 
@@ -225,13 +225,13 @@ def _save_map(args, i, n_sets, loc, grid):
 
 def _check_map_path(args) -> None:
     """Before any work: --map must be writable as a .npz map (never over another kind of file)."""
-    from ..safe_io import require_writable
+    from ..io.safe_write import require_writable
     require_writable(args.map, keep_unless=lambda p: p.suffix == ".npz", force=args.force,
                      what="--map", kind="a .npz map")
 
 
 def locate(args) -> int:
-    from ..backend import resolve_backend
+    from ..ops.backend import resolve_backend
     if args.map:
         _check_map_path(args)
     sets, frame, calibration = _read(args)
@@ -261,7 +261,7 @@ def locate(args) -> int:
 
 
 def calibrate(args) -> int:
-    from ..measured import fit_calibration, read_calibration_pairs
+    from ..io.calibration import fit_calibration, read_calibration_pairs
     fit = fit_calibration(*read_calibration_pairs(args.pairs))
     result = {"a_m_per_s": fit.calibration.a_m_per_s, "b_m": float(fit.calibration.b_m[0]),
               "rmse_m": fit.rmse_m, "r2": fit.r2, "pairs": fit.n_pairs,

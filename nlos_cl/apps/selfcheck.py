@@ -7,24 +7,24 @@ import sys
 
 def self_check(runtime) -> list[tuple[str, float, float]]:
     """(operation: example, error, tolerance) for every operation's "check" examples."""
-    from ..backend import NumpyBackend
+    from ..ops.backend import NumpyBackend
     from ..ops import OPERATIONS
     from ..ops.base import example_error
-    from ..runtime import Runtime
+    from ..ops.opencl_backend import OpenCLBackend
 
     twin, results = NumpyBackend(), []
     for op in OPERATIONS.values():
         for example in op.examples("check"):
             device = runtime
             if example.max_alloc_bytes:
-                device = Runtime(runtime.device, max_alloc_bytes=example.max_alloc_bytes)
+                device = OpenCLBackend(runtime.device, max_alloc_bytes=example.max_alloc_bytes)
             error = example_error(op, example, device, twin)
             results.append((f"{op.name}: {example.label}", error, example.tolerance))
     return results
 
 
 def run(device=None) -> int:
-    from .. import devices
+    from ..device import devices
     entries = devices.list_devices()
     print("OpenCL platforms and devices:")
     if not entries:
@@ -33,7 +33,7 @@ def run(device=None) -> int:
         return 1
     for e in entries:
         print("  " + e.label)
-    from ..runtime import get_runtime
+    from ..ops.opencl_backend import get_runtime
     runtime = get_runtime(device)
     print(f"chosen: {runtime.name}")
     failed = False

@@ -44,7 +44,7 @@ def add_arguments(p) -> None:
 
 
 def main(args) -> int:
-    from nlos_cl.errors import InputError
+    from nlos_cl.core.errors import InputError
     from nlos_cl.sweep import example_text, sweep
     if args.example:
         sys.stdout.write(example_text())
@@ -96,7 +96,7 @@ def _parser():
 
 
 if __name__ == "__main__":
-    from nlos_cl.errors import DeviceError, InputError
+    from nlos_cl.core.errors import DeviceError, InputError
     try:
         sys.exit(main(_parser().parse_args()))
     except (InputError, DeviceError) as exc:

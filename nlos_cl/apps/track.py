@@ -22,8 +22,8 @@ import sys
 
 
 def _tracker(args, seq, backend):
-    from ..capture import read_capture
-    from ..frames import default_region, region_step
+    from ..io.ytal.capture import read_capture
+    from ..localization.region import default_region, region_step
     from ..tracking import BackgroundRemover, ConstantVelocity, Tracker
     first = seq[0].histograms
     h_s = args.h_ns * 1e-9
@@ -40,7 +40,7 @@ def _tracker(args, seq, backend):
         background = BackgroundRemover(alpha=args.running_mean, backend=backend)
     estimator = "paper"
     if args.estimator == "model":
-        from ..model import ModelEstimator
+        from ..localization.model import ModelEstimator
         estimator = ModelEstimator(targets=args.targets)
     interval = 1.0 / seq.fps if seq.fps else 0.1
     return Tracker(seq, grid, estimator=estimator, h_s=h_s, background=background,
@@ -73,10 +73,10 @@ def _entry(frame, tracks, measurements, cframe, smoothed=None, mark=None) -> dic
 
 
 def main(args) -> int:
-    from ..backend import resolve_backend
-    from ..safe_io import atomic_write
+    from ..ops.backend import resolve_backend
+    from ..io.safe_write import atomic_write
     from ..tracking import read_sequence
-    from ..errors import require
+    from ..core.errors import require
     require(not (args.lag and (args.smooth or not args.json)), "--lag", "prints fixed-lag "
             "lines with --json, and --smooth already uses every later frame",
             "pass --json --lag N without --smooth")

@@ -11,7 +11,7 @@ from __future__ import annotations
 def check_video_path(args) -> None:
     from pathlib import Path
 
-    from ..errors import require
+    from ..core.errors import require
     path = Path(args.video)
     require(path.suffix in (".gif", ".mp4"), "--video", f"{path} is neither .gif nor .mp4",
             "pass e.g. tracks.gif")
@@ -64,7 +64,7 @@ class Video:
     FPS, DPI = 10, 100
 
     def __init__(self, path: str, tmp: str, tracker):
-        from ..plotting import pyplot
+        from .plotting import pyplot
         self.tracker, self.grid, self.log_mode = tracker, tracker.grid, tracker.locator.log_mode
         self.n_detectors = tracker.layout.n_detectors
         self.tmp, self.named = tmp, (f"{tmp}.mp4" if path.endswith(".mp4") else None)

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..constants import LOG_FLOOR
+from ..core.constants import LOG_FLOOR
 from .base import Example, Operation, relative_error
 
 CELLS_PER_ITEM = 8  # float8 arithmetic along x (ellipse_score.cl)
@@ -114,7 +114,7 @@ def _tiled(rt, n_det, log_mode, log_floor, launch):
 def opencl(rt, signal, stats, spots, laser, path0, inv_dpath, grid, log_mode=False,
            log_floor=LOG_FLOOR, blocks=None, tile=None, out=None):
     """`out`: a ScoreMap from an earlier call on the same grid, reused (a plan's buffer)."""
-    from ..runtime import float4, float4_rows
+    from ..device.runtime import float4, float4_rows
     nx, ny, nz = grid.shape
     n_det, n_bins = signal.shape
     # float32 path lengths of ~10 m round to ~1e-6 m: ~0.003 of a 1 ps (0.3 mm) bin.
@@ -192,7 +192,7 @@ def _point_target_inputs(grid, n_det=3, n_bins=3000, dt_m=3e-3, target=(4.0, 2.0
 
 
 def _bench_examples():
-    from ..grid import Grid
+    from ..core.grid import Grid
     out = []
     for n in (601, 2048):
         grid = Grid((0.0, 0.01, 0.0), (6 / (n - 1), 6 / n, 0.01), (n, n, 1))
@@ -233,7 +233,7 @@ def _with_blocks(inputs, blocks, tile):
 
 
 def examples(size):
-    from ..grid import Grid
+    from ..core.grid import Grid
     if size == "bench":
         return _bench_examples()
     if size == "check":

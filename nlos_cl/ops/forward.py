@@ -94,7 +94,7 @@ def opencl(rt, facets, spots, laser, edge0, dpath, sigma_path, n_bins, reflectan
            method="deposit", visible=None, out=None):
     """method: "deposit" (deposit + convolve, the default) or "erf" (every bin's erf);
     visible: None, or a (detectors, facets) bool mask (occlusion: nlos_cl/visibility.py)."""
-    from ..runtime import float4, float4_rows
+    from ..device.runtime import float4, float4_rows
     n_det, n_facets = len(spots), facets.count
     n_chunks = -(-n_facets // FACET_CHUNK)
     n_pad = n_chunks * FACET_CHUNK
@@ -159,8 +159,8 @@ def deposit_taps(os_, half, dpath, sigma_path) -> np.ndarray:
     """(OS, 2 T + 1): taps[p][t], twice the pulse energy that a unit weight at the centre of
     sub-bin phase p, t bins into the deposit window, puts into the bin (float64 erf).
     A few hundred values, cached (a model fit asks for the same table ~100 times) and
-    computed with nlos_cl.erf: SciPy's import (~0.1 s) would dominate a one-shot `locate`."""
-    from ..erf import erf
+    computed with nlos_cl.core.erf: SciPy's import (~0.1 s) would dominate a one-shot `locate`."""
+    from ..core.erf import erf
     dsub = dpath / os_
     p = np.arange(os_)[:, None]
     t = np.arange(2 * half + 1)[None, :]
@@ -182,7 +182,7 @@ def _deposit_bins(rt, defines, group, span, total, edge0, dpath, sigma_path, n_b
     wnd = rt.constant(np.stack([first, count], axis=1), np.int32)
     kw = dict(defines, OS=os_, SPAN=2 * half + 1)
     low, high = rt.empty((n, os_, padded), np.uint32), rt.empty((n, os_, padded), np.uint32)
-    from ..runtime import cl
+    from ..device.runtime import cl
     for buf in (low, high):
         cl.enqueue_fill_buffer(rt.queue, buf.data, np.uint32(0), 0, buf.nbytes)
     rt.run(rt.kernel("forward", "deposit", **kw), (path.shape[1], n), path, weight,
@@ -198,8 +198,8 @@ def _deposit_bins(rt, defines, group, span, total, edge0, dpath, sigma_path, n_b
 
 def scene_inputs(scene, time_axis):
     """forward's arguments for a scene on a time axis (as nlos_cl.simulate passes them)."""
-    from ..constants import SPEED_OF_LIGHT
-    from ..paths import PathAxis, PathCalibration
+    from ..core.constants import SPEED_OF_LIGHT
+    from ..core.paths import PathAxis, PathCalibration
     setup = scene.setup
     paths = PathAxis.of(time_axis, PathCalibration.for_setup(setup), setup.n_detectors)
     return (scene.facets(), setup.detector_spots, setup.laser_spot, paths.start_m, paths.step_m,
@@ -208,8 +208,8 @@ def scene_inputs(scene, time_axis):
 
 def _window(scene, dt_s, margin_m=0.1):
     """A short time axis over every hidden path the facets produce, plus a margin."""
-    from ..constants import SPEED_OF_LIGHT as C
-    from ..paths import TimeAxis
+    from ..core.constants import SPEED_OF_LIGHT as C
+    from ..core.paths import TimeAxis
     setup, facets = scene.setup, scene.facets()
     paths = np.linalg.norm(facets.centres - setup.laser_spot, axis=1)[None] + np.linalg.norm(
         facets.centres[None] - setup.detector_spots[:, None], axis=2)
@@ -237,10 +237,10 @@ def _span_error(device, twin) -> float:
 
 
 def _bench_examples(hist_err):
-    from ..constants import SPEED_OF_LIGHT as C
-    from ..meshes import box
-    from ..paths import TimeAxis, default_time_axis
-    from ..scene import Scene, Target, paper_scene, paper_setup
+    from ..core.constants import SPEED_OF_LIGHT as C
+    from ..physics.meshes import box
+    from ..core.paths import TimeAxis, default_time_axis
+    from ..physics.scene import Scene, Target, paper_scene, paper_setup
     paper = paper_scene(facet_size_m=0.01)
     spots32 = [[x, 0.0, z] for x in np.linspace(-2.0, -0.3, 8) for z in np.linspace(-0.6, 0.6, 4)]
     detailed = Scene(paper_setup(detector_spots=spots32),
@@ -259,7 +259,7 @@ def _bench_examples(hist_err):
 
 
 def examples(size):
-    from ..scene import paper_scene
+    from ..physics.scene import paper_scene
     hist_err = lambda a, b: relative_error(a[0], b[0])  # noqa: E731
     if size == "bench":
         return _bench_examples(hist_err)
@@ -285,7 +285,7 @@ def examples(size):
 def _occlusion_examples(args, hist_err):
     """A visibility mask (every third (detector, facet) pair hidden) with both methods, and a
     glossy (GGX) target: the kernel's occlusion and reflectance branches."""
-    from ..reflectance import GGX
+    from ..physics.reflectance import GGX
     facets, n_det = args[0], len(args[1])
     mask = (np.arange(n_det * facets.count).reshape(n_det, -1) % 3) != 0
     glossy = args[:7] + (GGX(specular=0.6, roughness=0.3, diffuse=0.2),)

@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..constants import LOG_FLOOR
-from ..grid import Grid
+from ..core.constants import LOG_FLOOR
+from ..core.grid import Grid
 from . import ellipse_score as es
 from .argmax_patch import PATCH_RESULT, result_of
 from .base import Example, Operation, relative_error
@@ -73,20 +73,18 @@ def numpy(signal, dilated, stats, spots, laser, path0, inv_dpath, grid, factors,
 
 
 def _f4(p) -> np.ndarray:
-    """A point as a float4 kernel argument (w = 0), without pyopencl's slow make_float4."""
-    from ..runtime import cl
-    p = np.asarray(p, np.float64).reshape(3)
-    return np.array((float(p[0]), float(p[1]), float(p[2]), 0.0), dtype=cl.cltypes.float4)
+    from ..device.runtime import float4
+    return float4(p)
 
 
 def _i4(v) -> np.ndarray:
-    from ..runtime import cl
-    return np.array((int(v[0]), int(v[1]), int(v[2]), 0), dtype=cl.cltypes.int4)
+    from ..device.runtime import int4
+    return int4(v)
 
 
 def opencl(rt, signal, dilated, stats, spots, laser, path0, inv_dpath, grid, factors, half,
            log_mode=False, log_floor=LOG_FLOOR, out=None):
-    from ..runtime import cl, float4_rows
+    from ..device.runtime import float4_rows
     n_det, n_bins = signal.shape
     if n_det > es.DET_TILE:
         raise ValueError(f"fused_search scores up to {es.DET_TILE} detectors in one pass")
@@ -110,12 +108,9 @@ def opencl(rt, signal, dilated, stats, spots, laser, path0, inv_dpath, grid, fac
     if out is None or isinstance(out, np.ndarray):  # (a host result: not a device buffer)
         out = rt.empty((PATCH_RESULT,))
     kern = rt.kernel("fused_search", "refine_argmax", **defines)
-    kern.set_args(signal.data, stats.data, spots_buf.data, laser4, axis.data, np.int32(n_bins),
-                  _f4(grid.origin), _f4(grid.step), _i4(grid.shape), _i4(fa),
-                  _i4(coarse.shape), exact.data, bound.data,
-                  np.float32(1.0 if log_mode else 0.0), blocks.data, out.data)
-    rt.launched.add(("fused_search", "refine_argmax"))  # Runtime.run takes no local size
-    cl.enqueue_nd_range_kernel(rt.queue, kern, (WG,), (WG,))
+    rt.run(kern, (WG,), signal, stats, spots_buf, laser4, axis, np.int32(n_bins),
+           _f4(grid.origin), _f4(grid.step), _i4(grid.shape), _i4(fa), _i4(coarse.shape), exact,
+           bound, np.float32(1.0 if log_mode else 0.0), blocks, out, local_size=(WG,))
     return out
 
 

@@ -40,7 +40,7 @@ def numpy(signal, taps, taps_space=None, method=None):
 
 
 def _on_cpu(rt) -> bool:
-    from ..runtime import cl
+    from ..device.runtime import cl
     return bool(rt.device.type & cl.device_type.CPU)
 
 

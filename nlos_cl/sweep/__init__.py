@@ -27,7 +27,8 @@ import types
 from importlib import resources
 
 from .runner import RunnerStudy, worker_cache
-from .study import Study, load_study
+from .load import load_study
+from .study import Study
 
 
 def sweep(study, out, **options):

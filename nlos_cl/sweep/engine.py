@@ -16,11 +16,12 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..errors import InputError, require
+from ..core.errors import InputError, require
 from . import results
 from .runner import RunnerStudy
 from .runs import run_batch, worker_info
-from .study import SPECIAL, Study, check_scenes, load_study
+from .load import load_study
+from .study import SPECIAL, Study, check_scenes
 
 STUDY_FILE = "study.json"
 

@@ -14,17 +14,22 @@ from .runner import worker_cache
 @worker_cache(keep=3)
 def clean(x: float, y: float, facet_m: float, dt_s: float):
     """The noiseless signals of the paper's 0.3 x 1.6 m rectangle centred at (x, y, 0)."""
-    import nlos_cl as nl
-    mesh = nl.rectangle(0.3, 1.6, centre=(x, y, 0.0), normal=(-1.0, 0.0, 0.0), cell_m=facet_m)
-    scene = nl.Scene(nl.paper_setup(), nl.Target(mesh), facet_m, truth=(x, y, 0.0))
-    return nl.simulate(scene, nl.default_time_axis(scene.setup, dt_s))
+    from ..core.paths import default_time_axis
+    from ..physics.meshes import rectangle
+    from ..physics.scene import Scene, Target, paper_setup
+    from ..simulation.frame import simulate
+    mesh = rectangle(0.3, 1.6, centre=(x, y, 0.0), normal=(-1.0, 0.0, 0.0), cell_m=facet_m)
+    scene = Scene(paper_setup(), Target(mesh), facet_m, truth=(x, y, 0.0))
+    return simulate(scene, default_time_axis(scene.setup, dt_s))
 
 
 def paper_target(x: float, seed: int, y: float = 2.0, snr_db: float = 10.0,
                  facet_m: float = 0.02, dt_s: float = 1e-11, step_m: float = 0.02) -> dict:
     """One run: {'position': [x, y, z] located, 'error_m': distance to the truth}."""
-    import nlos_cl as nl
-    noisy = nl.add_noise(clean(x, y, facet_m, dt_s), snr_db, seed)
-    grid = nl.Grid.from_ranges(x=(0.0, 6.0), y=(0.01, 6.0), step_m=step_m)
-    loc = nl.locate(nl.gauss_filter(noisy, 0.65e-9), grid, estimator="paper")
+    from ..core.grid import Grid
+    from ..localization.api import gauss_filter, locate
+    from ..simulation.frame import add_noise
+    noisy = add_noise(clean(x, y, facet_m, dt_s), snr_db, seed)
+    grid = Grid.from_ranges(x=(0.0, 6.0), y=(0.01, 6.0), step_m=step_m)
+    loc = locate(gauss_filter(noisy, 0.65e-9), grid, estimator="paper")
     return {"position": loc.position, "error_m": loc.error_m}

@@ -23,8 +23,8 @@ import time
 from collections import OrderedDict
 from dataclasses import dataclass, field
 
-from ..errors import InputError, require
-from .study import Axis, Study, _check_scale, _group, _seeds, _values, assignments
+from ..core.errors import InputError, require
+from .study import Axis, Study, check_scale, axis_group, seed_values, axis_values, assignments
 
 TOP = {"description", "runner", "axes", "seeds", "params", "batch_size"}
 COLUMNS = ("result", "t_run_s", "t_cpu_s")  # a runner study's measured columns, then failure
@@ -110,9 +110,9 @@ def _axis(where: str, spec) -> Axis:
     require(isinstance(name, str) and name.isidentifier() and name not in RESERVED,
             f"{where}.name", f"expected a parameter name, got {name!r}",
             f"write a Python identifier other than {sorted(RESERVED)}")
-    values = _values(where, spec)
+    values = axis_values(where, spec)
     if spec.get("scale") is not None:
-        _check_scale(where, name, values, spec["scale"])
+        check_scale(where, name, values, spec["scale"])
     return Axis(name, name, values, spec.get("scale"))
 
 
@@ -125,9 +125,9 @@ def load_runner_study(raw: dict, base_dir=None) -> RunnerStudy:
     fn = resolve(raw["runner"])
     axes = raw.get("axes") or []
     require(isinstance(axes, list), "axes", "expected a list", "write axes: [{name, values}]")
-    groups = [_group(i, spec, _axis) for i, spec in enumerate(axes)]
+    groups = [axis_group(i, spec, _axis) for i, spec in enumerate(axes)]
     if "seeds" in raw:
-        groups.append((Axis("seed", "seed", _seeds(raw["seeds"])),))
+        groups.append((Axis("seed", "seed", seed_values(raw["seeds"])),))
     require(bool(groups), "axes", "a runner study needs at least one axis or seeds",
             "write axes: [{name: case, values: [0, 1]}] or seeds: 10")
     params = raw.get("params") or {}

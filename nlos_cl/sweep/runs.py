@@ -1,6 +1,6 @@
 """What a worker does: a batch of runs, each simulate -> noise -> filter -> locate.
 
-A worker process builds its OpenCL runtime once (nlos_cl.runtime.get_runtime caches it per
+A worker process builds its OpenCL runtime once (nlos_cl.device.runtime.get_runtime caches it per
 process) and keeps the clean simulation of the last few scenes, so the runs of one scene (seeds,
 SNRs, filters, estimators) simulate it once. Nothing here depends on which worker runs a batch
 or on what it ran before: a run's noise seed is its `seed` value from the study, and the
@@ -80,22 +80,23 @@ class _Clock:
 
 
 def _measure(plan: dict, values: dict, row: dict) -> None:
-    import nlos_cl as nl
+    from ..localization.api import gauss_filter, gauss_fit, locate
+    from ..simulation.frame import add_noise
     own = {p: v for p, v in assignments(plan, values).items() if p in SPECIAL}
     h_s, how = float(own.get("h_s", plan["h_s"])), own.get("filter", plan["filter"])
     start = time.perf_counter()
     spec, clean, signal_photons, cached = _clean(plan, values)
     clock = _Clock(clean.backend)
     t_sim = 0.0 if cached else time.perf_counter() - start
-    noisy = clean if spec.noise is None else nl.add_noise(clean, model=spec.noise,
+    noisy = clean if spec.noise is None else add_noise(clean, model=spec.noise,
                                                           seed=int(own["seed"]))
     t_noise = clock.lap()
     if how == "gauss":
-        filtered = nl.gauss_filter(noisy, h_s)
+        filtered = gauss_filter(noisy, h_s)
     else:
-        filtered = nl.gauss_fit(noisy)[0] if how == "gauss_fit" else noisy
+        filtered = gauss_fit(noisy)[0] if how == "gauss_fit" else noisy
     t_filter = clock.lap()
-    loc = nl.locate(filtered, _grid(plan, filtered.layout, h_s), estimator=own["estimator"],
+    loc = locate(filtered, _grid(plan, filtered.layout, h_s), estimator=own["estimator"],
                     raw=noisy)
     t_locate = clock.lap()
     measured = {"t_simulate_s": t_sim, "t_noise_s": t_noise, "t_filter_s": t_filter,
@@ -121,8 +122,9 @@ def _truth(loc) -> list:
 
 def _clean(plan: dict, values: dict):
     """(scene spec, clean Signals, mean signal photons per detector or None, was cached)."""
-    from nlos_cl import PhotonCounter, simulate
-    from nlos_cl.scenefile import load_scene
+    from ..io.scenefile import load_scene
+    from ..physics.noise import PhotonCounter
+    from ..simulation.frame import simulate
     scene = scene_of(plan, values)
     key = json.dumps(scene, sort_keys=True, default=str)
     if key in _SCENES:
@@ -142,8 +144,9 @@ def _clean(plan: dict, values: dict):
 
 def _grid(plan: dict, layout, h_s: float):
     """The study's grid, or the region this layout can see (frames.default_region)."""
-    from nlos_cl import Grid, HistogramSet
-    from nlos_cl.frames import default_region
+    from ..core.grid import Grid
+    from ..core.histograms import HistogramSet
+    from ..localization.region import default_region
     if plan["grid"] is not None:
         return Grid.from_ranges(**plan["grid"])
     cal = layout.calibration
@@ -159,5 +162,5 @@ def worker_info() -> dict:
     """Build this process's OpenCL runtime (once) and say which device it chose."""
     import os
 
-    from nlos_cl.runtime import get_runtime
+    from ..ops.opencl_backend import get_runtime
     return {"pid": os.getpid(), "device": get_runtime().name}

@@ -36,8 +36,8 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..scenefile import read_yaml
-from ..errors import InputError, require
+from ..io.scenefile import read_yaml
+from ..core.errors import InputError, require
 
 TOP = {"description", "scene", "axes", "estimators", "seeds", "h_s", "filter", "grid", "record",
        "batch_size"}
@@ -152,7 +152,7 @@ def _where(steps) -> str:
                    for i, s in enumerate(steps))
 
 
-def _values(where: str, spec: dict) -> tuple:
+def axis_values(where: str, spec: dict) -> tuple:
     require(("values" in spec) != ("range" in spec), where, "needs exactly one of values, range",
             "write values: [...] or range: {start, stop, step} / {start, stop, num}")
     if "values" in spec:
@@ -183,7 +183,7 @@ def _axis(where: str, spec) -> Axis:
     require(not unknown, f"{where}.{unknown[0] if unknown else ''}", "is not a known key",
             "use path, name, values, range or scale")
     parse_path(spec["path"])
-    values = _values(where, spec)
+    values = axis_values(where, spec)
     path = spec["path"]
     if path in ("estimator", "filter"):
         allowed = ESTIMATORS if path == "estimator" else FILTERS
@@ -191,11 +191,11 @@ def _axis(where: str, spec) -> Axis:
         require(not bad, f"{where}.values", f"unknown {path} {bad[:1]}", f"use {list(allowed)}")
     scale = spec.get("scale")
     if scale is not None:
-        _check_scale(where, path, values, scale)
+        check_scale(where, path, values, scale)
     return Axis(str(spec.get("name", path)), path, values, scale)
 
 
-def _check_scale(where: str, path: str, values, scale) -> None:
+def check_scale(where: str, path: str, values, scale) -> None:
     def number(v):
         return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
@@ -222,7 +222,7 @@ def assignments(plan: dict, values: dict) -> dict:
     return {plan["paths"][n]: scaled(v, scales.get(n)) for n, v in values.items()}
 
 
-def _group(i: int, spec, axis=_axis) -> tuple:  # axis: runner studies parse their own
+def axis_group(i: int, spec, axis=_axis) -> tuple:  # axis: runner studies parse their own
     if isinstance(spec, dict) and set(spec) == {"zip"}:
         require(isinstance(spec["zip"], list) and spec["zip"], f"axes[{i}].zip",
                 "expected a list of axes", "write zip: [{path: .., values: ..}, ...]")
@@ -234,7 +234,7 @@ def _group(i: int, spec, axis=_axis) -> tuple:  # axis: runner studies parse the
     return (axis(f"axes[{i}]", spec),)
 
 
-def _seeds(value) -> tuple:
+def seed_values(value) -> tuple:
     if isinstance(value, int) and not isinstance(value, bool):
         require(value >= 1, "seeds", f"must be >= 1, got {value}", "pass a count, e.g. 10")
         return tuple(range(value))
@@ -255,7 +255,7 @@ def _grid(value):
     require(isinstance(value, dict) and "step_m" in value and set(value) <= {"x", "y", "z",
             "step_m"}, "grid", f"expected {{x, y, z, step_m}}, got {value!r}",
             "write e.g. grid: {x: [0, 6], y: [0.01, 6], step_m: 0.01}, or leave it out")
-    from ..grid import Grid
+    from ..core.grid import Grid
     Grid.from_ranges(**value)  # checks it
     return dict(value)
 
@@ -286,20 +286,18 @@ def _scene(value, base_dir: Path) -> dict:
     return value
 
 
-def load_study(source, base_dir=None) -> Study:
-    """A Study from a YAML file path or a dict (scene paths relative to the file, or to
-    `base_dir`, default the working folder)."""
-    if isinstance(source, Study):
-        return source
+def read_source(source, base_dir=None) -> tuple:
+    """(the study's dict, the folder its scene paths are relative to) from a YAML file path or
+    a dict (relative to `base_dir`, default the working folder)."""
     if not isinstance(source, dict):
         path = Path(source)
         raw = read_yaml(path, "study file")
-        base_dir = path.parent if base_dir is None else Path(base_dir)
-    else:
-        raw, base_dir = source, Path(base_dir or ".")
-    if isinstance(raw, dict) and "runner" in raw:  # a function's study: nlos_cl/sweep/runner.py
-        from .runner import load_runner_study
-        return load_runner_study(raw, base_dir)
+        return raw, (path.parent if base_dir is None else Path(base_dir))
+    return source, Path(base_dir or ".")
+
+
+def load_scene_study(raw, base_dir: Path) -> Study:
+    """A scene study (the file format above) from its dict."""
     require(isinstance(raw, dict) and "scene" in raw, "study", "needs a `scene` (or a `runner`)",
             "write scene: a scene file path, or the scene's keys inline")
     unknown = sorted(set(raw) - TOP)
@@ -307,10 +305,10 @@ def load_study(source, base_dir=None) -> Study:
             f"use one of {sorted(TOP)}")
     axes = raw.get("axes") or []
     require(isinstance(axes, list), "axes", "expected a list", "write axes: [{path, values}]")
-    groups = [_group(i, spec) for i, spec in enumerate(axes)]
+    groups = [axis_group(i, spec) for i, spec in enumerate(axes)]
     groups.append((Axis("estimator", "estimator", tuple(raw.get("estimators", ["paper"]))),))
     _axis("estimators", {"path": "estimator", "values": list(groups[-1][0].values)})
-    groups.append((Axis("seed", "seed", _seeds(raw.get("seeds", 1))),))
+    groups.append((Axis("seed", "seed", seed_values(raw.get("seeds", 1))),))
     names = [a.name for g in groups for a in g]
     dup = sorted({n for n in names if names.count(n) > 1})
     require(not dup, f"axes: name {dup[0] if dup else ''!r}", "is used twice",
@@ -331,7 +329,7 @@ def scene_of(plan: dict, values: dict) -> dict:
 def check_scenes(study: Study) -> int:
     """Load the scene of every axis value once (the other axes at their first values), so a bad
     value fails here, before any work is sent. Returns the number of scenes checked."""
-    from ..scenefile import load_scene
+    from ..io.scenefile import load_scene
     plan, first = study.plan(), {a.name: a.values[0] for a in study.axes}
     seen = set()
     for group in study.groups:

@@ -1,19 +1,21 @@
-"""Tracking hidden objects over frames (issue 12): moving scenes simulated frame by frame,
-sequence files (y-tal fields with a leading frame axis, read lazily), background removal on the
-device, and a constant-velocity Kalman tracker with identities. See docs/tracking.md.
+"""Tracking hidden objects over frames (docs/tracking.md): a constant-velocity Kalman tracker
+with identities, gating, association, warm-started model fits and fixed-lag smoothing.
 
-Nothing here is imported by the rest of the library; SciPy, h5py and trimesh load on first use.
+The tracker's inputs live in their own layers and are re-exported here for convenience:
+moving scenes (nlos_cl.physics.trajectory) simulated frame by frame (nlos_cl.simulation.sequence),
+sequence files (nlos_cl.io.ytal), background removal (nlos_cl.localization.background) and sensor
+noise (nlos_cl.physics.noise). SciPy, h5py and trimesh load on first use.
 """
 from __future__ import annotations
 
-from .background import BackgroundRemover
+from ..io.ytal.reading import Sequence, read_sequence
+from ..io.ytal.sequence import SequenceFrame, write_sequence
+from ..localization.background import BackgroundRemover
+from ..physics.noise import SensorNoise
+from ..physics.trajectory import MovingTarget, Trajectory
+from ..simulation.sequence import SimFrame, frame_seed, simulate_sequence
 from .kalman import ConstantVelocity, Measurement
-from .noise import SensorNoise
-from .reading import Sequence, read_sequence
-from .sequence import SequenceFrame, write_sequence
-from .simulate import SimFrame, frame_seed, simulate_sequence
 from .tracker import Track, Tracker
-from .trajectory import MovingTarget, Trajectory
 
 __all__ = ["BackgroundRemover", "ConstantVelocity", "Measurement", "MovingTarget", "SensorNoise",
            "Sequence", "SequenceFrame", "SimFrame", "Track", "Tracker", "Trajectory", "frame_seed",

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import require
+from ..core.errors import require
 
 
 def line(params, t):

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import require
+from ..core.errors import require
 
 
 @dataclass(frozen=True)

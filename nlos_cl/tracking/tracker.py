@@ -24,8 +24,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..constants import PAPER_H_S
-from ..errors import InputError, require
+from ..core.constants import PAPER_H_S
+from ..core.errors import InputError, require
 from . import association, kalman, warm
 from .kalman import ConstantVelocity
 
@@ -141,9 +141,10 @@ class Tracker:
                  max_history: int | None = None, backend=None, search="auto",
                  max_sigma_m: float | None = 0.5, max_birge_ratio: float | None = None,
                  warm_start: bool = True):
-        from ..estimators import as_estimator
-        from ..grid import Grid
-        from ..plans import GaussFilter, Locator
+        from ..localization.estimators import as_estimator
+        from ..core.grid import Grid
+        from ..localization.filter import GaussFilter
+        from ..localization.locator import Locator
         layout = getattr(layout, "layout", layout)
         grid = Grid() if grid is None else grid
         motion = ConstantVelocity() if motion is None else motion
@@ -168,7 +169,7 @@ class Tracker:
         self.frame_interval_s, self.max_history = float(frame_interval_s), max_history
         self.backend, self.max_sigma_m, self.max_birge_ratio = backend, max_sigma_m, \
             max_birge_ratio
-        from ..layouts import height_observable
+        from ..physics.layouts import height_observable
         self.height_observable = height_observable(layout.laser_spot, layout.detector_spots)
         self.tracks: list[Track] = []  # live
         self.finished: list[Track] = []  # deleted, most recent last (at most 100 kept)
@@ -227,7 +228,7 @@ class Tracker:
         """The frame's located targets as Kalman measurements ([] if it holds no signal).
         t_s: the frame's time; with it (as `update` passes it) the model estimator is
         warm-started from the confirmed tracks' predictions (nlos_cl.tracking.warm)."""
-        from ..signals import as_signals
+        from ..ops.signals import as_signals
         sig = as_signals(frame, self.backend)
         if self.background is not None:
             sig = self.background(sig)

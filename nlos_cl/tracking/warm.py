@@ -2,7 +2,7 @@
 
 Where each of the K targets the estimator fits is followed by a confirmed track whose last
 measurement was a plate fit, the next frame's fit starts from those plates moved to the tracks'
-predicted positions (`ModelEstimator.estimate(scored, start=rows)`, nlos_cl.model.warm): only
+predicted positions (`ModelEstimator.estimate(scored, start=rows)`, nlos_cl.localization.model.warm): only
 the final fit runs, ~30 model evaluations on the host instead of ~150 forward calls. Two
 fallbacks to the cold (full) fit: the estimator's own (the warm fit misses the data: Birge
 ratio above its 99.9 % point), and the tracker's (a warm-fitted position outside every start
@@ -41,8 +41,8 @@ def can_start(estimator) -> bool:
     two-target crossing, docs/tracking.md: identities kept in 10 of 10 seeds warm, 9 of 10
     cold, at 0.19 s against 1.41 s a frame)."""
     if getattr(estimator, "name", None) != "model":
-        return False  # (and the paper's tracker never imports nlos_cl.model)
-    from ..model import ModelEstimator
+        return False  # (and the paper's tracker never imports nlos_cl.localization.model)
+    from ..localization.model import ModelEstimator
     return isinstance(estimator, ModelEstimator) and isinstance(estimator.targets, int) \
         and estimator.closed is not True
 

@@ -9,7 +9,7 @@ from .report import report
 
 
 def run(device=None, smoke=False, out_dir: Path | None = None, say=print) -> str:
-    from ...runtime import get_runtime
+    from ...ops.opencl_backend import get_runtime
     rt = get_runtime(device)
     rows = all_rows(rt, smoke, say)
     return report(rt.name, rows, smoke, out_dir)

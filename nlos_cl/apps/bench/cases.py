@@ -10,8 +10,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ... import pipeline as pl
-from ...backend import NumpyBackend
+import nlos_cl as nl
+from ...ops.backend import NumpyBackend
 from ...ops import OPERATIONS
 from .harness import fraction_of_limit, measure_limits, spread, time_pair
 
@@ -84,17 +84,17 @@ def _probe_key(probe):
 
 
 def pipeline_row(rt, smoke):
-    from ...grid import Grid
-    from ...paths import TimeAxis, default_time_axis
-    from ...scene import paper_scene
+    from ...core.grid import Grid
+    from ...core.paths import TimeAxis, default_time_axis
+    from ...physics.scene import paper_scene
     scene = paper_scene(facet_size_m=0.05 if smoke else 0.01)
     axis = TimeAxis(40 / 299_792_458.0 + 29e-9, 1e-12, 8_000) if smoke else default_time_axis(
         scene.setup)
     grid = Grid.from_ranges(x=(3, 5), y=(1, 3), step_m=0.05) if smoke else Grid()
 
     def run(backend):
-        f = pl.gauss_filter(pl.add_noise(pl.simulate(scene, axis, backend=backend), 10.0, 0))
-        return pl.locate(f, grid, estimator="paper")
+        f = nl.gauss_filter(nl.add_noise(nl.simulate(scene, axis, backend=backend), 10.0, 0))
+        return nl.locate(f, grid, estimator="paper")
     kernel, twin, build, mem = time_pair(lambda: run(rt), lambda: run(NumpyBackend()),
                                          rt.finish, twin_repeats=1)
     k, k_spread = spread(kernel)

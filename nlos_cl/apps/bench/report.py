@@ -49,6 +49,6 @@ def report(device_name: str, rows, smoke: bool, out_dir: Path | None) -> str:
     (out_dir / "performance.json").write_text(json.dumps(
         {"device": device_name, "smoke": smoke,
          "rows": [asdict(r) | {"ratio": r.ratio} for r in rows]}, indent=1))
-    from ...plotting import performance_figure
+    from ..plotting import performance_figure
     performance_figure(rows, out_dir / "performance.png")
     return text

@@ -27,10 +27,10 @@ def read_peers() -> dict:
 def _signals_of(rt, rows, spots, path0, dt_m):
     """Rows scored as histograms: a Layout whose calibration puts bin k's centre at
     path0 + k dt_m per detector."""
-    from ...constants import SPEED_OF_LIGHT as C
-    from ...histograms import HistogramSet
-    from ...paths import PathCalibration, TimeAxis
-    from ...signals import upload
+    from ...core.constants import SPEED_OF_LIGHT as C
+    from ...core.histograms import HistogramSet
+    from ...core.paths import PathCalibration, TimeAxis
+    from ...ops.signals import upload
     axis = TimeAxis(0.0, dt_m / C, rows.shape[1])
     cal = PathCalibration(C, np.asarray(path0) - 0.5 * dt_m)
     return upload(HistogramSet(rows, axis, spots, np.zeros(3), cal), rt)
@@ -38,12 +38,12 @@ def _signals_of(rt, rows, spots, path0, dt_m):
 
 def cases(rt, smoke):
     """(label, signals, grid, log_mode, signal width m, peer grid size or None)."""
-    from ... import pipeline as pl
-    from ...grid import Grid
+    import nlos_cl as nl
+    from ...core.grid import Grid
     from ...ops.ellipse_score import _point_target_inputs
-    from ...paths import TimeAxis
-    from ...scene import paper_scene
-    paper = pl.gauss_filter(pl.simulate(paper_scene(facet_size_m=0.02),
+    from ...core.paths import TimeAxis
+    from ...physics.scene import paper_scene
+    paper = nl.gauss_filter(nl.simulate(paper_scene(facet_size_m=0.02),
                                         TimeAxis(40 / 299_792_458.0, 10e-12, 4096), backend=rt))
     sizes = (128,) if smoke else (512, 2048)
     out = [(f"plane {n}x{n} x 3 det (paper scene, 10 ps)", paper,
@@ -82,7 +82,7 @@ def _time(locators, sig, rt, repeats):
 
 
 def scoring_rows(rt, smoke, Row):
-    from ...plans import Locator
+    from ...localization.locator import Locator
     peers = read_peers()
     rows = []
     for label, sig, grid, log, width, peer_n in cases(rt, smoke):

@@ -19,16 +19,16 @@ import time
 
 import numpy as np
 
-from ... import pipeline as pl
-from ...backend import NumpyBackend
+import nlos_cl as nl
+from ...ops.backend import NumpyBackend
 
 GOALS = {"tracker, paper estimator": 500.0, "tracker, model estimator": 30.0}  # frames/s
 
 
 def _frames(rt, n_copies=8):
-    from ...paths import TimeAxis
-    from ...scene import paper_scene
-    clean = pl.simulate(paper_scene(facet_size_m=0.02), TimeAxis(40 / 299_792_458.0, 10e-12, 4096),
+    from ...core.paths import TimeAxis
+    from ...physics.scene import paper_scene
+    clean = nl.simulate(paper_scene(facet_size_m=0.02), TimeAxis(40 / 299_792_458.0, 10e-12, 4096),
                         backend=rt).histograms()
     rng = np.random.default_rng(0)
     power = np.sqrt(np.mean(clean.data ** 2, axis=1, keepdims=True) / 10.0)
@@ -39,8 +39,9 @@ def _frames(rt, n_copies=8):
 
 def _cases(rt, clean, frames, grid, smoke):
     """{label: (step(i), frames per repeat, twin step or None)}."""
-    from ...plans import GaussFilter, Locator
-    from ...signals import upload
+    from ...localization.filter import GaussFilter
+    from ...localization.locator import Locator
+    from ...ops.signals import upload
     from ...tracking import Tracker
     n = 20 if smoke else 200
     gauss, locator = GaussFilter(time_axis=clean.time_axis), Locator(clean.layout, grid, estimator="paper")
@@ -54,9 +55,9 @@ def _cases(rt, clean, frames, grid, smoke):
         return lambda i: tracker.update(frames[i % k])
     return {
         "functional: nl.gauss_filter + nl.locate per frame": (
-            lambda i: pl.locate(pl.gauss_filter(frames[i % k], backend=rt), grid,
+            lambda i: nl.locate(nl.gauss_filter(frames[i % k], backend=rt), grid,
                                 estimator="paper"), n,
-            lambda i: pl.locate(pl.gauss_filter(frames[i % k], backend=NumpyBackend()), grid,
+            lambda i: nl.locate(nl.gauss_filter(frames[i % k], backend=NumpyBackend()), grid,
                              estimator="paper")),
         "plans: GaussFilter + Locator built once": (
             lambda i: locator(gauss(upload(frames[i % k], rt))), n, None),
@@ -70,7 +71,7 @@ def _cases(rt, clean, frames, grid, smoke):
 
 
 def stream_rows(rt, smoke, Row):
-    from ...grid import Grid
+    from ...core.grid import Grid
     size = 64 if smoke else 512
     grid = Grid((2.0, 0.5, 0.0), (4 / size, 4 / size, 0.01), (size, size, 1))
     clean, frames = _frames(rt)

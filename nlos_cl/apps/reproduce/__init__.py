@@ -7,7 +7,7 @@ SciPy fit per histogram, Eq. 25) and the raw signal, and reports mean +- std and
 
 One module per experiment (fig5, fig6, sweeps: fig7a/fig7b/table1/fig9, fig8, fig10); what they
 share in `common`; the report in `report`; the paper's numbers in paper.yaml and our prose in
-text.yaml (data files of this package); every figure in `nlos_cl.plotting`. The sweeps and
+text.yaml (data files of this package); every figure in `nlos_cl.apps.plotting`. The sweeps and
 fig10 are study files (nlos_cl/sweep/<name>.yaml) run through the sweep engine (`studies`).
 
 `beyond` (beyond*.py, beyond*.yaml) is not one of the paper's experiments: it sets the paper's

@@ -13,7 +13,7 @@ from __future__ import annotations
 import csv
 from pathlib import Path
 
-from nlos_cl import plotting
+from nlos_cl.apps import plotting
 
 from . import beyond_cases as bc
 from .beyond_report import coverage_rows, goal_rows, summarise

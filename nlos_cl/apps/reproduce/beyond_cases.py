@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 import nlos_cl as nl
-from nlos_cl import layouts
+from nlos_cl.physics import layouts
 
 from .common import Settings, load_data, simulate_clean
 
@@ -122,7 +122,7 @@ def run_paper(clean, seed, lay: Layout, grid, s: Settings, noise=None) -> np.nda
 
 def run_model(clean, seed, lay: Layout, grid, s: Settings, targets=1, noise=None):
     """(LocatedTargets, seconds, notes) of the model fit; a failure is a note, not a crash."""
-    from nlos_cl.model import ModelEstimator
+    from nlos_cl.localization.model import ModelEstimator
     noisy, filtered = noisy_frame(clean, seed, s, noise)
     start = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught:

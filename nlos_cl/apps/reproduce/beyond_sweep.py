@@ -12,7 +12,7 @@ import json
 import shutil
 from pathlib import Path
 
-from nlos_cl.errors import InputError
+from nlos_cl.core.errors import InputError
 
 from .common import Settings
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from nlos_cl import plotting
+from nlos_cl.apps import plotting
 
 from .common import PAPER, Result, Settings, error_stats, title
 from .studies import METHODS, run_study

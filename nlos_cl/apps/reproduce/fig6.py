@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import nlos_cl as nl
-from nlos_cl import plotting
+from nlos_cl.apps import plotting
 
 from .common import METHODS, PAPER, Result, Settings, paper_target, run_trials, stats, title
 

@@ -3,10 +3,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from nlos_cl import plotting
+from nlos_cl.apps import plotting
 
-from .common import (PAPER, Result, Settings, paper_position_row, paper_target, run_trials,
-                     stats, title)
+from .common import PAPER, Result, Settings, paper_position_row, paper_target, run_trials, stats, title
 
 SHAPES = ((0.2, 1.8), (0.5, 1.5), (0.8, 1.2))  # width x height (m)
 

@@ -27,7 +27,7 @@ def study(name: str, s: Settings) -> dict:
     """nlos_cl/sweep/<name>.yaml with reproduce's Settings applied."""
     import yaml
 
-    from nlos_cl.scenefile import yaml_loader
+    from nlos_cl.io.scenefile import yaml_loader
     text = resources.files("nlos_cl.sweep").joinpath(f"{name}.yaml").read_text("utf-8")
     spec = yaml.load(text, Loader=yaml_loader())
     scene = spec["scene"]
@@ -48,7 +48,7 @@ def run_study(name: str, s: Settings, out: Path) -> list[dict]:
     """The study's table as rows (dicts in run_id order). It starts afresh in OUT/<name>_sweep/
     (the classic loops recomputed every time; an old table may come from older code). A failed
     run is an error here, as it was in the loops: a figure must not silently drop runs."""
-    from nlos_cl.errors import InputError
+    from nlos_cl.core.errors import InputError
     from nlos_cl.sweep import sweep
     folder = Path(out) / f"{name}_sweep"
     if any((folder / f).exists() for f in ("study.json", "runs.parquet")):  # an earlier run's

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from nlos_cl import plotting
+from nlos_cl.apps import plotting
 
 from .common import PAPER, Result, Settings, paper_position_row, title
 from .studies import method_rows, run_study, stats

@@ -1,0 +1,269 @@
+"""The `nlos-cl` command: info, demo, bench, reproduce, simulate, locate, calibrate, track,
+sweep.
+
+A thin argparse layer: every command's work lives in nlos_cl/apps, imported only when that
+command runs, so `nlos-cl --help` and `nlos-cl locate` pay for no import they do not use.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse, but a bad argument is one line on stderr (field, problem, fix) and exit 2."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: {message}\n")
+
+
+def _number(field: str, fix: str, *, positive=False, minimum=None, integer=False):
+    """An argparse type: a finite number (int if `integer`), checked as the API checks it."""
+    def parse(text):
+        try:
+            value = int(text) if integer else float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{field}: {text!r} is not "
+                                             f"{'an integer' if integer else 'a number'}. "
+                                             f"Fix: {fix}") from None
+        bad = (not math.isfinite(value) or (positive and value <= 0)
+               or (minimum is not None and value < minimum))
+        if bad:
+            need = ("positive" if positive else f">= {minimum}" if minimum is not None
+                    else "finite")
+            raise argparse.ArgumentTypeError(f"{field}: must be {need}, got {text}. Fix: {fix}")
+        return value
+    return parse
+
+
+COORD = _number("position", "pass finite coordinates in metres")
+SEED = _number("seed", "pass e.g. 0", minimum=0, integer=True)
+H_NS = _number("h_s", "pass the window in ns, e.g. 0.65", positive=True)
+
+
+def _parents():
+    device = _Parser(add_help=False)
+    device.add_argument("--device", help="'P:D' indices or part of a device/platform name "
+                        "(`nlos-cl info` lists them; default: PYOPENCL_CTX, else the best)")
+    as_json = _Parser(add_help=False)
+    as_json.add_argument("--json", action="store_true", help="print one JSON object")
+    return device, as_json
+
+
+def _demo_args(p):
+    p.add_argument("--reference", action="store_true", help="run on the NumPy twins")
+    p.add_argument("--png", default="nlos_demo.png", help="figure path ('' for none)")
+    p.add_argument("--snr-db", type=_number("snr_db", "pass decibels, e.g. 10"), default=10.0)
+    p.add_argument("--seed", type=SEED, default=0)
+    p.add_argument("--h-ns", type=H_NS, default=0.65, help="Gauss filter window h (ns)")
+    p.add_argument("--step", type=_number("grid.step", "pass metres, e.g. 0.01", positive=True),
+                   default=0.01, help="grid step (m)")
+    p.add_argument("--position", type=COORD, nargs=3, default=(4.0, 2.0, 0.0),
+                   metavar=("X", "Y", "Z"), help="target centre (m)")
+    p.add_argument("--estimator", choices=["model", "paper"], default="model",
+                   help="whose answer heads the output (both are run and shown)")
+    p.add_argument("--track", action="store_true", help="a short tracking demonstration: the "
+                   "target walks a line over 30 frames, located per frame and Kalman-tracked")
+
+
+def _bench_args(p):
+    p.add_argument("--smoke", action="store_true", help="tiny sizes (for CI)")
+    p.add_argument("--out", default="", help="write performance.md/.json/.png here")
+
+
+class _LazyChoices:
+    """argparse choices read from a module only when a value is checked or help is shown: the
+    experiments' names live in nlos_cl.apps.reproduce, whose import (~0.1 s: every experiment,
+    tqdm, yaml) only `nlos-cl reproduce` should pay, not `nlos-cl locate`."""
+
+    def __init__(self, first, module, attr):
+        self.first, self.module, self.attr = list(first), module, attr
+
+    def _names(self):
+        import importlib
+        return [*self.first, *getattr(importlib.import_module(self.module, __package__),
+                                      self.attr)]
+
+    def __contains__(self, value):
+        return value in self._names()
+
+    def __iter__(self):
+        return iter(self._names())
+
+
+def _reproduce_args(p):
+    # a metavar, so that argparse does not list the choices (an import) while building
+    p.add_argument("name", choices=_LazyChoices(["all"], ".reproduce", "EXPERIMENTS"),
+                   metavar="NAME", help="the experiment: %(choices)s")
+    p.add_argument("--out", default="out/reproduce", help="folder for figures and CSVs")
+    p.add_argument("--seeds", type=_number("seeds", "pass a count, e.g. 3", minimum=1,
+                                           integer=True), default=None,
+                   help="noise seeds (default 3; 1 quick)")
+    p.add_argument("--quick", action="store_true", help="coarse setting (CI)")
+    p.add_argument("--doc", default="", help="write the paper-vs-ours report here "
+                   "(default with 'all': OUT/paper-results.md)")
+
+
+def _simulate_args(p):
+    p.add_argument("scene", nargs="?", default=None,
+                   help="a scene file (YAML: docs/scene-files.md); default: the paper's scene, "
+                   "shaped by the options below")
+    p.add_argument("--out", required=True, help="the .h5 file to write (atomically)")
+    p.add_argument("--force", action="store_true", help="replace a file that is not a capture")
+    p.add_argument("--position", type=COORD, nargs=3, default=None, metavar=("X", "Y", "Z"),
+                   help="the paper's target centre (m, nlos_cl's frame; default 4 2 0)")
+    p.add_argument("--facet", type=_number("facet_size_m", "pass metres, e.g. 0.01",
+                                           positive=True), default=None,
+                   help="facet size (m; default 0.01)")
+    p.add_argument("--dt-ps", type=_number("time_axis.dt_s", "pass picoseconds, e.g. 10",
+                                           positive=True), default=None,
+                   help="bin width (ps; default 10)")
+    p.add_argument("--snr-db", type=_number("snr_db", "pass decibels, e.g. 10"), default=None,
+                   help="add white Gaussian noise")
+    p.add_argument("--photons", action="store_true", help="photon-counting detector + TDC")
+    p.add_argument("--pulses", type=_number("photon_counter.n_pulses", "pass e.g. 80e6",
+                                            positive=True), default=80e6,
+                   help="laser pulses summed")
+    p.add_argument("--tdc-ps", type=_number("photon_counter.tdc_bin_s", "pass picoseconds, "
+                                            "e.g. 50", positive=True), default=50.0,
+                   help="TDC bin (ps)")
+    p.add_argument("--seed", type=SEED, default=None, help="noise seed (default 0)")
+    p.add_argument("--frames", type=_number("frames", "pass a count, e.g. 50", minimum=1,
+                                            integer=True), default=None,
+                   help="write a sequence of N frames (scene file with trajectories)")
+    p.add_argument("--fps", type=_number("fps", "pass a frame rate in Hz, e.g. 10",
+                                         positive=True), default=10.0,
+                   help="frame rate of --frames (frame k at t = k / fps)")
+
+
+def _locate_args(p):
+    p.add_argument("file")
+    p.add_argument("--region", type=_number("region", "pass finite ranges in metres"), nargs=6,
+                   metavar=("A0", "A1", "B0", "B1", "C0", "C1"), default=None,
+                   help="search ranges along the file's three axes (m; for y-tal files X, Y, Z "
+                   "with the wall at Z = 0); default: derived from the capture")
+    p.add_argument("--step", type=_number("grid.step", "pass metres, e.g. 0.01", positive=True),
+                   default=None, help="grid step with --region (m; default from the bins and h)")
+    p.add_argument("--h-ns", type=H_NS, default=0.65, help="Gauss filter window h (ns)")
+    p.add_argument("--log", action="store_true", help="sum of logs (many detectors)")
+    p.add_argument("--background", help="capture without the target, subtracted first")
+    p.add_argument("--negatives", default="keep", choices=["keep", "clip", "floor"],
+                   help="bins below 0 after --background: keep (default; clipping biases the "
+                   "model estimator), clip to 0, or floor")
+    p.add_argument("--calibration", help="CSV of (path m, peak time s) pairs: fit Eq. 26")
+    p.add_argument("--map", help="save the probability map (.npz)")
+    p.add_argument("--force", action="store_true", help="let --map replace a non-.npz file")
+    _estimator_args(p)
+
+
+def _targets(text):
+    if text == "auto":
+        return text
+    return _number("targets", "pass a count, e.g. 1, or 'auto'", minimum=1, integer=True)(text)
+
+
+def _estimator_args(p):
+    p.add_argument("--estimator", choices=["model", "paper"], default="model",
+                   help="model: fit a plate's centre, size and yaw with the forward model, with "
+                   "a covariance (docs/model-estimator.md); paper: the paper's argmax")
+    p.add_argument("--targets", type=_targets, default=1,
+                   help="targets to fit (model estimator): a count, or 'auto' (by BIC)")
+
+
+def _track_args(p):
+    p.add_argument("file", help="a sequence (or capture) .h5 file: docs/tracking.md")
+    p.add_argument("--video", default=None, help="write an animation (.gif, or .mp4 with ffmpeg)")
+    p.add_argument("--estimator", choices=["paper", "model"], default="paper",
+                   help="per-frame estimator (paper: fast; model: centre and covariance)")
+    p.add_argument("--targets", type=_number("targets", "pass a count, e.g. 1", minimum=1,
+                                             integer=True), default=1, help="targets to follow")
+    p.add_argument("--region", type=_number("region", "pass finite ranges in metres"), nargs=6,
+                   default=None, metavar=("A0", "A1", "B0", "B1", "C0", "C1"),
+                   help="search ranges along the file's axes (default: what the capture sees)")
+    p.add_argument("--step", type=_number("grid.step", "pass metres, e.g. 0.01", positive=True),
+                   default=None, help="grid step (m) with --region")
+    p.add_argument("--h-ns", type=H_NS, default=0.65, help="Gauss filter window h (ns)")
+    p.add_argument("--background", default=None, help="a target-free capture to subtract")
+    p.add_argument("--running-mean", type=_number("running_mean", "pass a weight in (0, 1], "
+                                                  "e.g. 0.05", positive=True), default=None,
+                   metavar="ALPHA", help="subtract a running mean of past frames (weight ALPHA)")
+    p.add_argument("--accel", type=_number("accel", "pass m/s^2, e.g. 0.5", positive=True),
+                   default=0.5, help="motion noise of the constant-velocity model (m/s^2)")
+    p.add_argument("--max-frames", type=_number("max_frames", "pass a count", minimum=1,
+                                                integer=True), default=None,
+                   help="track the first N frames")
+    p.add_argument("--smooth", action="store_true",
+                   help="offline: with --json, print every frame's tracks smoothed with the "
+                        "later frames (Rauch-Tung-Striebel), after the last frame")
+    p.add_argument("--lag", type=_number("lag", "pass a number of frames, e.g. 5", minimum=0,
+                                         integer=True), default=0, metavar="L",
+                   help="real time with a latency: with --json, each frame's line L frames "
+                        "later, fixed-lag smoothed with them")
+    p.add_argument("--force", action="store_true", help="replace an existing --video file")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def _sweep_args(p):
+    from .sweep_cmd import add_arguments  # argparse only: light
+    add_arguments(p)
+
+
+def _calibrate_args(p):
+    p.add_argument("pairs", help="CSV rows: known free-space path (m), peak time (s)")
+
+
+# name: (help, add arguments, takes --device, takes --json, "module:function" that runs it)
+COMMANDS = {
+    "info": ("list OpenCL devices, show the chosen one, self-check every operation",
+             None, True, False, "selfcheck:main"),
+    "demo": ("the paper's scene: simulate, noise, filter, locate", _demo_args, True, True,
+             "demo:run"),
+    "bench": ("every operation vs its NumPy twin and the device's limits", _bench_args, True,
+              False, "bench_cmd:main"),
+    "reproduce": ("re-run an experiment of the paper (or all)", _reproduce_args, False, True,
+                  "reproduce_cmd:main"),
+    "simulate": ("simulate a scene file (or the paper's scene) into a y-tal capture",
+                 _simulate_args, True, False,
+                 "files:simulate"),
+    "locate": ("locate the target of a y-tal capture", _locate_args, True, True, "files:locate"),
+    "calibrate": ("fit path = a t + b (paper Eq. 26) from pairs", _calibrate_args, False, True,
+                  "files:calibrate"),
+    "track": ("track hidden objects through a sequence of frames (Kalman tracks)", _track_args,
+              True, True, "track:main"),
+    "sweep": ("run a parameter study (YAML) as Dask tasks: runs.parquet, summary, plots",
+              _sweep_args, False, False, "sweep_cmd:main"),
+}
+
+
+def parser() -> argparse.ArgumentParser:
+    device, as_json = _parents()
+    top = _Parser(prog="nlos-cl", description=__doc__.split("\n\n")[0])
+    sub = top.add_subparsers(dest="command", required=True)
+    for name, (help_text, add_args, takes_device, takes_json, _) in COMMANDS.items():
+        parents = [p for p, on in ((device, takes_device), (as_json, takes_json)) if on]
+        p = sub.add_parser(name, help=help_text, parents=parents)
+        if add_args:
+            add_args(p)
+    return top
+
+
+def main(argv=None) -> int:
+    args = parser().parse_args(argv)
+    import importlib
+
+    from ..core.errors import DeviceError, InputError
+    module, function = COMMANDS[args.command][-1].split(":")
+    try:
+        return getattr(importlib.import_module(f".{module}", __package__), function)(args)
+    except (InputError, DeviceError) as exc:
+        print(f"nlos-cl: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # an output path we could not write: say which and why
+        print(f"nlos-cl: {exc.filename or 'output'}: {exc.strerror or exc}. Fix: pick a "
+              "writable file path in an existing folder", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,2 @@
+"""y-tal HDF5 files: single captures (capture.py), sequences of frames (sequence.py writes,
+reading.py reads lazily), their shared fields (fields.py) and coordinate frame (frames.py)."""

@@ -1,0 +1,85 @@
+"""Captures in y-tal's HDF5 layout (`tal.io.NLOSCaptureData`), read and written with h5py.
+
+The field-by-field mapping, the frames and the safety rules are in docs/captures.md. In short:
+H is time-first (T_Si, T_Sx_Sy, T_Lx_Ly_Sx_Sy, T_Li_Si), delta_t and t_start are metres of
+optical path, our metadata rides in scene_info['nlos_cl'], and y-tal's frame (wall Z = 0) maps
+to ours by (x, y, z) = (-X, Z, Y). Writes are atomic; reads check truncation, sizes and
+geometry; several laser points give one HistogramSet each; confocal captures are refused.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ...core.errors import InputError, require
+from ...core.histograms import HistogramSet
+from .fields import GRID_FORMATS, H_FORMATS  # noqa: F401  (the format enums, for users)
+from .fields import (REQUIRED, check_complete, check_memory, dataset, is_capture, to_histograms,
+                     write_fields)
+from .frames import YTAL, CaptureFrame, check_wall_spots, from_ytal, to_ytal  # noqa: F401
+
+def write_capture(path, histograms: HistogramSet, *, device_distance_m: float = 20.0,
+                  metadata: dict | None = None, compression: int = 4, force: bool = False
+                  ) -> Path:
+    """Write one HistogramSet as a y-tal capture (H_format T_Si, sensor grid N_3); one t_start
+    for all sensors. Our exact time axis, calibration, truth and `metadata` ride in
+    scene_info['nlos_cl']. Atomic (see nlos_cl.io.safe_write.atomic_write: Ctrl-C leaves the old file,
+    a concurrent writer's file is never silently lost); a non-capture file needs force=True."""
+    import h5py
+
+    from ..safe_write import atomic_write
+
+    h = histograms
+    check_writable(h, device_distance_m)
+
+    def write(tmp):
+        with h5py.File(tmp, "w") as f:
+            write_fields(f, h, device_distance_m, metadata, compression)
+    return atomic_write(path, write, keep_unless=is_capture, force=force, what="capture",
+                        kind="an HDF5 capture (nlos_cl's or y-tal's)")
+
+
+def check_writable(h: HistogramSet, device_distance_m) -> None:
+    """What a y-tal capture can hold: one t_start for all detectors, a positive distance."""
+    offsets = h.calibration.offsets(h.n_detectors)
+    require(bool(np.allclose(offsets, offsets[0], rtol=0, atol=1e-9)), "calibration.b_m",
+            "differs between detectors, but a y-tal capture has a single t_start",
+            "write one file per group of detectors that share an offset")
+    require(isinstance(device_distance_m, (int, float)) and 0 < device_distance_m < math.inf,
+            "device_distance_m", f"must be a positive distance, got {device_distance_m!r}", "20.0")
+
+
+def read_capture(path, *, max_bytes: int | None = None) -> list[HistogramSet]:
+    """One HistogramSet per laser point of a y-tal capture (the file is opened read-only).
+    Our own metadata (from write_capture), where it agrees with the y-tal fields, restores the
+    exact time axis and calibration. `max_bytes`: memory H may take (default half of RAM)."""
+    return read_capture_with_frame(path, max_bytes=max_bytes)[0]
+
+
+def read_capture_with_frame(path, *, max_bytes: int | None = None
+                            ) -> tuple[list[HistogramSet], CaptureFrame]:
+    """read_capture's sets (internal frame) and the file's own frame, to give and report
+    positions, grids and regions in the file's coordinates."""
+    import h5py
+
+    path = Path(path)
+    where = f"capture {path}"
+    require(path.is_file(), where, "does not exist", "pass the path of an .h5 file")
+    check_complete(path)
+    try:
+        with h5py.File(path, "r") as f:
+            missing = [k for k in REQUIRED if k not in f]
+            require(not missing, where, f"missing field(s) {missing}",
+                    "write every field of y-tal's NLOSCaptureData (see nlos_cl.io.ytal.capture)")
+            check_memory(f, path, max_bytes)
+            fields = {k: dataset(f, k, path) for k in f.keys() if k != "H"}
+            sets = to_histograms(fields, f["H"], path)
+    except InputError:
+        raise
+    except (OSError, RuntimeError, LookupError, ValueError, TypeError, AttributeError,
+            OverflowError) as exc:  # h5py on corrupted bytes raises all of these
+        raise InputError(f"{where}: incomplete or corrupted file ({type(exc).__name__}: "
+                         f"{exc}). Fix: copy or write the capture again")
+    return sets, YTAL

@@ -1,0 +1,271 @@
+"""The fields of y-tal's HDF5 layout (`tal.io.NLOSCaptureData`) that captures and sequences
+share: the format enums, writing one frame's fields, and reading them back checked (truncation,
+memory, types, geometry) into HistogramSets. docs/captures.md has the field-by-field mapping."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ...core.constants import SPEED_OF_LIGHT
+from ...core.errors import InputError, require
+from ...core.histograms import HistogramSet, PathCalibration, TimeAxis
+from .frames import YTAL, check_wall_spots, from_ytal, to_ytal
+
+H_FORMATS = {"UNKNOWN": 0, "T_Sx_Sy": 1, "T_Lx_Ly_Sx_Sy": 2, "T_Si": 3, "T_Li_Si": 4}
+
+
+GRID_FORMATS = {"UNKNOWN": 0, "N_3": 1, "X_Y_3": 2}
+
+
+REQUIRED = ("H", "H_format", "sensor_grid_xyz", "laser_grid_xyz", "delta_t", "t_start",
+            "t_accounts_first_and_last_bounces")
+
+
+HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+
+
+def write_fields(f, h: HistogramSet, device_distance_m, metadata, compression):
+    import yaml
+
+    a, axis = h.calibration.a_m_per_s, h.time_axis
+    offsets = h.calibration.offsets(h.n_detectors)
+    spots, laser = to_ytal(h.detector_spots), to_ytal(h.laser_spot)
+    wall_normal = to_ytal([0.0, 1.0, 0.0])
+    ours = {"format_version": 1,
+            "time_axis": {"t0_s": axis.t0_s, "dt_s": axis.dt_s, "n_bins": axis.n_bins},
+            "calibration": {"a_m_per_s": a, "b_m": [float(b) for b in h.calibration.b_m]},
+            "truth": None if h.truth is None else [float(v) for v in h.truth],
+            "allow_negative": bool(h.allow_negative), "units": "W",
+            "frame": "nlos_cl (x, y, z) = (-X, Z, Y) of this file"}
+    if metadata:
+        ours["metadata"] = metadata
+    f.create_dataset("H", data=np.ascontiguousarray(h.data.T, dtype=np.float32),
+                     compression="gzip" if compression else None,
+                     compression_opts=compression or None)
+    enum(f, "H_format", H_FORMATS, "T_Si")
+    f["sensor_xyz"] = (spots.mean(axis=0) + device_distance_m * wall_normal).astype(np.float32)
+    f["sensor_grid_xyz"] = spots.astype(np.float32)
+    f["sensor_grid_normals"] = np.tile(wall_normal, (h.n_detectors, 1)).astype(np.float32)
+    enum(f, "sensor_grid_format", GRID_FORMATS, "N_3")
+    f["laser_xyz"] = (laser + device_distance_m * wall_normal).astype(np.float32)
+    f["laser_grid_xyz"] = laser.reshape(1, 3).astype(np.float32)
+    f["laser_grid_normals"] = wall_normal.reshape(1, 3).astype(np.float32)
+    enum(f, "laser_grid_format", GRID_FORMATS, "N_3")
+    f["delta_t"] = np.float32(a * axis.dt_s)
+    f["t_start"] = np.float32(a * (axis.t0_s + 0.5 * axis.dt_s) + offsets[0])  # bin centre 0
+    f["t_accounts_first_and_last_bounces"] = False
+    f["scene_info"] = yaml.safe_dump({"original_format": "nlos_cl", "nlos_cl": ours})
+
+
+def enum(f, name, members, value):
+    import h5py
+    f.create_dataset(name, (1,), dtype=h5py.enum_dtype(members, basetype="i"))[0] = members[value]
+
+
+def is_capture(path: Path) -> bool:
+    import h5py
+    try:
+        with open(path, "rb") as fh:
+            if fh.read(8) != HDF5_SIGNATURE:
+                return False
+        with h5py.File(path, "r") as f:
+            return "H" in f and "H_format" in f
+    except Exception:  # noqa: BLE001 - anything unreadable is not a capture
+        return False
+
+
+def check_complete(path: Path) -> None:
+    """An HDF5 superblock declares the file's end (base + EOF address): a shorter file was cut
+    off. Superblock versions 0-1 hold it after 24/28 bytes and 2 offsets, 2-3 after 12."""
+    where, size = f"capture {path}", path.stat().st_size
+    with open(path, "rb") as fh:
+        head = fh.read(4096)
+    base = next((b for b in (0, 512, 1024, 2048) if head[b:b + 8] == HDF5_SIGNATURE), None)
+    require(base is not None or (size >= 8 and not HDF5_SIGNATURE.startswith(head[:8])), where,
+            f"incomplete or corrupted file: {size} bytes, shorter than an HDF5 header",
+            "copy or write the capture again")
+    require(base is not None, where, "not an HDF5 file (no HDF5 signature)",
+            "pass a capture in y-tal's HDF5 layout")
+    padded = head + bytes(64)  # a file cut inside the superblock reads as zeros there
+    version = head[base + 8] if len(head) > base + 8 else -1
+    o = padded[base + 13] if version in (0, 1) else padded[base + 9] if version in (2, 3) else 0
+    start = base + {0: 24, 1: 28, 2: 12, 3: 12}.get(version, 0)
+    end = [int.from_bytes(head[start + i * o:start + (i + 1) * o], "little") for i in (0, 2)]
+    require(o in (2, 4, 8) and len(head) >= start + 3 * o and size >= sum(end), where,
+            f"incomplete or corrupted file: its HDF5 header declares {sum(end) if o else '?'} "
+            f"bytes but the file has {size} (cut off by an interrupted copy, download or write)",
+            "copy or write the capture again")
+
+
+def check_memory(f, path, max_bytes) -> None:
+    """Declared sizes against memory, before anything is read: H becomes float64 sets (8 bytes
+    a value) beside one laser point's slice as stored; the other fields are read as stored."""
+    import h5py
+
+    from ...core.limits import memory_limit
+    limit = memory_limit() if max_bytes is None else int(max_bytes)
+    sets = [(k, f[k]) for k in f.keys()]
+    need = sum(int(np.prod(o.shape, dtype=np.float64)) * (o.dtype.itemsize + 8 * (k == "H"))
+               for k, o in sets if isinstance(o, h5py.Dataset) and o.shape is not None)
+    require(need <= limit, f"capture {path}: H", f"the file declares {need / 2**30:.3g} GiB of "
+            f"data (H {f['H'].shape} {f['H'].dtype}), more than the {limit / 2**30:.3g} GiB allowed"
+            f" ({'half the memory available' if max_bytes is None else 'max_bytes'})", "crop the "
+            "capture (fewer bins or sensor points), or read it on a machine with more memory")
+
+
+def dataset(f, key, path):
+    import h5py
+    obj = f[key]
+    if not isinstance(obj, h5py.Dataset):
+        raise InputError(f"capture {path}: field {key} is a group, not a dataset. Fix: write "
+                         "it as y-tal does")
+    if obj.shape is None:  # h5py.Empty: y-tal's None
+        return None
+    value, members = obj[()], h5py.check_enum_dtype(obj.dtype)
+    if members is not None:
+        return {v: k for k, v in members.items()}.get(int(np.ravel(value)[0]), "UNKNOWN")
+    return value
+
+
+def enum_name(value, members, field, path):
+    name, arr = value, np.ravel(np.asarray(value))
+    if not isinstance(value, str):
+        require(arr.size == 1 and np.issubdtype(arr.dtype, np.integer), f"capture {path}: {field}",
+                f"expected an enum (integer), got {value!r}", "write y-tal's enum value")
+        name = {v: k for k, v in members.items()}.get(int(arr[0]), "UNKNOWN")
+    require(name in members and name != "UNKNOWN", f"capture {path}: {field}",
+            f"value {value!r} is not one of {[k for k in members if k != 'UNKNOWN']}",
+            "write a known y-tal enum value")
+    return name
+
+
+def float_array(value, field, path, last_dim=3):
+    arr = np.asarray(value)
+    require(np.issubdtype(arr.dtype, np.floating) or np.issubdtype(arr.dtype, np.integer),
+            f"capture {path}: {field}", f"has dtype {arr.dtype}, expected floating point",
+            "store coordinates as float32 metres")
+    require(arr.ndim >= 1 and arr.shape[-1] == last_dim, f"capture {path}: {field}",
+            f"has shape {arr.shape}, expected (..., {last_dim})", "store (x, y, z) rows")
+    require(bool(np.all(np.isfinite(arr))), f"capture {path}: {field}", "contains NaN or inf",
+            "store finite coordinates")
+    return arr.astype(np.float64)
+
+
+def scalar(value, field, path):
+    arr = np.ravel(np.asarray(value))
+    require(arr.size == 1 and np.issubdtype(arr.dtype, np.number), f"capture {path}: {field}",
+            f"expected one number, got {value!r}", "store a float32 scalar")
+    x = float(arr[0])
+    require(math.isfinite(x), f"capture {path}: {field}", f"is {x}", "store a finite number")
+    return x
+
+
+def to_histograms(fields, H, path) -> list[HistogramSet]:
+    """H (unread): shapes are checked first, then it is read one laser point at a time."""
+    where = f"capture {path}"
+    h_format = enum_name(fields["H_format"], H_FORMATS, "H_format", path)
+    require(H.shape is not None and (np.issubdtype(H.dtype, np.floating)
+            or np.issubdtype(H.dtype, np.integer)), f"{where}: H",
+            f"has dtype {H.dtype} (shape {H.shape}), expected float32 counts or power",
+            "store H as float32")
+    sensors = float_array(fields["sensor_grid_xyz"], "sensor_grid_xyz", path)
+    lasers = float_array(fields["laser_grid_xyz"], "laser_grid_xyz", path)
+    delta_t = scalar(fields["delta_t"], "delta_t", path)
+    t_start = scalar(fields["t_start"], "t_start", path)
+    require(delta_t > 0, f"{where}: delta_t", f"must be positive, got {delta_t}",
+            "store the bin width in metres of optical path")
+    require(delta_t >= 1e-6, f"{where}: delta_t", f"is {delta_t:.3g}: that looks like seconds, "
+            f"but y-tal stores metres of optical path (a 10 ps bin is {SPEED_OF_LIGHT * 1e-11:.4f}"
+            " m)", "multiply delta_t and t_start by c")
+    require(abs(t_start) < 1e5, f"{where}: t_start", f"is {t_start:.3g} m",
+            "store t_start in metres of optical path")
+    slices, laser_points = arrange(h_format, H.shape, sensors, lasers, path)
+    spots = from_ytal(sensors.reshape(-1, 3))
+    check_wall_spots(from_ytal(laser_points), spots, YTAL, laser_field="laser_grid_xyz",
+                     spots_field="sensor_grid_xyz", prefix=f"{where}: ")
+    legs = np.zeros(len(spots)), np.zeros(len(laser_points))
+    if bool(np.ravel(np.asarray(fields["t_accounts_first_and_last_bounces"]))[0]):
+        require(fields.get("laser_xyz") is not None and fields.get("sensor_xyz") is not None,
+                f"{where}: laser_xyz", "t_accounts_first_and_last_bounces is set but "
+                "the device positions are missing", "store laser_xyz and sensor_xyz")
+        lxyz = float_array(fields["laser_xyz"], "laser_xyz", path).reshape(3)
+        sxyz = float_array(fields["sensor_xyz"], "sensor_xyz", path).reshape(3)
+        legs = (np.linalg.norm(sensors.reshape(-1, 3) - sxyz, axis=1),
+                np.linalg.norm(laser_points - lxyz, axis=1))
+    n_t = H.shape[0]
+    axis = TimeAxis((t_start - 0.5 * delta_t) / SPEED_OF_LIGHT, delta_t / SPEED_OF_LIGHT, n_t)
+    ours = our_metadata(fields.get("scene_info")) if len(laser_points) == 1 else None
+    sets = []
+    for i, (index, laser) in enumerate(zip(slices, laser_points)):
+        data = np.asarray(H[index], dtype=np.float64).reshape(n_t, -1).T
+        bad = int(data.size - np.count_nonzero(np.isfinite(data)))
+        require(bad == 0, f"{where}: H", f"{bad} values are NaN or inf"
+                + (f" (laser point {i})" if len(slices) > 1 else ""),
+                "replace missing bins by 0 before writing")
+        calibration = PathCalibration(SPEED_OF_LIGHT, -(legs[0] + legs[1][i]))
+        exact = restore(ours, axis, calibration) if ours else (axis, calibration, None, True)
+        sets.append(HistogramSet(data, exact[0], spots, from_ytal(laser), exact[1],
+                                 truth=exact[2], allow_negative=exact[3]))
+    return sets
+
+
+def arrange(h_format, shape, sensors, lasers, path):
+    """Per laser point, the index into H of its (time, sensors...) block; the laser points."""
+    where, n_t = f"capture {path}: H", shape[0] if len(shape) else 0
+    n_s = int(np.prod(sensors.shape[:-1]))
+    laser_points = lasers.reshape(-1, 3)
+    if h_format in ("T_Si", "T_Sx_Sy"):
+        expect = (n_t,) + sensors.shape[:-1]
+        require(tuple(shape) == expect, where, f"has shape {shape}, but sensor_grid_xyz "
+                f"{sensors.shape} needs {expect}",
+                "store H with the time axis first, then the sensor grid's shape")
+        require(len(laser_points) == 1 or len(laser_points) != n_s
+                or not np.allclose(laser_points, sensors.reshape(-1, 3)),
+                f"capture {path}: laser_grid_xyz", "is paired with the sensor grid (a confocal "
+                "capture)", "nlos_cl needs one laser spot per set of histograms: use a "
+                "non-confocal capture")
+        require(len(laser_points) == 1, f"capture {path}: laser_grid_xyz",
+                f"has {len(laser_points)} points for H_format {h_format}",
+                "store one laser point, or use H_format T_Lx_Ly_Sx_Sy / T_Li_Si")
+        slices = [()]
+    elif h_format == "T_Lx_Ly_Sx_Sy":
+        expect = (n_t,) + lasers.shape[:-1] + sensors.shape[:-1]
+        require(tuple(shape) == expect, where, f"has shape {shape}, expected {expect}",
+                "store H as (T, Lx, Ly, Sx, Sy)")
+        slices = [(slice(None),) + tuple(int(v) for v in np.unravel_index(i, lasers.shape[:-1]))
+                  for i in range(len(laser_points))]
+    else:  # T_Li_Si
+        expect = (n_t, len(laser_points), n_s)
+        require(tuple(shape) == expect, where, f"has shape {shape}, expected {expect}",
+                "store H as (T, Li, Si)")
+        slices = [(slice(None), i) for i in range(len(laser_points))]
+    require(n_t >= 2, where, f"has {n_t} time bins", "store at least 2 time bins")
+    return slices, laser_points
+
+
+def our_metadata(info):
+    import yaml
+    try:
+        info = yaml.safe_load(info) if isinstance(info, (bytes, str)) else None
+    except yaml.YAMLError:  # another tool's scene_info: ours is simply not there
+        return None
+    return info.get("nlos_cl") if isinstance(info, dict) else None
+
+
+def restore(ours, axis, calibration):
+    """Our exact axis and calibration, if they describe the same mapping as the y-tal fields."""
+    try:
+        t = ours["time_axis"]
+        exact = TimeAxis(float(t["t0_s"]), float(t["dt_s"]), int(t["n_bins"]))
+        c = ours["calibration"]
+        exact_cal = PathCalibration(float(c["a_m_per_s"]), np.asarray(c["b_m"], float))
+    except (KeyError, TypeError, ValueError, InputError):
+        return axis, calibration, None, True
+    ends = [0, -1]  # the hidden path at the first and last bin centre, for detector 0; float32
+    ours_path = exact_cal.a_m_per_s * exact.centres()[ends] + exact_cal.b_m[0]  # fields round
+    file_path = calibration.a_m_per_s * axis.centres()[ends] + calibration.b_m[0]  # ~1e-6 rel
+    if exact.n_bins != axis.n_bins or not np.allclose(ours_path, file_path, rtol=0, atol=1e-4):
+        return axis, calibration, None, True
+    return exact, exact_cal, ours.get("truth"), bool(ours.get("allow_negative", True))

@@ -1,0 +1,187 @@
+"""Sequences of frames in one HDF5 file: y-tal's capture fields with a leading frame axis.
+
+A sequence of F >= 2 frames is a y-tal capture (nlos_cl/capture.py's field table, written by
+the same code) in which `H` gets a leading frame axis, plus two per-frame datasets:
+
+| field | dtype, shape | meaning |
+|---|---|---|
+| H | float32 (F, T, S), H_format T_Si (or (F, T, Sx, Sy) for T_Sx_Sy); chunked one frame per chunk | frame k's histograms, time first as in y-tal |
+| frame_t_s | float64 (F,) | frame k's timestamp (s), e.g. k / fps |
+| frame_truths | float64 (F, K, 3), optional | the K targets' true centres per frame, nlos_cl's internal frame (as the capture's `truth`), NaN where unknown |
+| every other y-tal field | as in a capture | the same for all frames: one laser point, the sensor grid, delta_t, t_start, ... |
+| scene_info | YAML | as a capture's; `nlos_cl.metadata.sequence` holds {format_version, n_frames, fps, fields} |
+
+A single frame is written as a plain y-tal capture (H (T, S), no extra fields; its timestamp
+and truths ride in `scene_info`'s `nlos_cl.metadata.sequence`), and every plain capture reads
+back as a one-frame sequence. Several laser points per frame are not supported in sequences.
+
+Writing streams frames from any iterator into the file (only one frame in memory) and is atomic
+(nlos_cl.io.safe_write.atomic_write: an interrupted write leaves the old file). Reading is lazy:
+`read_sequence(path)` checks the fields and frame 0, and iterating reads one frame at a time
+with h5py slicing, so a recording longer than memory is tracked with flat memory.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from ...core.errors import require
+
+FORMAT_VERSION = 1
+GROW = 256  # frames added to H's size at a time while writing
+
+
+@dataclass(frozen=True)
+class SequenceFrame:
+    """One frame read back: index, timestamp (s), histograms (W or counts; truth attached) and
+    the targets' true centres (K, 3) in our frame, or None."""
+
+    index: int
+    t_s: float
+    histograms: object  # nl.HistogramSet
+    truths: np.ndarray | None
+
+
+# ---------------------------------------------------------------------------- writing
+
+def _as_entry(item, k, fps):
+    """(t_s, HistogramSet, truths) from a SimFrame, SequenceFrame, HistogramSet, Signals, or a
+    (t_s, histograms[, truths]) tuple."""
+    from ...core.histograms import HistogramSet
+    from ...ops.signals import Signals
+    truths = None
+    if isinstance(item, tuple):
+        require(len(item) in (2, 3), f"frames[{k}]", "a tuple must be (t_s, histograms) or "
+                "(t_s, histograms, truths)", "pass SimFrames or such tuples")
+        t, hist = float(item[0]), item[1]
+        truths = item[2] if len(item) == 3 else None
+    elif hasattr(item, "t_s") and (hasattr(item, "signals") or hasattr(item, "histograms")):
+        t, hist, truths = item.t_s, getattr(item, "signals", None), item.truths
+        hist = item.histograms if hist is None else hist
+    else:
+        require(fps is not None, "fps", "is needed to time frames given without timestamps",
+                "pass fps=..., or (t_s, histograms) pairs")
+        t, hist = k / fps, item
+    if isinstance(hist, Signals):
+        hist = hist.histograms()
+    require(isinstance(hist, HistogramSet), f"frames[{k}]", f"expected histograms, got "
+            f"{type(hist).__name__}", "pass nl.HistogramSet or nl.Signals frames")
+    require(math.isfinite(float(t)), f"frames[{k}].t_s", f"is {t}", "pass finite timestamps")
+    if truths is None:
+        truths = hist.truths if hist.truths is not None else hist.truth
+    truths = None if truths is None else np.asarray(truths, np.float64).reshape(-1, 3)
+    return float(t), hist, truths
+
+
+def _same_layout(a, b, k):
+    same = (a.data.shape == b.data.shape and a.time_axis == b.time_axis
+            and np.array_equal(a.detector_spots, b.detector_spots)
+            and np.array_equal(a.laser_spot, b.laser_spot)
+            and np.array_equal(a.calibration.offsets(a.n_detectors),
+                               b.calibration.offsets(b.n_detectors))
+            and a.calibration.a_m_per_s == b.calibration.a_m_per_s)
+    require(same, f"frames[{k}]", "has another shape, time axis, wall layout or calibration "
+            "than frame 0", "write frames of one setup into one sequence")
+
+
+def write_sequence(path, frames, *, fps: float | None = None, device_distance_m: float = 20.0,
+                   metadata: dict | None = None, compression: int = 0, force: bool = False
+                   ) -> Path:
+    """Write `frames` (an iterable, consumed one frame at a time) as a sequence file. Items:
+    SimFrames (from simulate_sequence), SequenceFrames, (t_s, histograms[, truths]) tuples, or
+    HistogramSet/Signals timed k / fps. compression: gzip level (0: none, the fastest)."""
+    from .fields import is_capture
+    from ..safe_write import atomic_write
+    require(compression in range(10), "compression", f"must be a gzip level 0-9, got "
+            f"{compression!r}", "pass 0 (none) or 4")
+    require(fps is None or (isinstance(fps, (int, float)) and math.isfinite(fps) and fps > 0),
+            "fps", f"must be a positive frame rate, got {fps!r}", "pass e.g. 10")
+
+    def write(tmp):
+        _write(tmp, iter(frames), fps, device_distance_m, metadata, compression)
+    return atomic_write(path, write, keep_unless=is_capture, force=force, what="sequence",
+                        kind="an HDF5 capture or sequence")
+
+
+def _info(fps, n, truths, t=None):
+    info = {"format_version": FORMAT_VERSION, "n_frames": n, "fps": fps,  # n: None = H's F
+            "fields": {"H": "leading frame axis", "frame_t_s": "s", "frame_truths":
+                       "(F, K, 3) m, nlos_cl internal frame"}}
+    if t is not None:  # a single frame: a plain capture, its time and truths here
+        info = {**info, "fields": None, "t_s": [float(t)],
+                "truths": None if truths is None else [truths.tolist()]}
+    return info
+
+
+def _write(tmp, it, fps, device_distance_m, metadata, compression):
+    import h5py
+    first = next(it, None)
+    require(first is not None, "frames", "is empty", "pass at least one frame")
+    t0, h0, truths0 = _as_entry(first, 0, fps)
+    _check_capture(h0, device_distance_m)
+    second = next(it, None)
+    meta = dict(metadata or {})
+    bare = replace(h0, truth=None, truths=None)
+    if second is None:
+        meta["sequence"] = _info(fps, 1, truths0, t0)
+        with h5py.File(tmp, "w") as f:
+            _fields(f, bare, device_distance_m, meta, compression, keep_h=True)
+        return 1
+    meta["sequence"] = _info(fps, None, truths0)
+    with h5py.File(tmp, "w") as f:
+        _fields(f, bare, device_distance_m, meta, compression, keep_h=False)
+        n = _stream(f, (first, second), it, fps, h0, truths0, compression)
+    return n
+
+
+def _check_capture(h, device_distance_m):
+    from .capture import check_writable
+    check_writable(h, device_distance_m)
+
+
+def _fields(f, hist, device_distance_m, meta, compression, keep_h):
+    """capture.py's own writer, into memory; its fields copied (H only for a single frame)."""
+    import h5py
+
+    from .fields import write_fields
+    with h5py.File(f"nlos_seq_{id(f)}", "w", driver="core", backing_store=False) as mem:
+        write_fields(mem, hist, device_distance_m, meta, compression)
+        for key in mem:
+            if keep_h or key != "H":
+                mem.copy(mem[key], f, name=key)
+
+
+def _stream(f, head, it, fps, h0, truths0, compression):
+    from itertools import chain
+    n_s, n_t = h0.data.shape
+    k_targets = 0 if truths0 is None else len(truths0)
+    H = f.create_dataset("H", (0, n_t, n_s), maxshape=(None, n_t, n_s), dtype=np.float32,
+                         chunks=(1, n_t, n_s), compression="gzip" if compression else None,
+                         compression_opts=compression or None)
+    T = f.create_dataset("frame_t_s", (0,), maxshape=(None,), dtype=np.float64, chunks=(4096,))
+    R = None if not k_targets else f.create_dataset(
+        "frame_truths", (0, k_targets, 3), maxshape=(None, k_targets, 3), dtype=np.float64,
+        chunks=(1024, k_targets, 3))
+    n = 0
+    for k, item in enumerate(chain(head, it)):
+        t, h, truths = _as_entry(item, k, fps)
+        _same_layout(h0, h, k)
+        if n == H.shape[0]:
+            for d in (H, T) + ((R,) if R is not None else ()):
+                d.resize(n + GROW, axis=0)
+        H[n] = np.ascontiguousarray(h.data.T, dtype=np.float32)
+        T[n] = t
+        if R is not None:
+            row = np.full((k_targets, 3), np.nan)
+            if truths is not None:
+                row[:min(len(truths), k_targets)] = truths[:k_targets]
+            R[n] = row
+        n += 1
+    for d in (H, T) + ((R,) if R is not None else ()):
+        d.resize(n, axis=0)
+    require(bool(np.all(np.diff(T[()]) > 0)), "frames.t_s", "timestamps must increase "
+            "strictly from frame to frame", "pass frames in time order")
+    return n

@@ -1,0 +1,107 @@
+"""What estimators exchange: `Scored` (a scored grid and, for model fits, the histograms) in,
+`Estimate` / `Location` of `LocatedTarget`s out, and the `Estimator` protocol between them."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+from ..core.constants import LOG_FLOOR, PRODUCT_FLOOR
+from ..core.errors import InputError
+from ..core.grid import Grid
+
+
+@dataclass(frozen=True)
+class LocatedTarget:
+    """One located target: centre (m, our frame) and what the estimator knows of it."""
+
+    position: np.ndarray  # (3,)
+    covariance: np.ndarray | None = None  # (3, 3) m^2, where the estimator provides one
+    extent_m: np.ndarray | None = None  # size along its axes, where the estimator fits one
+    details: dict = field(default_factory=dict)  # estimator-specific (fit parameters, ...)
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """What an estimator returns: the targets (best first), the best cell and its score."""
+
+    targets: list
+    cell_position: np.ndarray
+    score: float
+
+
+@dataclass(frozen=True)
+class Location:
+    """Where the target is: `position` (m, our frame) is the first of `targets`."""
+
+    position: np.ndarray  # (3,) metres
+    cell_position: np.ndarray  # centre of the best cell
+    score: float  # joint likelihood (or its log) at the best cell
+    grid: Grid
+    truth: np.ndarray | None = None
+    score_map: np.ndarray | None = field(default=None, repr=False)  # (nz, ny, nx) if asked
+    estimator: str = "paper"
+    targets: list = field(default_factory=list)  # every LocatedTarget, best first
+
+    @classmethod
+    def of(cls, estimate: Estimate, grid: Grid, truth, score_map, estimator: str) -> "Location":
+        return cls(estimate.targets[0].position, estimate.cell_position, estimate.score, grid,
+                   truth, score_map, estimator, list(estimate.targets))
+
+    @property
+    def covariance(self) -> np.ndarray | None:
+        """(3, 3) m^2 of the first target, where the estimator provides one."""
+        return self.targets[0].covariance if self.targets else None
+
+    @property
+    def error_m(self) -> float | None:
+        if self.truth is None:
+            return None
+        return float(np.linalg.norm(self.position - self.truth))
+
+
+@dataclass(frozen=True)
+class Scored:
+    """What a Locator hands its estimator for one frame."""
+
+    backend: object
+    scores: object  # the score map on the backend
+    grid: Grid
+    log_mode: bool
+    n_detectors: int
+    signals: object  # the filtered Signals that were scored
+    raw: object = None  # the unfiltered Signals, where the caller passed them (model fits)
+    paper: object = None  # the paper's Estimate, where the Locator's fused search made it
+
+
+class Estimator(Protocol):
+    name: str
+
+    def estimate(self, scored: Scored) -> Estimate: ...
+
+
+def check_signal(found: bool, best: float, log_mode: bool, n_detectors: int) -> None:
+    """Raise unless a cell was found with a likelihood above the numerical zero: every detector
+    at its log floor, or a product beyond float32's range (the float64 twin would otherwise
+    "locate" on 1e-67)."""
+    floor = n_detectors * math.log(LOG_FLOOR) if log_mode else PRODUCT_FLOOR
+    if not found or not best > floor:
+        raise InputError("grid: no cell has a non-zero likelihood from every detector: the "
+                         "signals do not reach the grid. Fix: check that the grid covers "
+                         "the hidden area the time axis sees, and the calibration; with many "
+                         "detectors use log_mode=True")
+
+
+def parabolic_offsets(logp):
+    """Per axis (x, y, z), the vertex of the parabola through (-1, 0, +1) cells, in cells."""
+    offsets = np.zeros(3)
+    lines = (logp[1, 1, :], logp[1, :, 1], logp[:, 1, 1])
+    for axis, (m, c, p) in enumerate(lines):
+        if not (np.isfinite(m) and np.isfinite(c) and np.isfinite(p)):
+            continue  # the best cell is on the grid's edge (or a neighbour is -inf)
+        curvature = m - 2 * c + p
+        if curvature < 0:
+            offsets[axis] = float(np.clip(0.5 * (m - p) / curvature, -0.5, 0.5))
+    return offsets

@@ -1,0 +1,194 @@
+"""The Locator plan: built once for a setup, called once per frame (pyvkfft's way with FFT
+plans). `Locator` fixes the grid, the wall geometry, the score axis, the estimator and the
+score buffer, so a stream of frames pays only for the frame: its upload (if it comes from the
+host), the kernels, and the argmax read."""
+from __future__ import annotations
+
+import math
+import statistics
+import time
+from dataclasses import replace
+
+import numpy as np
+
+from ..core.constants import LOG_FLOOR, PAPER_H_S, SPEED_OF_LIGHT
+from ..core.errors import require
+from ..core.grid import Grid
+from ..ops.argmax_patch import decode
+from ..ops.signals import Signals, as_signals
+from .estimate import Location, Scored
+from .estimators import as_estimator
+from .filter import layout_of
+from .paper import PaperArgmax
+from .search import SEARCHES, CoarseToFine
+
+# The width of a filtered signal in hidden-path metres, where the caller gives none: the
+# paper's filter, sigma = h / 3 (the 30 ps pulse adds 1 % in quadrature). It sets only the
+# coarse-to-fine search's speed, never its answer.
+PAPER_SIGNAL_WIDTH_M = SPEED_OF_LIGHT * PAPER_H_S / 3.0
+
+
+AUTO_TRIALS = 3  # search="auto": frames timed per search before it keeps the faster
+
+
+SEARCHES_TRIED = ("coarse_to_fine", "exhaustive")
+
+
+class Locator:
+    """Score a grid for one wall layout and estimate the target's position, frame after frame.
+
+    `Locator(layout, grid)` where layout is a `Layout`, or histograms/signals to take it from;
+    `locator(filtered_signals) -> Location`. log_mode scores by the sum of log-likelihoods
+    (for many detectors); the estimator is a name ('paper') or an object (nlos_cl.localization.estimate).
+
+    search: "coarse_to_fine" scores a coarse grid, bounds every block of cells from above and
+    scores only the blocks that can hold the best cell (nlos_cl/search.py): the same argmax
+    cell, score and 3 x 3 x 3 neighbourhood as "exhaustive", which scores every cell. "auto"
+    (default) times both on the first frames (AUTO_TRIALS each, after a warm-up) and keeps the
+    faster for this grid: the answer is the same either way. It applies to the paper's estimator
+    (and to estimators with `local = True`, which read only the best cell's neighbourhood);
+    others, and return_map=True, score every cell. With the paper's estimator a frame costs
+    one small read: the search (or the argmax) and the neighbourhood stay on the device.
+    signal_width_m: the filtered signal's width in hidden-path metres (default: the paper's
+    filter, c h / 3 = 6.5 cm); it sets the coarse grid's step, i.e. only the speed.
+    """
+
+    def __init__(self, layout, grid: Grid | None = None, *, estimator=None,
+                 log_mode: bool = False, backend=None, search: str = "auto",
+                 signal_width_m: float | None = None):
+        layout = layout_of(layout)
+        grid = Grid() if grid is None else grid
+        require(isinstance(grid, Grid), "grid", f"expected a nlos_cl.Grid, got "
+                f"{type(grid).__name__}", "build one with Grid.from_ranges(x=(0, 6), y=(0.01, 6), "
+                "step_m=0.01)")
+        require(search in SEARCHES, "search", f"unknown search {search!r}",
+                f"pass one of {list(SEARCHES)}")
+        width = PAPER_SIGNAL_WIDTH_M if signal_width_m is None else signal_width_m
+        require(isinstance(width, (int, float)) and math.isfinite(width) and width > 0,
+                "signal_width_m", f"must be a positive path length in metres, got {width!r}",
+                "pass e.g. 0.065 (c h / 3 for the paper's h)")
+        self.layout, self.grid, self.log_mode = layout, grid, bool(log_mode)
+        self.estimator = as_estimator(estimator)
+        self.backend = backend
+        axis = layout.path_axis()
+        self._path0, self._inv_dpath = axis.centre0_m, 1.0 / axis.step_m
+        self._scores = None  # the score buffer, reused frame after frame
+        self._stats = self._result = None  # row stats and the fused searches' result, reused
+        self._geometry = (layout.detector_spots, layout.laser_spot, self._path0,
+                          self._inv_dpath, self.log_mode, LOG_FLOOR)
+        local = getattr(self.estimator, "local", isinstance(self.estimator, PaperArgmax))
+        self.search = search if local else "exhaustive"
+        self._search = CoarseToFine(grid, self._inv_dpath, float(width))
+        self._trials = []  # "auto": (search, seconds) of the first frames
+        self.chosen = None if self.search == "auto" else self.search
+        if self.search == "auto" and not self._search.useful:
+            self.chosen = "exhaustive"  # no coarse grid to search
+        self.last_search = None  # what the last frame's search did (search.Found)
+
+    def _args(self, signals: Signals):
+        stats = signals.backend.call("row_stats", signals.handle, out=self._stats)
+        self._stats = stats
+        return (stats,) + self._geometry
+
+    def scores(self, signals: Signals, args=None):
+        """The grid's joint likelihood on the signals' backend (the plan's own buffer)."""
+        from ..core.limits import require_memory
+        require(self.grid.n_cells < 2 ** 31, "grid", f"has {self.grid.n_cells:.3g} cells to score "
+                "as one map, more than the kernels index (2^31)", "search a smaller region or "
+                "a coarser step (search='coarse_to_fine' scores a fine grid in parts)")
+        require_memory("grid", 4.0 * self.grid.n_cells, f"scoring {self.grid.n_cells:.3g} "
+                       "cells as one map", "search a smaller region or a coarser step")
+        args = self._args(signals) if args is None else args
+        self._scores = signals.backend.call("ellipse_score", signals.handle, *args[:5],
+                                            self.grid, *args[5:], out=self._scores)
+        return self._scores
+
+    def _scored(self, sig: Signals, raw, return_map: bool, mode: str) -> Scored:
+        """Scores where the estimator looks: the whole grid, or (coarse to fine) the best
+        cell's neighbourhood on a sub-grid of the same cells."""
+        args = self._args(sig)
+        found = None
+        if mode == "coarse_to_fine" and not return_map and self._search.useful:
+            found = self._search.run(sig.backend, sig.handle, args)
+        self.last_search = found
+        if found is None:
+            return Scored(sig.backend, self.scores(sig, args), self.grid, self.log_mode,
+                          sig.n_detectors, sig, raw)
+        sub, scores = self._search.neighbourhood(sig.backend, sig.handle, args, found.index)
+        return Scored(sig.backend, scores, sub, self.log_mode, sig.n_detectors, sig, raw)
+
+    def _in_grid(self, estimate):
+        """An estimate made on a sub-grid, with the best cell's centre as the whole grid
+        computes it (the sub-grid's origin differs from it by float64 rounding)."""
+        if self.last_search is None:
+            return estimate
+        g = self.grid
+        cell = np.array([o + s * i for o, s, i in zip(g.origin, g.step, self.last_search.index)])
+        shift = cell - estimate.cell_position
+        targets = [replace(t, position=t.position + shift) for t in estimate.targets]
+        return replace(estimate, cell_position=cell, targets=targets)
+
+    def __call__(self, signals, *, raw=None, return_map: bool = False) -> Location:
+        """Locate from filtered signals; `raw`: the same frame unfiltered, for estimators that
+        fit a model to the histograms (the paper's argmax does not need it)."""
+        sig = as_signals(signals, self.backend)
+        require(sig.layout.shape == self.layout.shape, "signals", f"shape {sig.layout.shape} "
+                f"differs from the plan's {self.layout.shape}", "build a Locator for this layout")
+        if sig.layout is not self.layout:  # the same setup frame after frame: one comparison
+            require(np.array_equal(sig.layout.detector_spots, self.layout.detector_spots)
+                    and sig.layout.time_axis == self.layout.time_axis, "signals",
+                    "come from another wall layout or time axis than the plan's",
+                    "build a Locator for this layout")
+        mode = self._mode() if self._search.useful else "exhaustive"  # (no coarse grid)
+        start = time.perf_counter()
+        fusable = not return_map and (mode == "exhaustive"
+                                      or self._search.fusable(sig.n_detectors))
+        raw = None if raw is None else as_signals(raw, sig.backend)
+        if fusable and type(self.estimator) is PaperArgmax:
+            estimate, full = self._fused(sig, mode), None
+        elif fusable and getattr(self.estimator, "needs_only_paper_estimate", False):
+            # a model fit starts from the paper's estimate: the fused search's one read
+            scored = Scored(sig.backend, None, self.grid, self.log_mode, sig.n_detectors, sig,
+                            raw, paper=self._fused(sig, mode))
+            estimate, full = self.estimator.estimate(scored), None
+        else:
+            scored = self._scored(sig, raw, return_map, mode)
+            estimate = self._in_grid(self.estimator.estimate(scored))
+            full = sig.backend.to_numpy(scored.scores) if return_map else None
+        if self.chosen is None and not return_map:
+            self._learn(mode, time.perf_counter() - start)
+        return Location.of(estimate, self.grid, sig.layout.truth, full, self.estimator.name)
+
+    # ------------------------------------------------------------ the paper's argmax, fused
+    def _fused(self, sig: Signals, mode: str):
+        """The paper's estimate with one read: the fused search (coarse to fine) or the whole
+        map's argmax with its neighbourhood (exhaustive), both on the device."""
+        be, found = sig.backend, None
+        if mode == "coarse_to_fine":
+            found, patch, self._result = self._search.fused(be, sig.handle, self._geometry,
+                                                            self._result)
+        if found is None:  # exhaustive (or no candidate block: score every cell)
+            scores = self.scores(sig, self._args(sig))
+            self._result = be.call("argmax_patch", scores, out=self._result)
+            index, best, _, patch = decode(be.to_numpy(self._result))
+        else:
+            index, best = found.index, found.score
+        self.last_search = found
+        return PaperArgmax().from_patch(index, best, patch, self.grid, self.log_mode,
+                                        sig.n_detectors)
+
+    # ------------------------------------------------------------ "auto": measured choice
+    def _mode(self) -> str:
+        if self.chosen is not None:
+            return self.chosen
+        return SEARCHES_TRIED[len(self._trials) % 2]
+
+    def _learn(self, mode: str, seconds: float) -> None:
+        """Record a trial frame; after AUTO_TRIALS each (the first of each dropped: it builds
+        the programs), keep the search with the lower median."""
+        self._trials.append((mode, seconds))
+        if len(self._trials) < 2 * (AUTO_TRIALS + 1):
+            return
+        med = {m: statistics.median([t for k, t in self._trials[2:] if k == m])
+               for m in SEARCHES_TRIED}
+        self.chosen = min(SEARCHES_TRIED, key=lambda m: med[m])

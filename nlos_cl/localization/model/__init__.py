@@ -1,0 +1,15 @@
+"""The model-based estimator (analysis by synthesis): fit parametric targets to the measured
+histograms with the forward model, report centre, extent and a covariance per target.
+
+    loc = nl.locate(filtered, grid, estimator="model", raw=noisy)
+    loc = nl.locate(filtered, grid, estimator=ModelEstimator(targets="auto"), raw=noisy)
+
+See docs/model-estimator.md. No SciPy on this path (a one-shot `nlos-cl locate` would pay
+~0.5 s to import it): the least squares are nlos_cl.localization.model.lm.
+"""
+from .estimator import HEIGHT_WARNING, ModelEstimator, model_estimator
+from .box import box_facets
+from .plate import height_observable, plate_facets
+
+__all__ = ["HEIGHT_WARNING", "ModelEstimator", "box_facets", "height_observable",
+           "model_estimator", "plate_facets"]

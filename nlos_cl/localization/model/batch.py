@@ -1,0 +1,239 @@
+"""Plates evaluated on the host, many per call: the model of nlos_cl.localization.model.plate and the
+forward operation's fast path (deposit + correlation, ops/forward.py), in float64 NumPy and
+vectorised over a batch of parameter rows.
+
+Why: a warm-started fit (a tracker's next frame, nlos_cl.localization.model.warm) needs ~25 model
+evaluations of a tiny problem (3 detectors x ~80 samples, 1,536 point facets). One call of
+the registered `forward` op costs ~1 ms there whatever the work (launches, two read-backs)
+plus ~0.7 ms of cell statistics on the host; a Jacobian's 5 plates in one host call cost
+about as much as three single ones. ModelEstimator(model_on='auto')
+uses it for plate fits (cold and warm) with up to HOST_DETECTORS detectors.
+
+Same model as `Problem.column`: each plate's own cell statistics (`plate.cell_model`: Gauss
+points pulled in, shared blur, per-detector shift), its own pulse width, bins integrated over
+their width. The deposit splits each point's weight linearly between the two sub-bins around
+its path (sub-bins of at most sigma / SUB_BINS_PER_SIGMA, as the kernel), then correlates with
+the bin-integrated pulse per sub-bin phase; the split errs by <= (dsub / sigma)^2 / 8 = 2e-4 of
+the peak (the kernel's bound), and float64 has no float32 path rounding.
+
+Half a plate's cost is its cell statistics (the Gauss points' paths to STAT_SPOTS spots). A
+Jacobian's or a covariance's moved plates borrow their unmoved plate's statistics
+(`column_batch(rows, like)`, remembered from the call that evaluated it): a warm stream frame
+26.5 -> 21 ms (with CHUNK_ROWS), derivatives within 0.2 % (nlos_cl.localization.model.fit's docstring).
+"""
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from . import plate
+from .likelihood import Problem
+from ...ops.forward import REACH_SIGMAS, SUB_BINS_PER_SIGMA
+
+# Rows per NumPy pass. A pass's temporaries grow with its rows, and past ~6 plates (3 spots,
+# 1,536 points each) glibc's allocator maps and unmaps them on every call: 11 rows took 6.2 ms
+# in one pass, 3.8 ms as 6 + 5 (3.3 ms with MALLOC_MMAP_THRESHOLD_ raised; 6 rows 1.9 ms either
+# way). A warm stream frame: 24.8 -> 23.0 ms (chunks of 3, 4, 5, 8: 24.1-24.4 ms).
+CHUNK_ROWS = 6
+
+
+class HostProblem(Problem):
+    """A `Problem` (plates only) whose model runs on the host, a batch of rows per call.
+    A Jacobian's or a covariance's moved plates (`column_batch(rows, like)`) are evaluated with
+    the unmoved plate's cell statistics: d(model)/d(parameter) at frozen blur, shift and
+    pull-in, half the work of a column; residuals use each plate's own."""
+
+    def __init__(self, obs, lattice=(16, 24), backend=None):
+        super().__init__(obs, backend, lattice)  # backend: for the closed shapes' Problems
+        floor = math.sqrt(max(obs.sigma0_m ** 2 - obs.box_excess_m2, 1e-300))
+        # one sub-bin count per observation (from the narrowest pulse any plate can have):
+        # a plate's histograms do not depend on which batch it is evaluated in
+        self.os = max(1, int(math.ceil(float(np.max(obs.dpath)) * SUB_BINS_PER_SIGMA / floor)))
+        self._stats = {}  # row bytes -> its cell statistics (_remember, _statistics_of)
+
+    def column(self, p) -> np.ndarray:
+        return self.column_batch(np.asarray(p, float)[None])[0]
+
+    def column_batch(self, rows, like=None) -> np.ndarray:
+        """(B, D, n) unit-amplitude histograms of B plates (rows (B, 6)). like: None, or
+        (B, 6) rows whose cell statistics each plate borrows instead of its own (a Jacobian's
+        plates, each a small step from `like`: fit._Objective.jac; the statistics of rows
+        evaluated in the last calls are remembered, so they cost nothing there)."""
+        rows = np.atleast_2d(np.asarray(rows, np.float64))
+        if len(rows) > CHUNK_ROWS:  # see CHUNK_ROWS
+            return np.concatenate([self.column_batch(
+                rows[i:i + CHUNK_ROWS], None if like is None else like[i:i + CHUNK_ROWS])
+                for i in range(0, len(rows), CHUNK_ROWS)])
+        t = time.perf_counter()
+        obs = self.obs
+        stats = None if like is None else self._statistics_of(np.atleast_2d(like))
+        points, normal, area, stats = _plate_points(rows, self.lattice, obs.spots, obs.laser,
+                                                    stats)
+        if like is None:
+            self._remember(rows, stats)
+        _, blur2, shift = stats
+        sigma = np.sqrt(obs.sigma0_m ** 2 + blur2 - obs.box_excess_m2)  # (B,)
+        path, weight = _paths(points.reshape(len(rows), -1, 3), normal, area / 4.0, obs.spots,
+                              obs.laser)
+        hist = _deposit_bins(path, weight, obs.edge0[None] - shift, obs.dpath, sigma, obs.n,
+                             self.os)
+        self.calls += len(rows)
+        self.model_s += time.perf_counter() - t
+        return np.where(obs.valid[None], hist, 0.0)
+
+    def _remember(self, rows, stats):
+        if len(self._stats) > 64:
+            self._stats.clear()
+        for row, keep, blur2, shift in zip(rows, *stats):
+            self._stats[row.tobytes()] = (keep, blur2, shift)
+
+    def _statistics_of(self, rows):
+        """(keep, blur2, shift) stacked over rows, computed for rows not remembered."""
+        new = {r.tobytes(): r for r in rows if r.tobytes() not in self._stats}
+        if new:
+            obs, new = self.obs, np.array(list(new.values()))
+            self._remember(new, _plate_points(new, self.lattice, obs.spots, obs.laser)[3])
+        got = [self._stats[r.tobytes()] for r in rows]
+        return tuple(np.stack([g[i] for g in got]) for i in range(3))
+
+    def columns(self, params) -> np.ndarray:
+        return self.column_batch(np.reshape(params, (-1, plate.N_PARAMS)))
+
+
+def _cells(rows, lattice):
+    """Cell centres (B, C, 3), normals (B, 3), cell areas (B,), edge vectors (B, 3) x 2, in
+    plate.plate_facets' order."""
+    nu, nv = lattice
+    x, w, h, yaw = rows[:, :3], rows[:, 3], rows[:, 4], rows[:, 5]
+    zero = np.zeros_like(yaw)
+    normal = np.stack([np.cos(yaw), np.sin(yaw), zero], axis=1)
+    across = np.stack([-np.sin(yaw), np.cos(yaw), zero], axis=1)
+    u = ((np.arange(nu) + 0.5) / nu - 0.5)[None, :] * w[:, None]  # (B, nu)
+    v = ((np.arange(nv) + 0.5) / nv - 0.5)[None, :] * h[:, None]  # (B, nv)
+    centres = (x[:, None, None] + u[:, :, None, None] * across[:, None, None]
+               + v[:, None, :, None] * plate.UP).reshape(len(rows), nu * nv, 3)
+    eu, ev = across * (w / nu)[:, None], plate.UP[None] * (h / nv)[:, None]
+    return centres, normal, w * h / (nu * nv), eu, ev
+
+
+def _gauss_offsets(eu, ev):
+    """(B, 4, 3): the 2 x 2 Gauss points' offsets from a cell's centre (plate._gauss_points'
+    order)."""
+    g = plate.GAUSS_2
+    return np.stack([su * g * eu + sv * g * ev for su in (-1.0, 1.0) for sv in (-1.0, 1.0)],
+                    axis=1)
+
+
+def _plate_points(rows, lattice, spots, laser, stats=None):
+    """Per plate what plate.cell_model gives the forward call: points (B, 4, C, 3), the
+    plate's normal (B, 3) and cell area (B,), and its cell statistics (keep (B, C), blur^2
+    (B,), shift (B, D)): computed here, or given (`stats`: other plates', one per row)."""
+    centres, normal, area, eu, ev = _cells(rows, lattice)
+    offsets = _gauss_offsets(eu, ev)[:, :, None, :]  # (B, 4, 1, 3)
+    if stats is None:
+        stats = _cell_statistics(centres, offsets, normal, area, spots, laser)
+    points = centres[:, None] + stats[0][:, None, :, None] * offsets
+    return points, normal, area, stats
+
+
+def _cell_statistics(centres, offsets, normal, area, spots, laser):
+    """plate.cell_model's statistics of each cell's Gauss points: keep (B, C) (how far the
+    points are pulled in), the blur^2 (B,) and the shift (B, D)."""
+    b, c = centres.shape[:2]
+    some = np.unique(np.linspace(0, len(spots) - 1, min(len(spots), plate.STAT_SPOTS)).round()
+                     ).astype(int)
+    full = (centres[:, None] + offsets).reshape(b, 4 * c, 3)  # the cells' Gauss points
+    path, weight = _paths(full, normal, area / 4.0, spots[some], laser)
+    path, weight = path.reshape(len(some), b, 4, c), weight.reshape(len(some), b, 4, c)
+    wsum = weight.sum(axis=2)  # (S, B, C)
+    safe = np.maximum(wsum, 1e-300)
+    mean = (weight * path).sum(axis=2) / safe
+    var_sc = (weight * (path - mean[:, :, None]) ** 2).sum(axis=2) / safe
+    centre = (np.linalg.norm(centres - laser, axis=2)[None]
+              + np.linalg.norm(spots[some][:, None, None] - centres[None], axis=3))
+    var_c = (var_sc * wsum).sum(axis=0) / np.maximum(wsum.sum(axis=0), 1e-300)  # (B, C)
+    lit = wsum.sum(axis=0) > 0
+    blur2 = plate.BLUR_SHARE * np.where(lit, var_c, 0.0).sum(axis=1) / np.maximum(
+        lit.sum(axis=1), 1)  # the lit cells' mean variance (0 where none is lit)
+    keep = np.sqrt(np.clip(1.0 - blur2[:, None] / np.maximum(var_c, 1e-300), 0.0, 1.0))
+    lost = (1.0 - keep ** 2)[None] * (mean - centre) * wsum  # (S, B, C)
+    shift = (lost.sum(axis=2) / np.maximum(wsum.sum(axis=2), 1e-300)).T  # (B, S)
+    if len(some) < len(spots):  # affine in the spot's position (plate.cell_model)
+        basis = np.hstack([np.ones((len(spots), 1)), spots - spots.mean(axis=0)])
+        coef, *_ = np.linalg.lstsq(basis[some], shift.T, rcond=None)
+        shift = (basis @ coef).T
+    return keep, blur2, shift
+
+
+def _paths(points, normal, area, spots, laser):
+    """Hidden path r1 + r2 and weight per (detector, plate, point) (D, B, M): the forward
+    twin's (ops.forward.facet_paths: four cosines, area / (r1^2 r2^2), 0 where the point faces
+    away from O or the spot) for Lambertian upright plates, one normal per plate, without the
+    twin's (D, F, 3) temporaries and in place (7x faster here). points (B, M, 3), normal
+    (B, 3), area (B,)."""
+    px, py, pz = np.moveaxis(points, -1, 0)
+    nx, ny = normal[:, 0:1], normal[:, 1:2]  # upright: no z component
+    v1x, v1y, v1z = px - laser[0], py - laser[1], pz - laser[2]
+    r1sq = v1x * v1x
+    r1sq += v1y * v1y
+    r1sq += v1z * v1z
+    toward_o = nx * v1x  # -r1 cos_b1
+    toward_o += ny * v1y
+    front = np.abs(v1y)  # -> cos_a1 cos_b1 area / r1^2
+    front *= toward_o
+    front *= -area[:, None]
+    front /= r1sq
+    front /= r1sq
+    sx, sy, sz = (spots[:, k, None, None] for k in range(3))
+    v2x, v2y, v2z = sx - px, sy - py, sz - pz
+    r2sq = v2x * v2x
+    r2sq += v2y * v2y
+    r2sq += v2z * v2z
+    toward_spot = nx * v2x  # r2 cos_a2
+    toward_spot += ny * v2y
+    weight = np.abs(v2y)  # -> cos_a2 cos_b2 / r2^2 x front
+    weight *= toward_spot
+    weight *= front
+    weight /= r2sq
+    weight /= r2sq
+    weight[(toward_spot <= 0) | (toward_o >= 0)[None]] = 0.0
+    path = np.sqrt(r2sq, out=r2sq)
+    path += np.sqrt(r1sq)
+    return path, weight
+
+
+def _deposit_bins(path, weight, edge0, dpath, sigma, n_bins, os_):
+    """hist (B, D, n): bin k of detector d covers paths edge0[b, d] + [k, k + 1) dpath[d] and
+    receives w (erf(z_hi) - erf(z_lo)) from each point (path, weight: (D, B, N))."""
+    n_det, n_b = path.shape[:2]
+    reach = REACH_SIGMAS * float(np.max(sigma))
+    pad = int(math.ceil(reach / float(np.min(dpath)))) + 1  # bins each side of the window
+    span, length = 2 * pad + 1, (n_bins + 2 * pad) * os_
+    base = (edge0.T - pad * dpath[:, None])[:, :, None]  # (D, B, 1): sub-bin 0's lower edge
+    u = (path - base) * (os_ / dpath)[:, None, None] - 0.5  # from sub-bin centres
+    j = np.floor(u)
+    t = u - j
+    ok = (weight > 0) & (j >= 0) & (j < length - 1)
+    row = (np.arange(n_det * n_b).reshape(n_det, n_b, 1) * length + j.astype(np.int64))[ok]
+    w, t = weight[ok], t[ok]
+    dep = np.bincount(np.concatenate([row, row + 1]), np.concatenate([w * (1 - t), w * t]),
+                      minlength=n_det * n_b * length).reshape(n_det, n_b, n_bins + 2 * pad, os_)
+    taps = _taps(dpath / os_, sigma, pad, os_)
+    # hist[k] = sum over i, p of dep[k + i, p] taps[p, i] (sub-bin j = (k + i) os + p)
+    windows = np.lib.stride_tricks.sliding_window_view(dep, span, axis=2)[:, :, :n_bins]
+    return np.einsum("dbkpi,dbpi->bdk", windows, taps)
+
+
+def _taps(dsub, sigma, pad, os_):
+    """(D, B, os, 2 pad + 1): what a unit weight at the centre of phase p of the sub-bins i
+    bins after bin k's window start puts into bin k: erf((m + os - 1/2) s) - erf((m - 1/2) s),
+    m = (pad - i) os - p, s = dsub / (sqrt 2 sigma); erf evaluated once per distinct m."""
+    from ...core.erf import erf  # not SciPy's: its import is a seventh of a one-shot locate
+    m = (pad - np.arange(2 * pad + 1))[None, :] * os_ - np.arange(os_)[:, None]  # (os, span)
+    lowest = int(m.min())
+    grid = np.arange(lowest, int(m.max()) + os_ + 1) - 0.5
+    scale = dsub[:, None] / (math.sqrt(2.0) * sigma[None, :])  # (D, B)
+    e = erf(scale[:, :, None] * grid)
+    return e[:, :, m - lowest + os_] - e[:, :, m - lowest]

@@ -1,0 +1,106 @@
+"""The closed target: an upright box (cuboid), for objects whose sides the wall also sees.
+
+Parameters (one row): centre x, y, z (m), width w (across the front face), height h, depth d
+(along the front face's normal), yaw (the front face's normal, n = (cos yaw, sin yaw, 0)). The
+centre is the box's own centre (its bounding-box centre when upright), not its front face's.
+Depth 0 is the plate (`nlos_cl.localization.model.plate`) with the same centre, size and yaw: the families
+are nested, so one test (nlos_cl.localization.model.select.accepts_box) decides between them.
+
+A box of depth d shows the wall its front face and, unless the wall sees it exactly head on, a
+side face, and the face below or above when it is off the spots' height: a plate fits such a
+histogram with the wrong onset-to-tail shape and lands on the visible surface, in a minimum that
+depends on small details (a mirrored scene found another one). Only the faces that can be lit
+and seen are cut into cells: whether a flat face sees a point is the same for all its points
+(the sign of n . (q - c_face)), so this culling is exact; the forward model's cosines would
+zero the others anyway, at full cost.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ...core.geometry import Facets
+from . import plate
+
+NAMES = ("x", "y", "z", "width", "height", "depth", "yaw")
+N_PARAMS = len(NAMES)
+YAW = 6
+LOWER = np.array([-np.inf, 0.05, -np.inf, 0.04, 0.04, 0.0, -np.inf])
+UPPER = np.array([np.inf, np.inf, np.inf, 3.0, 3.0, 3.0, np.inf])
+STEPS = np.array([2e-3, 2e-3, 2e-3, 2e-3, 2e-3, 2e-3, 4e-3])  # as the plate's (see plate.py)
+X_SCALE = np.array([0.05, 0.05, 0.05, 0.1, 0.1, 0.1, 0.1])
+DEPTH_CELLS = 8  # cells along the depth; across and up use the plate's lattice
+UP = plate.UP
+
+
+def faces(p):
+    """The six faces of box p: (centre, u edge, v edge, outward normal), u and v full edges."""
+    x, y, z, w, h, d, yaw = (float(v) for v in p)
+    c = np.array([x, y, z])
+    n = np.array([math.cos(yaw), math.sin(yaw), 0.0])
+    a = np.array([-math.sin(yaw), math.cos(yaw), 0.0])
+    return [(c + 0.5 * d * n, w * a, h * UP, n), (c - 0.5 * d * n, w * a, h * UP, -n),
+            (c + 0.5 * w * a, d * n, h * UP, a), (c - 0.5 * w * a, d * n, h * UP, -a),
+            (c + 0.5 * h * UP, w * a, d * n, UP), (c - 0.5 * h * UP, w * a, d * n, -UP)]
+
+
+def _lattices(lattice):
+    nu, nv = lattice
+    return [(nu, nv), (nu, nv), (DEPTH_CELLS, nv), (DEPTH_CELLS, nv), (nu, DEPTH_CELLS),
+            (nu, DEPTH_CELLS)]
+
+
+def seen(centre, normal, spots, laser) -> bool:
+    """Can the face be lit by the laser spot and seen from at least one wall spot?"""
+    return bool(normal @ (laser - centre) > 0 and np.any((spots - centre) @ normal > 0))
+
+
+def box_cells(p, lattice, spots=None, laser=None):
+    """Cells of the faces of box p (only those lit and seen, when spots and laser are given):
+    Facets of the cell centres, and the cells' two edge vectors (each (F, 3))."""
+    parts = []
+    for (c, u, v, n), (nu, nv) in zip(faces(p), _lattices(lattice)):
+        if spots is not None and not seen(c, n, np.asarray(spots, float),
+                                          np.asarray(laser, float)):
+            continue
+        su = ((np.arange(nu) + 0.5) / nu - 0.5)[:, None, None] * u
+        sv = ((np.arange(nv) + 0.5) / nv - 0.5)[None, :, None] * v
+        centres = (c + su + sv).reshape(-1, 3)
+        count = len(centres)
+        parts.append((centres, np.broadcast_to(n, (count, 3)),
+                      np.full(count, abs(float(np.linalg.norm(np.cross(u, v)))) / (nu * nv)),
+                      np.broadcast_to(u / nu, (count, 3)), np.broadcast_to(v / nv, (count, 3))))
+    if not parts:  # nothing visible: one zero-area cell keeps the shapes valid
+        zero = np.zeros((1, 3))
+        parts = [(np.asarray(p[:3], float)[None], zero, np.zeros(1), zero, zero)]
+    cat = [np.concatenate([q[i] for q in parts]) for i in range(5)]
+    return Facets(cat[0], np.ascontiguousarray(cat[1]), cat[2]), (cat[3], cat[4])
+
+
+def box_facets(p, lattice=(10, 20)) -> Facets:
+    """Facets of every face of box p (no culling): for simulating the model itself."""
+    return box_cells(p, lattice)[0]
+
+
+def model_facets(p, lattice, spots, laser):
+    """What the forward call sees of box p: as plate.model_facets, over the visible faces."""
+    cells, edges = box_cells(p, lattice, spots, laser)
+    return plate.cell_model(cells, edges, spots, laser)
+
+
+def from_plate(q, depth) -> np.ndarray:
+    """The box of the given depth behind plate q: same front face, centre d / 2 behind it."""
+    x, y, z, w, h, yaw = (float(v) for v in q)
+    n = np.array([math.cos(yaw), math.sin(yaw), 0.0])
+    c = np.array([x, y, z]) - 0.5 * depth * n
+    return np.array([c[0], c[1], c[2], w, h, depth, yaw])
+
+
+def extent(p) -> np.ndarray:
+    """Size along the box's own axes: (across, up, along the normal) = (w, h, d)."""
+    return np.array([float(p[3]), float(p[4]), float(p[5])])
+
+
+def normal_of(p) -> np.ndarray:
+    return np.array([math.cos(p[YAW]), math.sin(p[YAW]), 0.0])

@@ -1,0 +1,82 @@
+"""The curved closed target: an upright ellipsoid, for objects without flat faces (a ball, a
+head and shoulders), which neither a plate nor a box reproduces.
+
+Parameters as the box's (`nlos_cl.localization.model.box`): centre x, y, z, width (2 x the semi-axis
+across), height (2 x the vertical one), depth (2 x the one along n), yaw of n. The surface is
+cut into a fixed lattice of cells in azimuth x polar angle (fixed counts: continuous in the
+sizes); each cell is a facet at its centre with the surface's normal there, its area and its
+two edge vectors (the surface's tangents times the cell's angles), so the plate's cell
+statistics (`plate.cell_model`) carry its spread of paths. Cells turned away from the laser
+spot or from every wall spot are dropped before the forward call (their cosines would zero
+them anyway, at full cost); a cell at the terminator goes to zero weight continuously.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ...core.geometry import Facets
+from . import box, plate
+
+NAMES, N_PARAMS, YAW = box.NAMES, box.N_PARAMS, box.YAW
+LOWER = np.array([-np.inf, 0.05, -np.inf, 0.04, 0.04, 0.04, -np.inf])
+UPPER = box.UPPER
+STEPS, X_SCALE = box.STEPS, box.X_SCALE
+CELLS = (32, 16)  # azimuth x polar angle (the lattice argument is for plates and boxes)
+
+
+def ellipsoid_cells(p, spots=None, laser=None, cells=CELLS):
+    """Cells of ellipsoid p (only those lit and seen, when spots and laser are given): Facets
+    of the cell centres and the cells' two edge vectors (each (F, 3))."""
+    x, y, z, w, h, d, yaw = (float(v) for v in p)
+    n = np.array([math.cos(yaw), math.sin(yaw), 0.0])
+    a = np.array([-math.sin(yaw), math.cos(yaw), 0.0])
+    sa, sc, sb = 0.5 * w, 0.5 * h, 0.5 * d  # across, up, along n
+    n_az, n_po = cells
+    d_az, d_po = 2 * math.pi / n_az, math.pi / n_po
+    az, po = np.meshgrid((np.arange(n_az) + 0.5) * d_az, (np.arange(n_po) + 0.5) * d_po,
+                         indexing="ij")
+    az, po = az.reshape(-1, 1), po.reshape(-1, 1)
+    s_po, c_po, s_az, c_az = np.sin(po), np.cos(po), np.sin(az), np.cos(az)
+    centres = np.array([x, y, z]) + sb * s_po * c_az * n + sa * s_po * s_az * a \
+        + sc * c_po * plate.UP
+    e_az = (-sb * s_po * s_az * n + sa * s_po * c_az * a) * d_az
+    e_po = (sb * c_po * c_az * n + sa * c_po * s_az * a - sc * s_po * plate.UP) * d_po
+    normals = s_po * c_az / sb * n + s_po * s_az / sa * a + c_po / sc * plate.UP
+    return lit_cells(centres, normals, e_az, e_po, spots, laser)
+
+
+def lit_cells(centres, normals, e_u, e_v, spots=None, laser=None):
+    """Facets (unit normals, area |e_u x e_v|) and edges of the cells that the laser spot
+    lights and at least one wall spot sees (all cells when spots is None)."""
+    normals = normals / np.linalg.norm(normals, axis=1, keepdims=True)
+    areas = np.linalg.norm(np.cross(e_u, e_v), axis=1)
+    keep = np.ones(len(centres), bool)
+    if spots is not None:
+        spots, laser = np.asarray(spots, float), np.asarray(laser, float)
+        keep = (np.einsum("fk,fk->f", normals, laser - centres) > 0) & np.any(
+            np.einsum("fk,dfk->df", normals, spots[:, None] - centres[None]) > 0, axis=0)
+        if not keep.any():
+            keep[0] = True  # one cell keeps the shapes valid (its weight is zero)
+    return (Facets(centres[keep], np.ascontiguousarray(normals[keep]), areas[keep]),
+            (np.ascontiguousarray(e_u[keep]), np.ascontiguousarray(e_v[keep])))
+
+
+def ellipsoid_facets(p, cells=CELLS) -> Facets:
+    """Facets of the whole ellipsoid p (no culling): for simulating the model itself."""
+    return ellipsoid_cells(p, cells=cells)[0]
+
+
+def model_facets(p, lattice, spots, laser):
+    """What the forward call sees of ellipsoid p: as plate.model_facets, over the lit cells."""
+    cells, edges = ellipsoid_cells(p, spots, laser)
+    return plate.cell_model(cells, edges, spots, laser)
+
+
+def from_plate(q, depth) -> np.ndarray:
+    """The ellipsoid whose front reaches plate q's face: centre depth / 2 behind it."""
+    return box.from_plate(q, depth)
+
+
+extent, normal_of = box.extent, box.normal_of

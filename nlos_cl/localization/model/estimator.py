@@ -1,0 +1,219 @@
+"""`ModelEstimator`: analysis by synthesis. Fit K upright plates (one target: a plate, or an
+upright box where the plate misses the data) to the measured histograms with the forward model
+(the registered "forward" operation, on the backend), report each target's centre, size and a
+calibrated covariance. Plugs into `nl.locate(..., estimator="model")`."""
+from __future__ import annotations
+
+import time
+import warnings
+
+import numpy as np
+
+from ...core.constants import FWHM_PER_SIGMA, PAPER_H_S
+from ...core.errors import require
+from ..estimate import Estimate, LocatedTarget
+from ..paper import PaperArgmax
+from . import data, plate
+from .fit import centre_covariance, covariance
+from .likelihood import Problem
+
+HEIGHT_WARNING = ("height (z) is unobservable with collinear wall spots (rotating the target "
+                  "about their line changes no path): z is held at {z:.3f} m; use spots off "
+                  "one line to measure it")
+# Plate lattices (cells across x up). 16 x 24 for filtered AWGN data: a noise-free fit of
+# 1 cm-facet data from the truth is then off by <= 0.25 sd (Mahalanobis) on the
+# 0.3 x 1.6 m plate, a 0.7 m and a 1 m square (10 x 20 left the 0.7 m square 1 sd off).
+GAUSS_LATTICE, POISSON_LATTICE = (16, 24), (16, 32)
+MODELS = {"plate": "upright plate", "box": "upright box", "ellipsoid": "upright ellipsoid",
+          "cylinder": "upright cylinder"}
+# With more detectors than this, the starts, the search over K and the short fits use this
+# many, evenly spread; the final fit and the covariance use every detector.
+SEARCH_DETECTORS = 64
+# Residual evaluations of a warm-started fit (nlos_cl.localization.model.warm; Jacobians not counted).
+WARM_NFEV = 10
+# model_on="auto": plate fits with up to this many detectors evaluate the model on the host
+# (nlos_cl.localization.model.batch, a Jacobian's plates in one call), larger ones with the forward op on
+# the device. On the paper's scene a forward call costs ~2 ms of launches and read-backs for
+# ~240 samples a detector; the host's batched float64 model gives the same fit (costs within
+# 1e-4) 3-5x faster (one-shot `nlos-cl locate`: docs/performance.md).
+HOST_DETECTORS = 64
+MODEL_ON = ("auto", "host", "device")
+
+
+class ModelEstimator:
+    """Fit `targets` plates (an int, or 'auto': add plates while they pass the test in
+    nlos_cl.localization.model.select). `likelihood`: 'gauss' (AWGN; the data are compared after a Gauss
+    filter of window h_s), 'poisson' (photon counts in `raw`), or 'auto' (counts when `raw`
+    holds non-negative whole numbers). `backend`: where the forward model runs while fitting
+    (default: the scored frame's backend). model_on: 'device' (the forward op on `backend`),
+    'host' (plates evaluated in float64 NumPy, many per call: nlos_cl.localization.model.batch) or 'auto'
+    (host for up to HOST_DETECTORS detectors; closed shapes always on the device). warm_nfev:
+    the evaluation budget of a warm-started fit (`estimate(scored, start=...)`)."""
+
+    name = "model"
+    # The scored frame is used only for the paper's estimate (the starts' second candidate, the
+    # no-signal test): a Locator may hand it over from its fused search, with no score map.
+    needs_only_paper_estimate = True
+
+    def __init__(self, targets=1, *, likelihood="auto", h_s=PAPER_H_S, pulse_fwhm_s=70e-12,
+                 jitter_s=30e-12, lattice=None, max_targets=3, backend=None, final_nfev=30,
+                 closed="auto", warm_nfev=WARM_NFEV, model_on="auto"):
+        require(targets == "auto" or (isinstance(targets, int) and targets >= 1), "targets",
+                f"must be a positive integer or 'auto', got {targets!r}", "pass e.g. 1 or 'auto'")
+        require(likelihood in ("auto", "gauss", "poisson"), "likelihood",
+                f"must be 'auto', 'gauss' or 'poisson', got {likelihood!r}", "pick one")
+        require(closed in ("auto", True, False), "closed", f"must be 'auto', True or False, got "
+                f"{closed!r}", "pass 'auto' (a box where one plate misses the data), True or "
+                "False")
+        require(model_on in MODEL_ON, "model_on", f"must be one of {MODEL_ON}, got "
+                f"{model_on!r}", "pass 'auto' (host for small problems), 'host' or 'device'")
+        self.closed, self.model_on = closed, model_on
+        self.targets, self.likelihood, self.h_s = targets, likelihood, float(h_s)
+        self.pulse_sigma_s = float(pulse_fwhm_s) / FWHM_PER_SIGMA
+        self.jitter_s, self.lattice = float(jitter_s), lattice
+        self.max_targets, self.backend, self.final_nfev = int(max_targets), backend, final_nfev
+        self.warm_nfev = int(warm_nfev)
+        self.timings: dict = {}
+
+    # ------------------------------------------------------------------ data
+    def observation(self, scored):
+        be, layout = scored.backend, scored.signals.layout
+        filtered = be.to_numpy(scored.signals.handle)
+        raw = None if scored.raw is None else be.to_numpy(scored.raw.handle)
+        mode = self.likelihood
+        if mode == "auto":
+            mode = "poisson" if raw is not None and data.looks_like_counts(
+                raw * scored.raw.scale_w) else "gauss"
+        if mode == "poisson":
+            require(raw is not None, "raw", "the Poisson likelihood needs the photon counts",
+                    "pass raw=counts to locate")
+            return data.poisson_observation(layout, raw * scored.raw.scale_w, filtered,
+                                            pulse_sigma_s=self.pulse_sigma_s,
+                                            jitter_s=self.jitter_s)
+        return data.gaussian_observation(layout, filtered, raw, h_s=self.h_s,
+                                         pulse_sigma_s=self.pulse_sigma_s)
+
+    # ------------------------------------------------------------------ the estimate
+    def estimate(self, scored, start=None) -> Estimate:
+        """The targets in one frame. start: None (the full fit from the data alone), or
+        (targets, 6) plate rows (x, y, z, width, height, yaw) to warm-start from, e.g. the
+        previous frame's fit moved to where a tracker predicts it: only the final fit runs,
+        from there (nlos_cl.localization.model.warm), and the full fit replaces it where it misses the data.
+        details["warm_start"] says which (only when `start` was given)."""
+        clock = {"start": time.perf_counter()}
+        paper = scored.paper  # the Locator's fused search, or (no map read yet) from the scores
+        if paper is None:
+            paper = PaperArgmax().estimate(scored)  # also rejects frames with no signal
+        clock["argmax"] = time.perf_counter()
+        obs = self.observation(scored)
+        clock["data"] = time.perf_counter()
+        observable = plate.height_observable(obs.spots, obs.laser)
+        z0 = float(scored.grid.origin[2] + 0.5 * (scored.grid.shape[2] - 1) * scored.grid.step[2])
+        free = np.array([True, True, observable, True, True, True])
+        fitted, warm_info = None, None
+        if start is not None:
+            from .warm import warm_fit
+            fitted, warm_info = warm_fit(self, obs, self._start_rows(start), free, z0,
+                                          scored.backend)
+            clock["warm_fit"] = time.perf_counter()
+        if fitted is None:
+            fitted = self._cold(scored, obs, paper, free, z0, clock)
+        problem, chosen, result, free, (cov_all, info), history = fitted
+        if warm_info is not None:
+            info = dict(info, warm_start=warm_info)
+        notes = [] if observable else [HEIGHT_WARNING.format(z=z0)]
+        for note in notes:
+            warnings.warn(note, stacklevel=3)
+        self.timings = _stages(clock, problem)
+        located = [self._target(result, cov_all, k, info, notes, obs, history, observable,
+                                chosen.shape)
+                   for k in _order(result)]
+        return Estimate(located, paper.cell_position, paper.score)
+
+    def _cold(self, scored, obs, paper, free, z0, clock):
+        """The full fit: starts, short fits, final fit, covariance, plate or closed shape.
+        (problem, chosen problem, result, free, (cov_all, info), history)."""
+        problem = self.problem(obs, self.backend or scored.backend)
+        result, history = self._fit(problem, paper.targets[0].position, free, z0)
+        clock["fit"] = time.perf_counter()
+        cov = covariance(problem, result, free)
+        clock["covariance"] = time.perf_counter()
+        chosen = problem
+        if len(result.params) == 1:  # one target: a plate, or a box where the data ask for it
+            from .select import closed_or_plate
+            chosen, result, free, cov = closed_or_plate(problem, result, free, self.final_nfev,
+                                                        cov, self.closed)
+            clock["box"] = time.perf_counter()
+        return problem, chosen, result, free, cov, history
+
+    def problem(self, obs, backend):
+        """The plates' Problem: the model on the host or with the forward op on `backend`
+        (model_on); a HostProblem keeps `backend` for the closed shapes."""
+        lattice = self.lattice_for(obs)
+        if self.model_on == "host" or (self.model_on == "auto"
+                                       and len(obs.spots) <= HOST_DETECTORS):
+            from .batch import HostProblem
+            return HostProblem(obs, lattice, backend=backend)
+        return Problem(obs, backend, lattice)
+
+    def lattice_for(self, obs):
+        return self.lattice or (GAUSS_LATTICE if obs.mode == "gauss" else POISSON_LATTICE)
+
+    def _start_rows(self, start) -> np.ndarray:
+        rows = np.array(start, dtype=np.float64)
+        rows = rows.reshape(1, -1) if rows.ndim == 1 else rows
+        require(rows.ndim == 2 and rows.shape[1] == plate.N_PARAMS and bool(np.all(
+                np.isfinite(rows))), "start", f"must be finite plate rows (K, "
+                f"{plate.N_PARAMS}): x, y, z, width, height, yaw; got shape {rows.shape}",
+                "pass the previous fit's details['params'] values, one row per target")
+        require(self.targets == len(rows), "start", f"has {len(rows)} rows for targets="
+                f"{self.targets!r}", "pass one row per target (warm starts need an integer "
+                "number of targets)")
+        require(self.closed is not True, "start", "warm starts fit plates; closed=True always "
+                "fits the closed shapes", "use closed='auto' or False, or start=None")
+        return rows
+
+    def _fit(self, problem, argmax_position, free, z0):
+        """fit_targets, on a spread subset of the detectors when there are many, then the
+        final fit on all of them (its answer and covariance use every detector)."""
+        from .fit import fit
+        from .select import fit_targets
+        n_det = len(problem.obs.spots)
+        if n_det <= SEARCH_DETECTORS:
+            return fit_targets(problem, self, argmax_position, free, z0)
+        rows = np.unique(np.linspace(0, n_det - 1, SEARCH_DETECTORS).round().astype(int))
+        search = Problem(problem.obs.detectors(rows), problem.backend, problem.lattice)
+        rough, history = fit_targets(search, self, argmax_position, free, z0)
+        result = fit(problem, rough.params, free, self.final_nfev)
+        problem.calls += search.calls
+        problem.model_s += search.model_s
+        return result, history
+
+    def _target(self, result, cov_all, k, info, notes, obs, history, observable, shape):
+        p = result.params[k]
+        details = {"model": MODELS[shape.__name__.rsplit(".", 1)[-1]],
+                   "params": dict(zip(shape.NAMES, map(float, p))),
+                   "normal": shape.normal_of(p), "amplitude": float(result.linear[k]),
+                   "likelihood": obs.mode, "cost": result.cost, "n_residuals": result.n_residuals,
+                   "targets_tried": history, "height_observable": observable,
+                   "warnings": list(notes), "timings_s": dict(self.timings), **info}
+        return LocatedTarget(p[:3].copy(), centre_covariance(cov_all, k, shape),
+                             shape.extent(p), details)
+
+
+def _order(result):
+    """Targets by the signal energy they explain, strongest first."""
+    return list(np.argsort(-np.abs(result.linear[:len(result.params)])))
+
+
+def _stages(clock, problem) -> dict:
+    keys = list(clock)
+    out = {b: clock[b] - clock[a] for a, b in zip(keys, keys[1:])}
+    out["forward_calls"] = problem.calls
+    out["forward_s"] = problem.model_s
+    out["total"] = clock[keys[-1]] - clock[keys[0]]
+    return out
+
+
+def model_estimator(**options) -> ModelEstimator:
+    return ModelEstimator(**options)

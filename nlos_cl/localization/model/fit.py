@@ -1,0 +1,213 @@
+"""The nonlinear fit (bounded Levenberg-Marquardt, nlos_cl.localization.model.lm) of K targets, the linear
+factors profiled out at every step (variable projection), and the covariance of the result.
+
+The target's shape is the problem's `shape` module (default nlos_cl.localization.model.plate): its N_PARAMS,
+LOWER, UPPER, STEPS and X_SCALE are read from there, so a new shape needs no edit here.
+Finite-difference steps are absolute (STEPS: 2 mm, 4 mrad for the plate): the forward kernel
+works in float32, so relative steps (~1e-8) would differentiate rounding noise. A Jacobian
+column re-simulates only the target whose parameter moved.
+
+Covariance. AWGN: the sandwich (J'J)^-1 J' C J (J'J)^-1 of weighted least squares on filtered
+samples whose noise correlation C comes from the filter's taps (no free factor), times the
+Birge ratio max(1, RSS / E[RSS]) where E[RSS] = tr((I - H) C): when the model does not explain
+the data to within the noise, the covariance grows by the measured excess. Photon counts: the
+inverse Fisher information of the Poisson likelihood. Both include the linear factors.
+
+Jacobians and covariances tell `column_batch` which row each moved plate steps from (`like`);
+the host's HostProblem then evaluates the moved plates with the unmoved plate's cell
+statistics (nlos_cl.localization.model.batch):
+derivatives at frozen blur and shift, within 0.2 % of the exact ones per column and per sd
+(tests/test_tracking_warm.py), for half the work of a column. Residuals are always exact, so
+the fitted parameters do not depend on it beyond the solver's tolerance.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import plate
+from .lm import least_squares
+
+JAC_UPDATE = "full"  # not "broyden": it took more forward calls here (nlos_cl.localization.model.lm)
+
+@dataclass
+class FitResult:
+    params: np.ndarray  # (K, N_PARAMS)
+    linear: np.ndarray  # amplitudes (and backgrounds for Poisson)
+    cost: float  # sum of squared residuals (= -2 log L + const)
+    n_residuals: int
+    nfev: int
+    cov: np.ndarray | None = None  # (K*N, K*N) over all parameters (inf where fixed)
+
+
+def shape_of(problem):
+    """The target model's module: the problem's `shape`, else the plate."""
+    return getattr(problem, "shape", plate)
+
+
+class _Objective:
+    """Residual and Jacobian of the profiled problem over the free parameters."""
+
+    def __init__(self, problem, params0, free):
+        self.problem, self.shape = problem, shape_of(problem)
+        self.base = np.array(params0, dtype=np.float64).reshape(-1, self.shape.N_PARAMS)
+        self.free = np.tile(np.asarray(free, bool), len(self.base))
+        self.steps = np.tile(self.shape.STEPS, len(self.base))[self.free]
+        self._key, self._cols, self._lin = None, None, None
+
+    def full(self, theta):
+        p = self.base.reshape(-1).copy()
+        p[self.free] = theta
+        return p.reshape(self.base.shape)
+
+    def _eval(self, theta):
+        key = np.asarray(theta).tobytes()
+        if key != self._key:
+            cols = self.problem.columns(self.full(theta))
+            self._lin = self.problem.linear(cols, self._warm(cols))
+            self._key, self._cols = key, cols
+        return self._cols, self._lin
+
+    def _warm(self, cols):
+        lin = self._lin
+        return lin if lin is not None and len(lin) == len(cols) + self.problem.obs.y.shape[0] \
+            else None
+
+    def residual(self, theta):
+        cols, lin = self._eval(theta)
+        return self.problem.residual(cols, lin)
+
+    def jac(self, theta):
+        """Forward differences along every free parameter; the moved targets' histograms in
+        one `column_batch` (what `column` computes, column by column)."""
+        cols, lin = self._eval(theta)
+        full = self.full(theta)
+        which = [divmod(int(f), self.shape.N_PARAMS) for f in np.flatnonzero(self.free)]
+        like = np.array([full[k] for k, _ in which])
+        rows = like.copy()
+        rows[np.arange(len(which)), [i for _, i in which]] += self.steps
+        moved_cols = self.problem.column_batch(rows, like)
+        base = self.problem.residual(cols, lin)
+        out = []
+        for (k, _), col, step in zip(which, moved_cols, self.steps):
+            moved = cols.copy()
+            moved[k] = col
+            out.append((self.problem.residual(moved, self.problem.linear(moved, lin)) - base)
+                       / step)
+        return np.stack(out, axis=1)
+
+    def column(self, theta, j):
+        """Forward difference along free parameter j: one forward call, only the target whose
+        parameter moved is re-simulated."""
+        cols, lin = self._eval(theta)
+        k, i = divmod(int(np.flatnonzero(self.free)[j]), self.shape.N_PARAMS)
+        p = self.full(theta)[k].copy()
+        p[i] += self.steps[j]
+        moved = cols.copy()
+        moved[k] = self.problem.column(p)
+        r = self.problem.residual(moved, self.problem.linear(moved, lin))
+        return (r - self.problem.residual(cols, lin)) / self.steps[j]
+
+
+def fit(problem, params0, free, max_nfev=30, tau=None, atol=None) -> FitResult:
+    """Least squares from params0 (K, N_PARAMS) over the parameters marked in `free`
+    (N_PARAMS,). tau, atol: nlos_cl.localization.model.lm's (tau None: its default; atol None: off)."""
+    obj = _Objective(problem, params0, free)
+    shape, k = obj.shape, len(obj.base)
+    lo, hi = (np.tile(b, k)[obj.free] for b in (shape.LOWER, shape.UPPER))
+    theta0 = np.clip(obj.base.reshape(-1)[obj.free], lo + 1e-6, hi - 1e-6)
+    sol = least_squares(obj.residual, theta0, jac=obj.jac, bounds=(lo, hi),
+                        x_scale=np.tile(shape.X_SCALE, k)[obj.free], max_nfev=max_nfev,
+                        ftol=1e-7, xtol=1e-5, jac_update=JAC_UPDATE, jac_column=obj.column,
+                        atol=atol, **({} if tau is None else {"tau": tau}))
+    cols, lin = obj._eval(sol.x)
+    r = problem.residual(cols, lin)
+    return FitResult(obj.full(sol.x), lin, float(r @ r), int(r.size), int(sol.nfev))
+
+
+def _mean_jacobian(problem, params, lin, free):
+    """d mu / d (free target parameters, linear factors), central differences: (D, n, P)."""
+    steps = shape_of(problem).STEPS
+    which = [(k, i) for k in range(len(params)) for i in np.flatnonzero(free)]
+    rows = [p.copy() for p in params]  # the targets, then hi, lo, parameter after parameter
+    like = list(params)  # the row each one steps from
+    for k, i in which:
+        for sign in (1.0, -1.0):
+            rows.append(params[k].copy())
+            rows[-1][i] += sign * steps[i]
+            like.append(params[k])
+    evaluated = problem.column_batch(np.array(rows), np.array(like))
+    cols, moved = evaluated[:len(params)], evaluated[len(params):]
+    blocks = [lin[k] * (moved[2 * n] - moved[2 * n + 1]) / (2 * steps[i])
+              for n, (k, i) in enumerate(which)]
+    blocks.extend(cols)
+    if problem.obs.mode == "poisson":
+        n_det = problem.obs.y.shape[0]
+        blocks.extend(np.eye(n_det)[:, :, None] * problem.obs.valid[None])
+    return cols, np.stack(blocks, axis=-1)
+
+
+def _correlated_terms(obs, j):
+    """J^T C J and trace(C) for the correlation C of the weighted residuals, which is block
+    diagonal (one Toeplitz block per detector: the filter correlates a detector's samples, not
+    two detectors'), summed block by block: a 1,024-detector patch never builds the dense
+    (samples x samples) matrix (93,184^2 floats, 65 GiB)."""
+    idx = np.arange(obs.n)
+    toeplitz = obs.rho[np.abs(idx[:, None] - idx[None, :])]
+    meat, trace, at = np.zeros((j.shape[1], j.shape[1])), 0.0, 0
+    for v in obs.valid:  # j's rows are the valid samples, detector after detector
+        block = toeplitz[np.ix_(v, v)]
+        rows = j[at:at + len(block)]
+        meat += rows.T @ block @ rows
+        trace += float(np.trace(block))
+        at += len(block)
+    return meat, trace
+
+
+def _scaled_pinv(a) -> np.ndarray:
+    """Pseudo-inverse of a normal matrix whose columns differ by many orders of magnitude
+    (metres, radians, amplitudes in any unit): equilibrated first, so that pinv's relative
+    cut-off drops only real degeneracies, not small units."""
+    s = np.sqrt(np.maximum(np.diag(a), 1e-300))
+    return np.linalg.pinv(a / np.outer(s, s)) / np.outer(s, s)
+
+
+def covariance(problem, result: FitResult, free) -> tuple[np.ndarray, dict]:
+    """Covariance of every target parameter (K*N_PARAMS square; inf on fixed ones) and
+    diagnostics."""
+    obs, params = problem.obs, result.params
+    cols, jmu = _mean_jacobian(problem, params, result.linear, free)
+    mu = problem.mean(cols, result.linear)
+    n_free = int(np.count_nonzero(free)) * len(params)
+    if obs.mode == "gauss":
+        j = (jmu / obs.noise[:, None, None])[obs.valid]
+        meat, trace = _correlated_terms(obs, j)
+        inv = _scaled_pinv(j.T @ j)
+        cov = inv @ meat @ inv
+        r = ((obs.y - mu) / obs.noise[:, None])[obs.valid]
+        expected = float(trace - np.trace(inv @ meat))
+        birge = float(r @ r) / max(expected, 1.0)
+        cov = cov * max(1.0, birge)
+        info = {"birge_ratio": birge}
+    else:
+        lam = np.maximum(mu, 1e-12)[obs.valid]
+        j = jmu[obs.valid]
+        cov = _scaled_pinv(j.T @ (j / lam[:, None]))
+        info = {"deviance": result.cost, "n_bins": int(obs.valid.sum())}
+    full = np.full((params.size, params.size), np.inf)
+    mask = np.tile(np.asarray(free, bool), len(params))
+    full[np.ix_(mask, mask)] = cov[:n_free, :n_free]
+    return full, info
+
+
+def centre_covariance(cov_all, k, shape=plate) -> np.ndarray:
+    """The (x, y, z) block of target k (rows of shape.N_PARAMS parameters, x, y, z first); an
+    unobservable (fixed) axis has infinite variance and no correlation with the others."""
+    s = slice(k * shape.N_PARAMS, k * shape.N_PARAMS + 3)
+    c = np.array(cov_all[s, s], dtype=np.float64)
+    fixed = ~np.isfinite(np.diag(c))
+    c[fixed, :] = 0.0
+    c[:, fixed] = 0.0
+    c[fixed, fixed] = np.inf
+    return c

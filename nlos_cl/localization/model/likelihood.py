@@ -1,0 +1,116 @@
+"""The model's histograms for K targets (plates, or one box), the linear factors solved in
+closed form, and the residuals whose sum of squares is -2 log-likelihood (up to a constant).
+
+Gaussian (AWGN): mu = sum_k a_k m_k; a = weighted least squares (noise std per detector);
+residual (y - mu) / noise. Poisson (photon counts): lambda = sum_k a_k m_k + b_d (b_d: dark and
+ambient counts per bin, per detector); (a, b) >= 0 maximise the Poisson likelihood (Newton);
+residual = signed deviance residual, so the sum of squares is the deviance.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from . import plate
+
+
+class Problem:
+    """Evaluates the forward model for parameter rows (K, shape.N_PARAMS) on `backend`.
+    `shape`: the target model's module (nlos_cl.localization.model.plate or .box): its model_facets, and
+    the N_PARAMS, STEPS, X_SCALE, LOWER, UPPER the fit reads."""
+
+    def __init__(self, obs, backend, lattice=(16, 24), shape=plate):
+        self.obs, self.backend, self.lattice = obs, backend, tuple(lattice)
+        self.shape = shape
+        self.calls = 0
+        self.model_s = 0.0
+
+    def column(self, p) -> np.ndarray:
+        """(D, n) histograms of one target, unit amplitude (forward op on the backend)."""
+        import time
+        t = time.perf_counter()
+        obs = self.obs
+        facets, blur, shift = self.shape.model_facets(p, self.lattice, obs.spots, obs.laser)
+        sigma = math.sqrt(obs.sigma0_m ** 2 + blur ** 2 - obs.box_excess_m2)
+        hist, _ = self.backend.call("forward", facets, obs.spots, obs.laser, obs.edge0 - shift,
+                                    obs.dpath, sigma, obs.n, None)
+        out = np.asarray(self.backend.to_numpy(hist), dtype=np.float64)
+        self.calls += 1
+        self.model_s += time.perf_counter() - t
+        return np.where(obs.valid, out, 0.0)
+
+    def columns(self, params) -> np.ndarray:
+        return np.stack([self.column(p) for p in np.reshape(params, (-1, self.shape.N_PARAMS))])
+
+    def column_batch(self, rows, like=None) -> np.ndarray:
+        """(B, D, n): `column` of each parameter row, in order (one forward call each here;
+        nlos_cl.localization.model.batch.HostProblem evaluates them all in one host call). like: the rows
+        each one is a small step from (a Jacobian's), which a problem may use to share work
+        between them (HostProblem: their cell statistics); here every row is exact."""
+        return np.stack([self.column(p) for p in rows])
+
+    # ------------------------------------------------------------------ linear factors
+    def linear(self, cols, warm=None) -> np.ndarray:
+        """Closed-form linear factors for the columns (K, D, n)."""
+        if self.obs.mode == "gauss":
+            return self._gauss_linear(cols)
+        return self._poisson_linear(cols, warm)
+
+    def _gauss_linear(self, cols):
+        w = (1.0 / self.obs.noise)[None, :, None]
+        a_mat = (cols * w).reshape(len(cols), -1).T
+        b = (self.obs.y * w[0]).reshape(-1)
+        amps, *_ = np.linalg.lstsq(a_mat, b, rcond=None)
+        return amps
+
+    def _poisson_linear(self, cols, warm=None, iters=12):
+        """Newton on (a_1..a_K, b_1..b_D) of the Poisson log-likelihood, kept >= 0."""
+        obs = self.obs
+        n_det = obs.y.shape[0]
+        basis = np.concatenate([cols, np.eye(n_det)[:, :, None] * obs.valid[None]], axis=0)
+        phi = self._poisson_start(cols) if warm is None else np.array(warm, float)
+        y = obs.y
+        for _ in range(iters):
+            lam = np.maximum(np.tensordot(phi, basis, 1), 1e-12)
+            grad = np.tensordot(basis, (y / lam - 1.0) * obs.valid, ((1, 2), (0, 1)))
+            hess = np.einsum("idn,jdn,dn->ij", basis, basis, obs.valid * y / lam ** 2)
+            hess += 1e-9 * np.trace(hess) / len(hess) * np.eye(len(hess))
+            step = np.linalg.solve(hess, grad)
+            new = np.maximum(phi + step, 1e-12 * np.maximum(phi, 1e-6))
+            if np.allclose(new, phi, rtol=1e-9, atol=0):
+                phi = new
+                break
+            phi = new
+        return phi
+
+    def _poisson_start(self, cols):
+        obs, k = self.obs, len(cols)
+        edge = np.concatenate([obs.y[:, :5], obs.y[:, -5:]], axis=1)
+        b = np.maximum(edge.mean(axis=1), 1e-3)
+        excess = max(float(np.sum(np.maximum(obs.y - b[:, None], 0) * obs.valid)), 1.0)
+        a = np.full(k, excess / max(float(cols.sum()), 1e-300) / k)
+        return np.concatenate([a, b])
+
+    # ------------------------------------------------------------------ residuals
+    def mean(self, cols, lin) -> np.ndarray:
+        mu = np.tensordot(lin[:len(cols)], cols, 1)
+        if self.obs.mode == "poisson":
+            mu = mu + lin[len(cols):, None] * self.obs.valid
+        return mu
+
+    def residual(self, cols, lin) -> np.ndarray:
+        obs, mu = self.obs, self.mean(cols, lin)
+        if obs.mode == "gauss":
+            r = (obs.y - mu) / obs.noise[:, None]
+        else:
+            lam = np.maximum(mu, 1e-12)
+            y = obs.y
+            ylog = np.where(y > 0, y * np.log(np.where(y > 0, y, 1.0) / lam), 0.0)
+            r = np.sign(y - lam) * np.sqrt(np.maximum(2.0 * (ylog - (y - lam)), 0.0))
+        return r[obs.valid]
+
+    def cost(self, params) -> float:
+        cols = self.columns(params)
+        r = self.residual(cols, self.linear(cols))
+        return float(r @ r)

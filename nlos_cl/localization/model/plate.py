@@ -1,0 +1,160 @@
+"""The parametric target: an upright, one-sided rectangular plate.
+
+Parameters (one row of a float64 vector): centre x, y, z (m), width w and height h (m), yaw
+(the horizontal angle of the plate's normal, radians: n = (cos yaw, sin yaw, 0)). Why a plate:
+with a Lambertian target and third-order light only, what the wall sees of any object is its
+surface facing the wall spots, and an upright plate of free size and yaw is the smallest
+family whose histograms have the right onset, width and decay. Its centre is the centre of
+the visible surface: for a closed object (a box, a person) that lies in front of the object's
+own centre by up to half its depth (docs/model-estimator.md).
+
+The plate is cut into a fixed nu x nv lattice of cells (the count does not change with the
+size, so the model is continuous in w and h); each cell's spread of path lengths is carried
+by Gauss points and a widened pulse in the forward call (`model_facets`), so coarse cells
+leave no comb and no bias.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ...core.geometry import Facets
+
+NAMES = ("x", "y", "z", "width", "height", "yaw")
+LOWER = np.array([-np.inf, 0.05, -np.inf, 0.04, 0.04, -np.inf])
+UPPER = np.array([np.inf, np.inf, np.inf, 3.0, 3.0, np.inf])
+N_PARAMS = len(NAMES)
+YAW = 5  # index of the yaw
+# Finite-difference steps, absolute (the forward kernel is float32: relative ~1e-8 steps would
+# differentiate rounding), and the parameters' typical scales (nlos_cl.localization.model.fit reads both).
+STEPS = np.array([2e-3, 2e-3, 2e-3, 2e-3, 2e-3, 4e-3])
+X_SCALE = np.array([0.05, 0.05, 0.05, 0.1, 0.1, 0.1])
+UP = np.array([0.0, 0.0, 1.0])
+
+
+def plate_facets(p, lattice=(10, 20)) -> Facets:
+    """Facets of the plate p = (x, y, z, w, h, yaw) on a nu x nv lattice (centres of cells)."""
+    nu, nv = lattice
+    x, y, z, w, h, yaw = (float(v) for v in p)
+    normal = np.array([math.cos(yaw), math.sin(yaw), 0.0])
+    across = np.array([-math.sin(yaw), math.cos(yaw), 0.0])
+    u = ((np.arange(nu) + 0.5) / nu - 0.5) * w
+    v = ((np.arange(nv) + 0.5) / nv - 0.5) * h
+    uu, vv = np.meshgrid(u, v, indexing="ij")
+    centres = (np.array([x, y, z]) + uu.reshape(-1, 1) * across + vv.reshape(-1, 1) * UP)
+    normals = np.broadcast_to(normal, centres.shape)
+    areas = np.full(len(centres), w * h / (nu * nv))
+    return Facets(centres, np.ascontiguousarray(normals), areas)
+
+
+def several_facets(params, lattice=(10, 20)) -> list[Facets]:
+    return [plate_facets(p, lattice) for p in np.reshape(params, (-1, N_PARAMS))]
+
+
+GAUSS_2 = 0.5 / math.sqrt(3.0)  # 2-point Gauss-Legendre nodes on a unit edge, +-0.2887
+BLUR_SHARE = 0.5  # share of a cell's mean path variance carried by the shared pulse blur
+STAT_SPOTS = 32  # the cells' path statistics from at most this many spots (an affine fit over
+# the spots carries the shift to the others: it varies smoothly, by ~10 % of its ~0.1 mm
+# across a 0.9 m SPAD patch, so the fit's error is ~1e-3 mm; 1,024 spots cost 150 ms a call)
+
+
+def plate_edges(p, lattice, count):
+    """Per cell of plate p, its two edge vectors (across, up), each (count, 3)."""
+    yaw = float(p[5])
+    across = np.array([-math.sin(yaw), math.cos(yaw), 0.0]) * (float(p[3]) / lattice[0])
+    up = UP * (float(p[4]) / lattice[1])
+    return np.broadcast_to(across, (count, 3)), np.broadcast_to(up, (count, 3))
+
+
+def _gauss_points(cells, edges, scale):
+    """Each cell's 2 x 2 Gauss points, their offsets from the centre times `scale` (F,);
+    edges: the cells' two edge vectors, each (F, 3)."""
+    eu, ev = edges
+    scale = np.asarray(scale, float)[:, None]
+    pts = [cells.centres + scale * ((su * GAUSS_2) * eu + (sv * GAUSS_2) * ev)
+           for su in (-1.0, 1.0) for sv in (-1.0, 1.0)]
+    return Facets(np.concatenate(pts), np.ascontiguousarray(np.tile(cells.normals, (4, 1))),
+                  np.tile(cells.areas, 4) / 4.0)
+
+
+def model_facets(p, lattice, spots, laser):
+    """What the forward call sees of plate p: point facets, the pulse blur (m of path) they
+    share, and a path shift per detector (D,) to add to every facet's path (`cell_model`)."""
+    cells = plate_facets(p, lattice)
+    return cell_model(cells, plate_edges(p, lattice, cells.count), spots, laser)
+
+
+def cell_model(cells, edges, spots, laser):
+    """Point facets, shared blur and per-detector shift for rectangular cells (centres,
+    normals, areas; `edges` their two edge vectors).
+
+    The forward call puts each facet's pulse at its path and spreads it by one width for all
+    facets, but a lattice cell spans a range of paths, and that range differs from cell to
+    cell (the path's gradient along the plate varies) and its mean is not the centre's path
+    (the path is convex, the weight 1 / r^2 x cosines varies across the cell). On the 10 x 20
+    lattice of a 1.6 m plate the mean is ~0.1 mm of path off, as large as a 10 dB frame's range
+    error; a single width for every cell biases a 1 m square by ~1 cm. So: from each cell's
+    2 x 2 Gauss points (exact for the first and second order over a uniform cell; float64
+    twin ops.forward.facet_paths) its weighted mean path m_df and variance v_df; the shared
+    blur carries BLUR_SHARE of the mean cell variance (it keeps the sum smooth where cells are
+    large); each cell is then 4 points at its Gauss points pulled in by s_f = sqrt(1 - blur^2
+    / v_f) so that points + blur have the cell's own variance; the shift restores the part
+    (1 - s_f^2) of the cell's mean-path offset that the pulled-in points no longer carry."""
+    spots, laser = np.asarray(spots, float), np.asarray(laser, float)
+    some = np.unique(np.linspace(0, len(spots) - 1, min(len(spots), STAT_SPOTS)).round()
+                     ).astype(int)
+    mean, centre, var_df, wsum = _cell_stats(cells, edges, spots[some], laser)
+    var_f = (var_df * wsum).sum(axis=0) / np.maximum(wsum.sum(axis=0), 1e-300)  # (F,)
+    lit = wsum.sum(axis=0) > 0
+    blur2 = BLUR_SHARE * float(np.mean(var_f[lit])) if lit.any() else 0.0
+    keep = np.sqrt(np.clip(1.0 - blur2 / np.maximum(var_f, 1e-300), 0.0, 1.0))
+    lost = (1.0 - keep ** 2)[None] * (mean - centre) * wsum
+    shift = lost.sum(axis=1) / np.maximum(wsum.sum(axis=1), 1e-300)
+    if len(some) < len(spots):  # affine in the spot's position, least squares over `some`
+        basis = np.hstack([np.ones((len(spots), 1)), spots - spots.mean(axis=0)])
+        coef, *_ = np.linalg.lstsq(basis[some], shift, rcond=None)
+        shift = basis @ coef
+    return _gauss_points(cells, edges, keep), math.sqrt(blur2), shift
+
+
+def _cell_stats(cells, edges, spots, laser):
+    """Per (spot, cell): weighted mean path over the cell's Gauss points, the centre's path,
+    the weighted variance, and the summed weight."""
+    from ...ops.forward import facet_paths
+    n_f = len(cells.centres)
+    full = _gauss_points(cells, edges, np.ones(n_f))
+    path, weight = facet_paths(full.centres, full.normals, full.areas, spots, laser)
+    path, weight = path.reshape(len(path), 4, n_f), weight.reshape(len(weight), 4, n_f)
+    wsum = weight.sum(axis=1)  # (D, F)
+    safe = np.maximum(wsum, 1e-300)
+    mean = (weight * path).sum(axis=1) / safe
+    var_df = (weight * (path - mean[:, None]) ** 2).sum(axis=1) / safe
+    centre, _ = facet_paths(cells.centres, cells.normals, cells.areas, spots, laser)
+    return mean, centre, var_df, wsum
+
+
+def facing(centre, laser) -> float:
+    """The yaw that turns a plate at `centre` to face the laser spot."""
+    d = np.asarray(laser, float) - np.asarray(centre, float)
+    return math.atan2(d[1], d[0])
+
+
+def height_observable(spots, laser, tol=1e-6) -> bool:
+    """Height (and the rotation about the wall spots' line) is observable only when the laser
+    spot and the detector spots do not all lie on one straight line."""
+    pts = np.vstack([np.asarray(laser, float)[None], np.asarray(spots, float)])
+    diffs = pts[1:] - pts[0]
+    if len(diffs) < 2:
+        return False
+    s = np.linalg.svd(diffs, compute_uv=False)
+    return bool(s[1] > tol * max(s[0], 1e-12))
+
+
+def extent(p) -> np.ndarray:
+    """Size along the plate's own axes: (across, up, along the normal) = (w, h, 0)."""
+    return np.array([float(p[3]), float(p[4]), 0.0])
+
+
+def normal_of(p) -> np.ndarray:
+    return np.array([math.cos(p[5]), math.sin(p[5]), 0.0])

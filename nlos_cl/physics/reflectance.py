@@ -1,0 +1,129 @@
+"""How the hidden target reflects: the seam the forward model is specialised on.
+
+A reflectance model splits the target's BRDF f(n, to_laser, to_detector) into a constant
+`scale` (1/sr, applied on the host in float64 with the other physical constants) and a
+dimensionless, direction-dependent `factor` that the forward kernel evaluates per (facet,
+detector). The kernel gets the factor as the macro REFLECTANCE_FACTOR(n, to_laser, to_detector)
+through `kernel_defines()`; `factor()` is its float64 twin. Lambertian reflection (the paper's)
+has factor 1. A glossy model adds its own macro and twin here and nowhere else.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..core.errors import require
+
+
+@dataclass(frozen=True)
+class Lambertian:
+    """A diffuse reflector: f = brdf (1/sr) in every direction (paper: clothes 0.1284)."""
+
+    brdf: float = 0.1284
+
+    def __post_init__(self):
+        require(isinstance(self.brdf, (int, float)) and math.isfinite(self.brdf)
+                and self.brdf > 0, "target.brdf", f"must be a positive number, got {self.brdf!r}",
+                "pass e.g. 0.1284 (the paper's clothes; 1/pi is a perfect white reflector)")
+
+    @property
+    def scale(self) -> float:
+        return float(self.brdf)
+
+    def kernel_defines(self) -> dict:
+        return {}  # forward.cl's default REFLECTANCE_FACTOR is 1
+
+    def factor(self, normals, to_laser, to_detector) -> np.ndarray:
+        """(D, F) direction-dependent part: 1 for a Lambertian surface."""
+        return np.ones(to_detector.shape[:-1])
+
+
+def _number(field: str, value, low: float, high: float, fix: str) -> float:
+    require(isinstance(value, (int, float)) and not isinstance(value, bool)
+            and math.isfinite(value) and low <= value <= high, field,
+            f"must be a number in [{low}, {high}], got {value!r}", fix)
+    return float(value)
+
+
+@dataclass(frozen=True)
+class GGX:
+    """A glossy surface: a GGX (Trowbridge-Reitz) microfacet lobe over an optional diffuse
+    base, f = diffuse / pi + specular D(h) G(l, v) / (4 cos_l cos_v), with
+    D(h) = a^2 / (pi ((n.h)^2 (a^2 - 1) + 1)^2) and Smith's separable masking-shadowing
+    G = G1(l) G1(v), G1 = 2 / (1 + sqrt(1 + a^2 tan^2)); `roughness` is a (Walter et al. 2007).
+    It conserves energy for diffuse + specular <= 1 (the microfacet lobe reflects at most
+    `specular` of the light; single scattering loses some at high roughness). Mitsuba's
+    roughconductor (distribution ggx, material none, specular_reflectance = `specular`)
+    blended with a diffuse BSDF is the same function. scale = (diffuse + specular) / pi."""
+
+    specular: float = 0.5
+    roughness: float = 0.3
+    diffuse: float = 0.0
+
+    def __post_init__(self):
+        fix = "pass e.g. GGX(specular=0.5, roughness=0.3, diffuse=0.1)"
+        _number("reflectance.specular", self.specular, 0.0, 1.0, fix)
+        _number("reflectance.diffuse", self.diffuse, 0.0, 1.0, fix)
+        _number("reflectance.roughness", self.roughness, 1e-3, 1.0, fix)
+        require(self.specular + self.diffuse > 0, "reflectance", "specular + diffuse is 0: the "
+                "target reflects nothing", fix)
+        require(self.specular + self.diffuse <= 1.0, "reflectance", "specular + diffuse "
+                "exceeds 1: the surface would reflect more light than it receives", fix)
+
+    @property
+    def scale(self) -> float:
+        return (self.specular + self.diffuse) / math.pi
+
+    def _weights(self):
+        total = self.specular + self.diffuse
+        return self.roughness ** 2, self.diffuse / total, self.specular / total
+
+    def kernel_defines(self) -> dict:
+        a2, kd, ks = self._weights()
+        return {"GGX_A2": f"{a2:.9e}f", "GGX_KD": f"{kd:.9e}f", "GGX_KS": f"{ks:.9e}f",
+                "REFLECTANCE_FACTOR(n,l,v)": "ggx_factor(n,l,v)"}
+
+    def factor(self, normals, to_laser, to_detector) -> np.ndarray:
+        """(D, F) f / scale: KD + KS a^2 / den^2 G1(l) G1(v) / (4 cos_l cos_v) (the pi of D
+        cancels against the scale's); 0 where either direction is below the surface."""
+        a2, kd, ks = self._weights()
+        cl = np.einsum("fk,fk->f", normals, to_laser)[None]
+        cv = np.einsum("fk,dfk->df", normals, to_detector)
+        h = to_laser[None] + to_detector
+        ch = np.einsum("fk,dfk->df", normals, h) / np.linalg.norm(h, axis=-1)
+        den = ch * ch * (a2 - 1.0) + 1.0
+        ok = (cl > 0) & (cv > 0)
+        cl, cv = np.where(ok, cl, 1.0), np.where(ok, cv, 1.0)
+        g1 = lambda c: 2.0 / (1.0 + np.sqrt(1.0 + a2 * (1.0 - c * c) / (c * c)))  # noqa: E731
+        spec = a2 / (den * den) * g1(cl) * g1(cv) / (4.0 * cl * cv)
+        return np.where(ok, kd + ks * spec, 0.0)
+
+
+def from_spec(spec) -> object:
+    """A reflectance from a scene file's `reflectance:` mapping, e.g. {model: ggx,
+    specular: 0.5, roughness: 0.2, diffuse: 0.1} or {model: lambertian, brdf: 0.1284}."""
+    require(isinstance(spec, dict) and spec.get("model") in MODELS, "reflectance.model",
+            f"expected a mapping with model one of {sorted(MODELS)}, got {spec!r}",
+            "write e.g. {model: ggx, specular: 0.5, roughness: 0.2}")
+    args = {k: v for k, v in spec.items() if k != "model"}
+    cls = MODELS[spec["model"]]
+    unknown = set(args) - set(cls.__dataclass_fields__)
+    require(not unknown, "reflectance", f"unknown key(s) {sorted(unknown)} for model "
+            f"{spec['model']}", f"use {sorted(cls.__dataclass_fields__)}")
+    return cls(**args)
+
+
+def as_reflectance(value):
+    """A number means a Lambertian BRDF of that value; a model passes through."""
+    if isinstance(value, (int, float, np.floating)) and not isinstance(value, bool):
+        return Lambertian(float(value))
+    require(hasattr(value, "kernel_defines") and hasattr(value, "factor")
+            and hasattr(value, "scale"), "target.brdf",
+            f"expected a number or a reflectance model, got {type(value).__name__}",
+            "pass e.g. 0.1284 or nlos_cl.Lambertian(0.1284)")
+    return value
+
+
+MODELS = {"lambertian": Lambertian, "ggx": GGX}

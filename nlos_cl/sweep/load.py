@@ -1,0 +1,16 @@
+"""One entry for every kind of study: a scene study (study.py) or a function's (runner.py)."""
+from __future__ import annotations
+
+from .runner import load_runner_study
+from .study import Study, load_scene_study, read_source
+
+
+def load_study(source, base_dir=None) -> Study:
+    """A Study from a YAML file path or a dict (scene paths relative to the file, or to
+    `base_dir`, default the working folder); a dict with a `runner` is a function's study."""
+    if isinstance(source, Study):
+        return source
+    raw, base_dir = read_source(source, base_dir)
+    if isinstance(raw, dict) and "runner" in raw:
+        return load_runner_study(raw, base_dir)
+    return load_scene_study(raw, base_dir)

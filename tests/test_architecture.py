@@ -1,0 +1,210 @@
+"""The house rules of docs/architecture.md, read from the code: every import (function-local
+ones included, and importlib calls with a literal name) goes down or across the layer table,
+never up; no two modules import each other, however indirectly; every package ships; and no
+module, function or class outgrows the size a reader can hold."""
+from __future__ import annotations
+
+import ast
+import re
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGE = ROOT / "nlos_cl"
+ARCHITECTURE = ROOT / "docs" / "architecture.md"
+LIMITS = {"module lines": 350, "function lines": 60, "class lines": 150}
+
+
+def layer_table(doc: Path = ARCHITECTURE) -> list[str]:
+    """The layers, bottom first, as dotted prefixes ('nlos_cl.core', ..., 'nlos_cl' for the
+    facade): the rows of the table under '## Layers' whose second cell is a `path`."""
+    text = doc.read_text(encoding="utf-8")
+    section = text.split("## Layers", 1)[1].split("\n## ", 1)[0]
+    layers = []
+    for row in section.splitlines():
+        cells = [c.strip() for c in row.strip().strip("|").split("|")]
+        if len(cells) >= 2 and cells[0].isdigit():
+            path = re.fullmatch(r"`nlos_cl/([\w/]*?)/?(__init__\.py)?`", cells[1])
+            assert path, f"layer table row {row!r}: the second cell must be `nlos_cl/<folder>/`"
+            folder = path.group(1)
+            layers.append("nlos_cl" + ("." + folder.replace("/", ".") if folder else ""))
+    return layers
+
+
+def module_name(path: Path, package: Path) -> str:
+    parts = list(path.relative_to(package.parent).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def imports(package: Path = PACKAGE) -> dict[str, set[str]]:
+    """module -> the nlos_cl modules it imports anywhere in its body (absolute names)."""
+    modules = {module_name(p, package): p for p in package.rglob("*.py")}
+    found: dict[str, set[str]] = {}
+    for name, path in modules.items():
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        here = name if path.name == "__init__.py" else name.rpartition(".")[0]
+        targets = set()
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                targets |= {a.name for a in node.names}
+            elif isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                if node.level:
+                    up = here.split(".")[:len(here.split(".")) - node.level + 1]
+                    base = ".".join(up + ([node.module] if node.module else []))
+                for a in node.names:  # `from pkg import module` imports the module
+                    targets.add(f"{base}.{a.name}" if f"{base}.{a.name}" in modules else base)
+            elif isinstance(node, ast.Call) and _dynamic_import(node):
+                arg = node.args[0]
+                if isinstance(arg, ast.Constant) and isinstance(arg.value, str):
+                    package_arg = node.args[1] if len(node.args) > 1 else None
+                    targets.add(_absolute(arg.value, package_arg, name))
+            elif isinstance(node, ast.Dict) and name == package.name:  # the facade's table
+                targets |= {f"{package.name}{k.value}" for k in node.keys
+                            if isinstance(k, ast.Constant) and str(k.value).startswith(".")}
+                targets |= {f"{package.name}{v.value}" for v in node.values
+                            if isinstance(v, ast.Constant) and str(v.value).startswith(".")}
+        found[name] = {t for t in targets if t.split(".")[0] == package.name and t != name}
+    return found
+
+
+def _dynamic_import(node: ast.Call) -> bool:
+    f = node.func
+    return bool(node.args) and ((isinstance(f, ast.Name) and f.id == "__import__")
+                                or (isinstance(f, ast.Attribute) and f.attr == "import_module"))
+
+
+def _absolute(name: str, package_arg, module: str) -> str:
+    if not name.startswith("."):
+        return name
+    return module.rpartition(".")[0] if name == "." else module.split(".")[0] + name
+
+
+def layer_of(module: str, layers: list[str]) -> int:
+    """The index of the deepest layer prefix the module falls under; the facade is exact."""
+    best = None
+    for i, prefix in enumerate(layers):
+        if prefix == "nlos_cl":
+            if module == "nlos_cl":
+                best = i
+        elif module == prefix or module.startswith(prefix + "."):
+            best = i
+    if best is None:
+        raise AssertionError(f"{module} is in no layer of docs/architecture.md: move it into a "
+                             "layer folder or add the folder to the table")
+    return best
+
+
+def upward_imports(found: dict[str, set[str]], layers: list[str]) -> list[str]:
+    bad = []
+    for module, targets in sorted(found.items()):
+        if module in layers and module != "nlos_cl":  # a layer's own (empty) face
+            continue
+        mine = layer_of(module, layers)
+        for target in sorted(targets):
+            if target in layers and target != "nlos_cl":
+                continue  # importing a layer package itself is importing its face
+            theirs = layer_of(target, layers)
+            if theirs > mine:
+                bad.append(f"{module} ({layers[mine]}) imports {target} ({layers[theirs]})")
+    return bad
+
+
+def circles(found: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components of more than one module (Tarjan), plus self-imports."""
+    index, low, stack, on, out, counter = {}, {}, [], set(), [], [0]
+
+    def visit(v):
+        index[v] = low[v] = counter[0]
+        counter[0] += 1
+        stack.append(v)
+        on.add(v)
+        for w in found.get(v, ()):
+            if w not in found:
+                continue
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    for v in sorted(found):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def _without_package_faces(found: dict[str, set[str]]) -> dict[str, set[str]]:
+    """A package's __init__ that only re-exports its own modules is how Python loads a package
+    before any module in it: an edge module -> its own package face is not a circle."""
+    return {m: {t for t in ts if not (m.startswith(t + ".") and t != "nlos_cl")}
+            for m, ts in found.items()}
+
+
+def test_the_layer_table_names_every_folder():
+    layers = layer_table()
+    assert layers[0] == "nlos_cl.core" and "nlos_cl" in layers and layers[-1] == "nlos_cl.apps"
+    folders = {module_name(p, PACKAGE) for p in PACKAGE.glob("*/__init__.py")}
+    assert folders <= set(layers), f"folders missing from the table: {folders - set(layers)}"
+    loose = sorted(p.name for p in PACKAGE.glob("*.py") if p.name != "__init__.py")
+    assert not loose, f"modules outside any layer folder: {loose}"
+
+
+def test_every_import_goes_down_or_across_the_layer_table():
+    bad = upward_imports(imports(), layer_table())
+    assert not bad, "imports against the layer order:\n" + "\n".join(bad)
+
+
+def test_no_import_circles():
+    found = circles(_without_package_faces(imports()))
+    assert not found, "import circles:\n" + "\n".join(" <-> ".join(c) for c in found)
+
+
+def test_the_checks_catch_an_upward_import_and_a_circle():
+    """The checker itself: an op reaching up into the registry's user, and a circle."""
+    layers = ["nlos_cl.core", "nlos_cl.device", "nlos_cl.ops", "nlos_cl", "nlos_cl.apps"]
+    found = {"nlos_cl.device.runtime": {"nlos_cl.ops.registry"},
+             "nlos_cl.ops.registry": {"nlos_cl.ops.forward"},
+             "nlos_cl.ops.forward": {"nlos_cl.device.runtime"}}
+    assert upward_imports(found, layers) == [
+        "nlos_cl.device.runtime (nlos_cl.device) imports nlos_cl.ops.registry (nlos_cl.ops)"]
+    assert circles(found) == [sorted(found)]
+
+
+def test_every_package_is_packaged():
+    pyproject = (ROOT / "pyproject.toml").read_text(encoding="utf-8")
+    listed = set(re.findall(r'"(nlos_cl[\w.]*)"', pyproject.split("packages =", 1)[1]
+                            .split("]", 1)[0]))
+    packages = {module_name(p, PACKAGE) for p in PACKAGE.rglob("__init__.py")}
+    assert packages <= listed, f"packages a wheel would leave out: {sorted(packages - listed)}"
+
+
+def _sizes():
+    for path in sorted(PACKAGE.rglob("*.py")):
+        text = path.read_text(encoding="utf-8")
+        where = path.relative_to(ROOT)
+        yield "module lines", f"{where}", len(text.splitlines())
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+                kind = "class lines" if isinstance(node, ast.ClassDef) else "function lines"
+                yield kind, f"{where}:{node.lineno} {node.name}", node.end_lineno - node.lineno + 1
+
+
+@pytest.mark.parametrize("kind", [
+    "module lines", "function lines",
+    pytest.param("class lines", marks=pytest.mark.xfail(strict=True, reason="Tracker, Locator and "
+                                                        "ModelEstimator are split next"))])
+def test_nothing_outgrows_what_a_reader_can_hold(kind):
+    over = [f"{where}: {n}" for k, where, n in _sizes() if k == kind and n > LIMITS[kind]]
+    assert not over, f"{kind} over {LIMITS[kind]}:\n" + "\n".join(over)
