@@ -1,0 +1,31 @@
+"""Every tuning default of nlos_cl in one place: the numbers a user may want to change, each
+with the reason it has its value. Modules import them from here; none repeats them.
+
+Physics and the method's fixed numbers (c, the paper's h) are in constants.py."""
+from __future__ import annotations
+
+# A target's mesh is cut into facets this wide (m): at the paper's 10 ps bins (3 mm of path)
+# 1 cm facets give histograms within 0.1 % of 5 mm ones (docs/physics.md); tracking's frame
+# streams use twice that (FRAME_FACET_M) for speed, where the per-frame error is noise-limited.
+FACET_M = 0.01
+FRAME_FACET_M = 0.02
+
+# Score in log mode (sum of log-likelihoods) above this many detectors: a product of many
+# per-detector likelihoods underflows float32.
+LOG_MODE_ABOVE_DETECTORS = 8
+
+# search="auto": frames timed per search (after one warm-up each) before the Locator keeps the
+# faster one for its grid.
+AUTO_TRIALS = 3
+
+# Small read-only device inputs (taps, spots, axes) kept per Runtime, most recently used.
+CONSTANT_CACHE = 64
+
+# Locator plans that nl.locate keeps, most recently used (one per layout, grid, estimator,
+# search and backend): a stream of frames through nl.locate builds its plan once.
+PLAN_CACHE = 8
+
+
+def auto_log_mode(n_detectors: int) -> bool:
+    """The default scoring mode for this many detectors (LOG_MODE_ABOVE_DETECTORS)."""
+    return int(n_detectors) > LOG_MODE_ABOVE_DETECTORS
