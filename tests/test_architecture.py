@@ -201,10 +201,7 @@ def _sizes():
                 yield kind, f"{where}:{node.lineno} {node.name}", node.end_lineno - node.lineno + 1
 
 
-@pytest.mark.parametrize("kind", [
-    "module lines", "function lines",
-    pytest.param("class lines", marks=pytest.mark.xfail(strict=True, reason="Tracker, Locator and "
-                                                        "ModelEstimator are split next"))])
+@pytest.mark.parametrize("kind", sorted(LIMITS))
 def test_nothing_outgrows_what_a_reader_can_hold(kind):
     over = [f"{where}: {n}" for k, where, n in _sizes() if k == kind and n > LIMITS[kind]]
     assert not over, f"{kind} over {LIMITS[kind]}:\n" + "\n".join(over)

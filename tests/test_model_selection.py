@@ -80,5 +80,5 @@ def test_chi2_point_without_scipy_matches_scipy(nu, rel):
     its known relative error, 2.3e-2 at nu = 2 falling to 3.7e-4 at 100 and ~1/nu^2 beyond,
     each bound about 10 % above it; far below the Birge ratio's own scatter, sqrt(2 / nu)."""
     from scipy.stats import chi2
-    from nlos_cl.localization.model.select import _chi2_999
-    assert _chi2_999(nu) == pytest.approx(chi2.ppf(0.999, nu), rel=rel)
+    from nlos_cl.core.stats import chi2_quantile  # (was Wilson-Hilferty: now exact)
+    assert chi2_quantile(0.999, nu) == pytest.approx(chi2.ppf(0.999, nu), rel=rel)

@@ -8,6 +8,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import nlos_cl as nl
+from nlos_cl.localization.estimate import Capabilities
 from nlos_cl.localization.paper import PaperArgmax
 from nlos_cl.localization.locator import Locator
 from nlos_cl.localization.search import CoarseToFine, coarse_factor
@@ -111,7 +112,7 @@ class HostSideArgmax(PaperArgmax):
     """The paper's argmax through the general estimator seam (local): the host-side search
     (nlos_cl/search.py `run`) and the argmax op with the neighbourhood read row by row."""
 
-    local = True
+    capabilities = Capabilities(local=True)  # not is_paper: the Locator must call it
 
 
 @pytest.mark.parametrize("log_mode", [False, True])

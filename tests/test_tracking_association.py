@@ -5,6 +5,7 @@ import pytest
 
 import nlos_cl as nl
 from nlos_cl.localization.estimate import LocatedTarget
+from nlos_cl.localization.fit_result import ModelFit
 from nlos_cl.tracking import ConstantVelocity, SensorNoise, Tracker
 from nlos_cl.tracking.association import screen
 from nlos_cl.tracking.kalman import measurement
@@ -19,8 +20,9 @@ def _layout():
 
 def _target(p, sigma, birge=None):
     cov = np.diag([sigma ** 2, sigma ** 2, np.inf])
-    details = None if birge is None else {"birge_ratio": birge}
-    return LocatedTarget(np.asarray(p, float), cov, None, details)
+    fit = None if birge is None else ModelFit("plate", "upright plate", (), 1.0, np.zeros(3),
+                                              "gauss", 0.0, 1, birge, False)
+    return LocatedTarget(np.asarray(p, float), cov, None, fit=fit)
 
 
 def _rms(e):

@@ -8,6 +8,7 @@ import pytest
 
 import nlos_cl as nl
 from nlos_cl.localization.estimate import Scored
+from nlos_cl.localization.fit_result import ModelFit, WarmStart
 from nlos_cl.localization.model import ModelEstimator
 from nlos_cl.localization.model.batch import CHUNK_ROWS, HostProblem
 from nlos_cl.localization.model.likelihood import Problem
@@ -176,8 +177,9 @@ def test_gate_fallback_sees_a_warm_fit_outside_every_gate():
     near, far = ([3.005, 2.0, 0.0], [3.2, 2.0, 0.0])
 
     def measured(pos):
-        src = nl.LocatedTarget(np.array(pos), np.diag([1e-5, 1e-5, np.inf]),
-                               details={"warm_start": {"used": True}})
+        fit = ModelFit("plate", "upright plate", (), 1.0, np.zeros(3), "gauss", 0.0, 1, 1.0, False,
+                       warm_start=WarmStart(True, 1.0, 5, 5, 0.01))
+        src = nl.LocatedTarget(np.array(pos), np.diag([1e-5, 1e-5, np.inf]), fit=fit)
         return kalman.measurement(src, 2, fallback_sigma_m=0.05, min_sigma_m=0.002)
     assert not warm.outside_gates([measured(near)], [(track, x, P)], 0.999)
     assert warm.outside_gates([measured(far)], [(track, x, P)], 0.999)

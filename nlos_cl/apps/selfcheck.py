@@ -7,8 +7,8 @@ import sys
 
 def self_check(runtime) -> list[tuple[str, float, float]]:
     """(operation: example, error, tolerance) for every operation's "check" examples."""
-    from ..ops.backend import NumpyBackend
     from ..ops import OPERATIONS
+    from ..ops.backend import NumpyBackend
     from ..ops.base import example_error
     from ..ops.opencl_backend import OpenCLBackend
 

@@ -1,6 +1,6 @@
 """The host module: one OpenCL device with its context, queue, program cache, memory pool,
 chunking and out-of-memory retry. It knows no operation: operations live in nlos_cl/ops, and
-nlos_cl.ops.backend.OpenCLBackend (a Runtime) runs them by name. Handles are pyopencl arrays that stay on
+ops.backend.OpenCLBackend (a Runtime) runs them by name. Handles are pyopencl arrays that stay on
 the device between stages; programs are built once per (source file, build options); buffers
 come from a memory pool, so a stream of frames reuses device memory instead of allocating anew.
 """
@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from . import devices  # sets the PoCL cache folder before pyopencl loads
+from ..core.tuning import CONSTANT_CACHE
 from ..core.errors import DeviceError
 
 cl = devices.cl
@@ -22,7 +23,6 @@ import pyopencl.array as cla  # noqa: E402
 import pyopencl.clrandom as clrandom  # noqa: E402
 import pyopencl.tools as cltools  # noqa: E402
 
-CONSTANT_CACHE = 64  # small read-only inputs kept on the device, most recently used
 
 
 def _kernel_file(name: str) -> str:

@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.errors import InputError, require
+from ..core.tuning import FACET_M
 
 SETUP_KEYS = {"laser_spot", "detector_spots", "device_distance_m", "laser_spot_diameter_m",
               "detected_spot_diameter_m", "aperture_area_m2", "wall_brdf", "pulse", "finite_spots"}
@@ -204,8 +205,7 @@ def _time_axis(raw, setup):
 
 def _noise(raw):
     """(noise model or None, seed)."""
-    from ..physics.noise import PhotonCounter
-    from ..physics.noise import AWGN, check_seed
+    from ..physics.noise import AWGN, PhotonCounter, check_seed
     if raw is None:
         return None, 0
     raw = _keys("noise", raw, {"snr_db", "photons", "seed"})
@@ -230,7 +230,7 @@ def load_scene(source) -> SceneSpec:
         raw = source
     raw = _keys("scene", raw, TOP)
     setup = _setup(raw.get("setup"))
-    cell = _number("facet_size_m", raw.get("facet_size_m", 0.01))
+    cell = _number("facet_size_m", raw.get("facet_size_m", FACET_M))
     targets = raw.get("targets")
     require(isinstance(targets, list) and len(targets) >= 1, "targets", "needs at least one "
             "target", "add e.g. `targets: [{shape: rectangle, position: [4, 2, 0]}]`")

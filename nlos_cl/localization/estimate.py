@@ -1,5 +1,7 @@
-"""What estimators exchange: `Scored` (a scored grid and, for model fits, the histograms) in,
-`Estimate` / `Location` of `LocatedTarget`s out, and the `Estimator` protocol between them."""
+"""What estimators exchange: `Scored` (a scored grid and, for model fits, the histograms) and an
+optional `Prior` in, `Estimate` / `Location` of `LocatedTarget`s out, and the `Estimator`
+protocol between them, with the `Capabilities` an estimator declares so the Locator knows what
+to hand it (a score map, its best cell's neighbourhood only, or just the paper's estimate)."""
 from __future__ import annotations
 
 import math
@@ -15,12 +17,19 @@ from ..core.grid import Grid
 
 @dataclass(frozen=True)
 class LocatedTarget:
-    """One located target: centre (m, our frame) and what the estimator knows of it."""
+    """One located target: centre (m, our frame) and what the estimator knows of it. `fit`: a
+    model fit's typed result (nlos_cl.localization.fit_result.ModelFit), None for the paper's
+    argmax; `details`: its JSON view (or an estimator's own dict, where it has no ModelFit)."""
 
     position: np.ndarray  # (3,)
     covariance: np.ndarray | None = None  # (3, 3) m^2, where the estimator provides one
     extent_m: np.ndarray | None = None  # size along its axes, where the estimator fits one
-    details: dict = field(default_factory=dict)  # estimator-specific (fit parameters, ...)
+    details: dict = field(default_factory=dict)
+    fit: object = None  # ModelFit | None
+
+    def __post_init__(self):
+        if self.fit is not None and not self.details:
+            object.__setattr__(self, "details", self.fit.as_dict())
 
 
 @dataclass(frozen=True)
@@ -76,10 +85,42 @@ class Scored:
     paper: object = None  # the paper's Estimate, where the Locator's fused search made it
 
 
+@dataclass(frozen=True)
+class Capabilities:
+    """What an estimator needs from the Locator. local: it reads only the best cell's 3 x 3 x 3
+    neighbourhood of the score map (coarse-to-fine search may skip the rest); from_paper: it
+    needs only the paper's estimate (`Scored.paper`), no score map at all (the Locator's fused
+    search gives it in one read); is_paper: its answer *is* the paper's estimate (the Locator
+    returns the fused search's estimate without calling it); needs_raw: it fits the unfiltered
+    histograms (`Scored.raw`)."""
+
+    local: bool = False
+    from_paper: bool = False
+    is_paper: bool = False
+    needs_raw: bool = False
+
+
+NO_CAPABILITIES = Capabilities()  # an estimator that declares none: it gets the whole map
+
+
+def capabilities_of(estimator) -> Capabilities:
+    return getattr(estimator, "capabilities", NO_CAPABILITIES)
+
+
+@dataclass(frozen=True)
+class Prior:
+    """Where a frame's targets are expected, to start a fit from (a tracker's prediction):
+    `rows` (K, n) of the estimator's shape parameters (the model estimator: plate rows x, y, z,
+    width, height, yaw), one per target."""
+
+    rows: np.ndarray
+
+
 class Estimator(Protocol):
     name: str
+    capabilities: Capabilities
 
-    def estimate(self, scored: Scored) -> Estimate: ...
+    def estimate(self, scored: Scored, prior: Prior | None = None) -> Estimate: ...
 
 
 def check_signal(found: bool, best: float, log_mode: bool, n_detectors: int) -> None:

@@ -1,6 +1,6 @@
 """The estimator registry: names ('paper', 'model') to estimators, and the default.
 
-The default (`as_estimator(None)`) is the model fit (nlos_cl.localization.model, loaded on first use)."""
+The default (`as_estimator(None)`) is the model fit (localization.model, loaded on first use)."""
 from __future__ import annotations
 
 from ..core.errors import InputError

@@ -14,9 +14,10 @@ import numpy as np
 from ..core.constants import LOG_FLOOR, PAPER_H_S, SPEED_OF_LIGHT
 from ..core.errors import require
 from ..core.grid import Grid
+from ..core.tuning import AUTO_TRIALS
 from ..ops.argmax_patch import decode
 from ..ops.signals import Signals, as_signals
-from .estimate import Location, Scored
+from .estimate import Location, Scored, capabilities_of
 from .estimators import as_estimator
 from .filter import layout_of
 from .paper import PaperArgmax
@@ -26,12 +27,30 @@ from .search import SEARCHES, CoarseToFine
 # paper's filter, sigma = h / 3 (the 30 ps pulse adds 1 % in quadrature). It sets only the
 # coarse-to-fine search's speed, never its answer.
 PAPER_SIGNAL_WIDTH_M = SPEED_OF_LIGHT * PAPER_H_S / 3.0
-
-
-AUTO_TRIALS = 3  # search="auto": frames timed per search before it keeps the faster
-
-
 SEARCHES_TRIED = ("coarse_to_fine", "exhaustive")
+
+
+class SearchChoice:
+    """search="auto": time both searches on the first frames (AUTO_TRIALS each, after one
+    warm-up each: it builds the programs) and keep the one with the lower median. The answer
+    is the same either way; only the speed differs between grids and devices."""
+
+    def __init__(self, search: str):
+        self.chosen = None if search == "auto" else search
+        self._trials = []  # (search, seconds) of the first frames
+
+    def mode(self) -> str:
+        return self.chosen or SEARCHES_TRIED[len(self._trials) % 2]
+
+    def learn(self, mode: str, seconds: float) -> None:
+        if self.chosen is not None:
+            return
+        self._trials.append((mode, seconds))
+        if len(self._trials) < 2 * (AUTO_TRIALS + 1):
+            return
+        med = {m: statistics.median([t for k, t in self._trials[2:] if k == m])
+               for m in SEARCHES_TRIED}
+        self.chosen = min(SEARCHES_TRIED, key=lambda m: med[m])
 
 
 class Locator:
@@ -39,7 +58,7 @@ class Locator:
 
     `Locator(layout, grid)` where layout is a `Layout`, or histograms/signals to take it from;
     `locator(filtered_signals) -> Location`. log_mode scores by the sum of log-likelihoods
-    (for many detectors); the estimator is a name ('paper') or an object (nlos_cl.localization.estimate).
+    (for many detectors); the estimator is a name ('paper') or an object (localization.estimate).
 
     search: "coarse_to_fine" scores a coarse grid, bounds every block of cells from above and
     scores only the blocks that can hold the best cell (nlos_cl/search.py): the same argmax
@@ -76,14 +95,16 @@ class Locator:
         self._stats = self._result = None  # row stats and the fused searches' result, reused
         self._geometry = (layout.detector_spots, layout.laser_spot, self._path0,
                           self._inv_dpath, self.log_mode, LOG_FLOOR)
-        local = getattr(self.estimator, "local", isinstance(self.estimator, PaperArgmax))
-        self.search = search if local else "exhaustive"
+        self.capabilities = capabilities_of(self.estimator)
+        self.search = search if self.capabilities.local else "exhaustive"
         self._search = CoarseToFine(grid, self._inv_dpath, float(width))
-        self._trials = []  # "auto": (search, seconds) of the first frames
-        self.chosen = None if self.search == "auto" else self.search
-        if self.search == "auto" and not self._search.useful:
-            self.chosen = "exhaustive"  # no coarse grid to search
+        self._choice = SearchChoice(self.search if self._search.useful else "exhaustive")
         self.last_search = None  # what the last frame's search did (search.Found)
+
+    @property
+    def chosen(self) -> str | None:
+        """The search kept for this grid (None while "auto" is still timing both)."""
+        return self._choice.chosen
 
     def _args(self, signals: Signals):
         stats = signals.backend.call("row_stats", signals.handle, out=self._stats)
@@ -117,20 +138,39 @@ class Locator:
         sub, scores = self._search.neighbourhood(sig.backend, sig.handle, args, found.index)
         return Scored(sig.backend, scores, sub, self.log_mode, sig.n_detectors, sig, raw)
 
-    def _in_grid(self, estimate):
-        """An estimate made on a sub-grid, with the best cell's centre as the whole grid
-        computes it (the sub-grid's origin differs from it by float64 rounding)."""
-        if self.last_search is None:
-            return estimate
-        g = self.grid
-        cell = np.array([o + s * i for o, s, i in zip(g.origin, g.step, self.last_search.index)])
-        shift = cell - estimate.cell_position
-        targets = [replace(t, position=t.position + shift) for t in estimate.targets]
-        return replace(estimate, cell_position=cell, targets=targets)
-
-    def __call__(self, signals, *, raw=None, return_map: bool = False) -> Location:
+    def __call__(self, signals, *, raw=None, prior=None, return_map: bool = False) -> Location:
         """Locate from filtered signals; `raw`: the same frame unfiltered, for estimators that
-        fit a model to the histograms (the paper's argmax does not need it)."""
+        fit a model to the histograms (the paper's argmax does not need it); `prior`: where
+        the targets are expected (a localization.estimate.Prior, e.g. a tracker's prediction),
+        for estimators that start a fit from it."""
+        sig = self._checked(signals)
+        mode = self._choice.mode() if self._search.useful else "exhaustive"
+        start = time.perf_counter()
+        fusable = not return_map and (mode == "exhaustive"
+                                      or self._search.fusable(sig.n_detectors))
+        raw = None if raw is None else as_signals(raw, sig.backend)
+        can = self.capabilities
+        if fusable and can.is_paper:
+            estimate, full = self._fused(sig, mode), None
+        elif fusable and can.from_paper:  # a model fit starts from the fused search's one read
+            scored = Scored(sig.backend, None, self.grid, self.log_mode, sig.n_detectors, sig,
+                            raw, paper=self._fused(sig, mode))
+            estimate, full = self._estimate(scored, prior), None
+        else:
+            scored = self._scored(sig, raw, return_map, mode)
+            estimate = _in_grid(self._estimate(scored, prior), self.grid, self.last_search)
+            full = sig.backend.to_numpy(scored.scores) if return_map else None
+        if not return_map:
+            self._choice.learn(mode, time.perf_counter() - start)
+        return Location.of(estimate, self.grid, sig.layout.truth, full, self.estimator.name)
+
+    def _estimate(self, scored: Scored, prior):
+        # estimators written before priors take estimate(scored) only
+        if prior is None:
+            return self.estimator.estimate(scored)
+        return self.estimator.estimate(scored, prior)
+
+    def _checked(self, signals) -> Signals:
         sig = as_signals(signals, self.backend)
         require(sig.layout.shape == self.layout.shape, "signals", f"shape {sig.layout.shape} "
                 f"differs from the plan's {self.layout.shape}", "build a Locator for this layout")
@@ -139,25 +179,7 @@ class Locator:
                     and sig.layout.time_axis == self.layout.time_axis, "signals",
                     "come from another wall layout or time axis than the plan's",
                     "build a Locator for this layout")
-        mode = self._mode() if self._search.useful else "exhaustive"  # (no coarse grid)
-        start = time.perf_counter()
-        fusable = not return_map and (mode == "exhaustive"
-                                      or self._search.fusable(sig.n_detectors))
-        raw = None if raw is None else as_signals(raw, sig.backend)
-        if fusable and type(self.estimator) is PaperArgmax:
-            estimate, full = self._fused(sig, mode), None
-        elif fusable and getattr(self.estimator, "needs_only_paper_estimate", False):
-            # a model fit starts from the paper's estimate: the fused search's one read
-            scored = Scored(sig.backend, None, self.grid, self.log_mode, sig.n_detectors, sig,
-                            raw, paper=self._fused(sig, mode))
-            estimate, full = self.estimator.estimate(scored), None
-        else:
-            scored = self._scored(sig, raw, return_map, mode)
-            estimate = self._in_grid(self.estimator.estimate(scored))
-            full = sig.backend.to_numpy(scored.scores) if return_map else None
-        if self.chosen is None and not return_map:
-            self._learn(mode, time.perf_counter() - start)
-        return Location.of(estimate, self.grid, sig.layout.truth, full, self.estimator.name)
+        return sig
 
     # ------------------------------------------------------------ the paper's argmax, fused
     def _fused(self, sig: Signals, mode: str):
@@ -177,18 +199,14 @@ class Locator:
         return PaperArgmax().from_patch(index, best, patch, self.grid, self.log_mode,
                                         sig.n_detectors)
 
-    # ------------------------------------------------------------ "auto": measured choice
-    def _mode(self) -> str:
-        if self.chosen is not None:
-            return self.chosen
-        return SEARCHES_TRIED[len(self._trials) % 2]
 
-    def _learn(self, mode: str, seconds: float) -> None:
-        """Record a trial frame; after AUTO_TRIALS each (the first of each dropped: it builds
-        the programs), keep the search with the lower median."""
-        self._trials.append((mode, seconds))
-        if len(self._trials) < 2 * (AUTO_TRIALS + 1):
-            return
-        med = {m: statistics.median([t for k, t in self._trials[2:] if k == m])
-               for m in SEARCHES_TRIED}
-        self.chosen = min(SEARCHES_TRIED, key=lambda m: med[m])
+def _in_grid(estimate, grid: Grid, found):
+    """An estimate made on a sub-grid (the coarse-to-fine search's `found`), with the best
+    cell's centre as the whole grid computes it (the sub-grid's origin differs from it by
+    float64 rounding)."""
+    if found is None:
+        return estimate
+    cell = np.array([o + s * i for o, s, i in zip(grid.origin, grid.step, found.index)])
+    shift = cell - estimate.cell_position
+    targets = [replace(t, position=t.position + shift) for t in estimate.targets]
+    return replace(estimate, cell_position=cell, targets=targets)

@@ -6,7 +6,8 @@ import numpy as np
 
 from ..core.grid import Grid
 from ..ops.argmax_patch import neighbourhood
-from .estimate import Estimate, LocatedTarget, Scored, check_signal, parabolic_offsets
+from .estimate import (Capabilities, Estimate, LocatedTarget, Prior, Scored, check_signal,
+                       parabolic_offsets)
 
 
 class PaperArgmax:
@@ -14,8 +15,12 @@ class PaperArgmax:
     a parabola per axis through the log-score of the best cell and its two neighbours."""
 
     name = "paper"
+    # the best cell's neighbourhood is all it reads, and its answer is what the Locator's fused
+    # search computes on the device: a frame costs one small read
+    capabilities = Capabilities(local=True, is_paper=True)
 
-    def estimate(self, scored: Scored):
+    def estimate(self, scored: Scored, prior: Prior | None = None):
+        """The argmax of `scored` (a prior changes nothing: the paper's estimate has no start)."""
         be, grid = scored.backend, scored.grid
         flat, best = be.call("argmax", scored.scores)
         check_signal(flat >= 0, best, scored.log_mode, scored.n_detectors)

@@ -11,8 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .argmax import WORK_ITEMS
-from .argmax import opencl as argmax_opencl
+from .argmax import WORK_ITEMS, opencl as argmax_opencl
 from .base import Example, Operation
 
 PATCH_RESULT = 8 + 27

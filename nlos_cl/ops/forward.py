@@ -238,8 +238,8 @@ def _span_error(device, twin) -> float:
 
 def _bench_examples(hist_err):
     from ..core.constants import SPEED_OF_LIGHT as C
-    from ..physics.meshes import box
     from ..core.paths import TimeAxis, default_time_axis
+    from ..physics.meshes import box
     from ..physics.scene import Scene, Target, paper_scene, paper_setup
     paper = paper_scene(facet_size_m=0.01)
     spots32 = [[x, 0.0, z] for x in np.linspace(-2.0, -0.3, 8) for z in np.linspace(-0.6, 0.6, 4)]

@@ -2,9 +2,8 @@
 definition, OpenCL launcher and float64 NumPy twin, with example inputs and tolerances) + one
 line below. Backends call them by name (`backend.call("gauss_filter", ...)`, or
 `backend.gauss_filter(...)`); tests, self-check, bench and the oclgrind check walk this list."""
-from . import add_awgn, argmax, ellipse_score, forward, gauss_filter, row_stats, subtract_background
-from . import max_filter  # noqa: E402  (coarse-to-fine scoring's bound)
-from . import argmax_patch, fused_search, stats_dilate  # noqa: E402  (one read per frame)
+from . import (add_awgn, argmax, argmax_patch, ellipse_score, forward, fused_search, gauss_filter,
+               max_filter, row_stats, stats_dilate, subtract_background)
 from .base import Operation
 
 OPERATIONS: dict[str, Operation] = {op.name: op for op in (

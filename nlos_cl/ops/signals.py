@@ -8,9 +8,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .backend import resolve_backend
 from ..core.errors import require
 from ..core.histograms import HistogramSet, Layout
+from .backend import resolve_backend
 
 
 @dataclass(frozen=True)

@@ -12,6 +12,7 @@ import trimesh
 
 from ..core.errors import InputError, require
 from ..core.geometry import as_point
+from ..core.tuning import FACET_M
 
 
 def _grid_quad(u_len: float, v_len: float, cell: float) -> tuple[np.ndarray, np.ndarray]:
@@ -100,7 +101,7 @@ def sphere_level(radius_m: float, facet_size_m: float) -> int:
 
 
 def sphere(radius_m: float = 0.2, centre=(4.0, 2.0, 0.0), subdivisions: int | None = None,
-           facet_size_m: float = 0.01) -> trimesh.Trimesh:
+           facet_size_m: float = FACET_M) -> trimesh.Trimesh:
     """An icosphere whose edges are at most `facet_size_m` (vertices on the sphere, so the
     chord error is bounded: see `sphere_level`); `subdivisions` fixes the level instead."""
     require(radius_m > 0, "sphere.radius_m", f"must be positive, got {radius_m}", "pass metres")

@@ -156,6 +156,6 @@ class PhotonCounter:
         return replace(expected, data=drawn)
 
     def apply(self, signals, seed: int = 0):
-        """The noise-model interface (nlos_cl.physics.noise): counts of `signals` (in watts) as Signals
+        """The noise-model interface (physics.noise): counts of `signals` (in watts) as Signals
         on the same backend, on the TDC's time axis. Drawn on the host (NumPy's Poisson)."""
         return signals.with_histograms(self.counts(signals.histograms(), seed))

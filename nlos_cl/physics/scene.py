@@ -13,10 +13,11 @@ import trimesh
 
 from ..core.constants import FWHM_PER_SIGMA
 from ..core.errors import require
-from ..core.geometry import Facets, as_point, coincident_pair, morton_order  # noqa: F401  (Facets: re-exported)
+from ..core.geometry import (Facets, as_point, coincident_pair,  # noqa: F401  (Facets: re-exported)
+                             morton_order)
+from ..core.tuning import FACET_M
 from .meshes import rectangle
 from .reflectance import Lambertian, as_reflectance
-
 
 
 @dataclass(frozen=True)
@@ -143,7 +144,7 @@ class Setup:
 @dataclass(frozen=True)
 class Target:
     """A hidden object: any triangle mesh and how it reflects. `brdf` is a number (a Lambertian
-    BRDF f_c in 1/sr; the paper's clothes 0.1284) or a reflectance model (nlos_cl.physics.reflectance)."""
+    BRDF f_c in 1/sr; the paper's clothes 0.1284) or a reflectance model (physics.reflectance)."""
 
     mesh: trimesh.Trimesh
     brdf: object = 0.1284
@@ -173,7 +174,7 @@ class Target:
     def reflectance(self):
         return as_reflectance(self.brdf)
 
-    def facets(self, facet_size_m: float = 0.01) -> Facets:
+    def facets(self, facet_size_m: float = FACET_M) -> Facets:
         """Subdivide until every triangle edge is at most facet_size_m; drop zero-area faces.
 
         Faces on the mesh's boundary or on a crease (the silhouette where the shortest path
@@ -257,7 +258,7 @@ class Scene:
 
     setup: Setup
     target: Target
-    facet_size_m: float = 0.01
+    facet_size_m: float = FACET_M
     truth: np.ndarray | None = None  # where the target "is" (its centre), for error reports
     more_targets: tuple = ()
     occlusion: bool = True  # facets contribute only where they see both spots (visibility.py)
@@ -296,6 +297,11 @@ class Scene:
             cache[which] = self.targets[which].facets(self.facet_size_m)
         return cache[which]
 
+    def use_facets(self, which: int, facets: Facets) -> None:
+        """Take `facets` as target `which`'s cut (a frame of a sequence: the mesh cut once,
+        moved), instead of cutting it again; they must be that target's facets."""
+        self.__dict__.setdefault("_facets", {})[which] = facets
+
     def visibility(self, which: int = 0):
         """(D, F) bool: facet f of target `which` sees the laser spot and detector spot d
         through the whole scene (every target's triangles), computed once per scene; None when
@@ -317,7 +323,7 @@ def paper_setup(**overrides) -> Setup:
     return Setup(**overrides)
 
 
-def paper_scene(position=(4.0, 2.0, 0.0), facet_size_m: float = 0.01, **setup_overrides) -> Scene:
+def paper_scene(position=(4.0, 2.0, 0.0), facet_size_m: float = FACET_M, **setup_overrides) -> Scene:
     """The paper's whole simulation setup in one call: its 0.3 m x 1.6 m upright rectangle at
     `position` (default (4, 2, 0)), facing the wall side, cut into `facet_size_m` facets."""
     mesh = rectangle(centre=position, cell_m=facet_size_m)

@@ -16,6 +16,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..core.errors import require
+from ..core.tuning import FRAME_FACET_M
 from ..physics.trajectory import MovingTarget
 
 
@@ -38,14 +39,14 @@ def frame_seed(seed: int, index: int) -> int:
 
 
 def simulate_sequence(setup, moving, *, n_frames: int, fps: float, static=(), time_axis=None,
-                      noise=None, seed: int = 0, facet_size_m: float = 0.02, backend=None):
+                      noise=None, seed: int = 0, facet_size_m: float = FRAME_FACET_M, backend=None):
     """An iterator of `SimFrame`s, one simulated (and, with `noise`, noisy) frame at a time, so
     a long sequence never has to fit in memory. `moving`: MovingTargets (one or several);
     `static`: nl.Targets that do not move; `noise`: nl.AWGN(snr_db), nl.PhotonCounter(...) or
     None. Arguments are checked now, frames simulated as they are asked for."""
+    from ..core.paths import TimeAxis, default_time_axis
     from ..ops.backend import resolve_backend
     from ..physics.noise import check_seed
-    from ..core.paths import TimeAxis, default_time_axis
     from ..physics.scene import Setup, Target
     moving = (moving,) if isinstance(moving, MovingTarget) else tuple(moving)
     static = (static,) if isinstance(static, Target) else tuple(static)
@@ -75,8 +76,8 @@ def simulate_sequence(setup, moving, *, n_frames: int, fps: float, static=(), ti
 
 
 def _frames(setup, moving, static, axis, noise, seed, facet, backend, n_frames, fps):
-    from .frame import simulate
     from ..physics.scene import Scene
+    from .frame import simulate
     background = None
     if static:  # simulated once: it is the same in every frame
         background = simulate(Scene(setup, static[0], facet, more_targets=static[1:]), axis,
@@ -98,10 +99,8 @@ def _moving_signals(setup, moving, facets, facet, axis, t, backend, simulate):
     placed = [m.placed(t) for m in moving]
     truths = np.array([m.trajectory.at(t) for m in moving])
     scene = Scene(setup, placed[0], facet, truth=truths[0], more_targets=tuple(placed[1:]))
-    cache = scene.__dict__.setdefault("_facets", {})  # Scene.facets' own cache: pre-filled
-    for i, (m, f) in enumerate(zip(moving, facets)):
-        shift = truths[i] - m.centre
-        cache[i] = Facets(f.centres + shift, f.normals, f.areas)
+    for i, (m, f) in enumerate(zip(moving, facets)):  # each mesh cut once, moved
+        scene.use_facets(i, Facets(f.centres + truths[i] - m.centre, f.normals, f.areas))
     sig = simulate(scene, axis, backend=backend)
     layout = replace(sig.layout, truth=truths[0], truths=truths)
     return type(sig)(sig.backend, sig.handle, sig.scale_w, layout), truths

@@ -26,8 +26,8 @@ import sys
 import types
 from importlib import resources
 
-from .runner import RunnerStudy, worker_cache
 from .load import load_study
+from .runner import RunnerStudy, worker_cache
 from .study import Study
 
 

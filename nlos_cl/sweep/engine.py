@@ -18,9 +18,9 @@ from pathlib import Path
 
 from ..core.errors import InputError, require
 from . import results
+from .load import load_study
 from .runner import RunnerStudy
 from .runs import run_batch, worker_info
-from .load import load_study
 from .study import SPECIAL, Study, check_scenes
 
 STUDY_FILE = "study.json"

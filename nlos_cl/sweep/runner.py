@@ -24,7 +24,7 @@ from collections import OrderedDict
 from dataclasses import dataclass, field
 
 from ..core.errors import InputError, require
-from .study import Axis, Study, check_scale, axis_group, seed_values, axis_values, assignments
+from .study import Axis, Study, assignments, axis_group, axis_values, check_scale, seed_values
 
 TOP = {"description", "runner", "axes", "seeds", "params", "batch_size"}
 COLUMNS = ("result", "t_run_s", "t_cpu_s")  # a runner study's measured columns, then failure

@@ -36,8 +36,8 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..io.scenefile import read_yaml
 from ..core.errors import InputError, require
+from ..io.scenefile import read_yaml
 
 TOP = {"description", "scene", "axes", "estimators", "seeds", "h_s", "filter", "grid", "record",
        "batch_size"}

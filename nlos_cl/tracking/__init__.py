@@ -14,8 +14,10 @@ from ..localization.background import BackgroundRemover
 from ..physics.noise import SensorNoise
 from ..physics.trajectory import MovingTarget, Trajectory
 from ..simulation.sequence import SimFrame, frame_seed, simulate_sequence
-from .kalman import ConstantVelocity, Measurement
-from .tracker import Track, Tracker
+from .kalman import Measurement
+from .motion import ConstantVelocity
+from .track import Track
+from .tracker import Tracker
 
 __all__ = ["BackgroundRemover", "ConstantVelocity", "Measurement", "MovingTarget", "SensorNoise",
            "Sequence", "SequenceFrame", "SimFrame", "Track", "Tracker", "Trajectory", "frame_seed",

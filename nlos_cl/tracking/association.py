@@ -34,7 +34,8 @@ def screen(measurements, *, max_sigma_m, max_birge_ratio, gate_probability) -> l
     """The measurements worth pairing (see the module docstring)."""
     kept = []
     for m in measurements:
-        birge = (getattr(m.source, "details", None) or {}).get("birge_ratio")
+        fit = getattr(m.source, "fit", None)  # a model fit's typed result, or None
+        birge = None if fit is None else fit.birge_ratio
         if max_birge_ratio is not None and birge is not None and birge > max_birge_ratio:
             continue
         if max_sigma_m is not None and len(m.axes) and \

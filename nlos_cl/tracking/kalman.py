@@ -1,8 +1,6 @@
-"""Constant-velocity Kalman filtering (2D or 3D) and the measurements the estimators give it.
-
-State (p, v) in R^2d, d = 2 (x, y on the search plane) or 3. Motion: constant velocity driven
-by white acceleration of spectral density q = accel_sigma^2 (m^2/s^3), so over dt
-F = [[I, dt I], [0, I]] and Q = q [[dt^3/3 I, dt^2/2 I], [dt^2/2 I, dt I]].
+"""Kalman filtering (predict, update, gate, RTS smoothing) and the measurements the
+estimators give it. State (p, v) in R^2d, d = 2 (x, y on the search plane) or 3; the motion
+model that gives F and Q is nlos_cl.tracking.motion.
 
 Measurement noise R: the estimator's covariance where it gives one (the model estimator's
 LocatedTarget.covariance), plus min_sigma_m^2 on the diagonal (float32 kernels and the model's
@@ -16,41 +14,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
-from ..core.errors import require
-
-
-@dataclass(frozen=True)
-class ConstantVelocity:
-    """The motion model. accel_sigma (m/s^2): how hard targets may change velocity (a walking
-    person: ~0.5-1); dims: 2, 3, or None (3 when the tracker's grid has depth in z, else 2);
-    initial_speed_sigma (m/s): the velocity uncertainty of a new track."""
-
-    accel_sigma: float = 0.5
-    dims: int | None = None
-    initial_speed_sigma: float = 1.0
-
-    def __post_init__(self):
-        for name in ("accel_sigma", "initial_speed_sigma"):
-            v = getattr(self, name)
-            require(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-                    and v > 0, f"motion.{name}", f"must be a positive number, got {v!r}",
-                    "pass e.g. 0.5")
-        require(self.dims in (None, 2, 3), "motion.dims", f"must be 2, 3 or None, got "
-                f"{self.dims!r}", "pass 2 (the search plane) or 3")
-
-    @staticmethod
-    def transition(dt: float, d: int) -> np.ndarray:
-        F = np.eye(2 * d)
-        F[:d, d:] = dt * np.eye(d)
-        return F
-
-    def process_noise(self, dt: float, d: int) -> np.ndarray:
-        q, eye = self.accel_sigma ** 2, np.eye(d)
-        return q * np.block([[dt ** 3 / 3 * eye, dt ** 2 / 2 * eye],
-                             [dt ** 2 / 2 * eye, dt * eye]])
+from ..core.stats import chi2_quantile
 
 
 @dataclass(frozen=True)
@@ -92,6 +60,25 @@ def predict(x, P, F, Q):
     return F @ x, F @ P @ F.T + Q
 
 
+class Prediction(NamedTuple):
+    """A live track predicted to a frame's time."""
+
+    track: object
+    x: np.ndarray
+    P: np.ndarray
+
+
+def predict_tracks(tracks, t: float, motion) -> list[Prediction]:
+    """Every track's prediction to time t with the motion model (the tracks are unchanged):
+    the Tracker makes them once per frame, for the warm prior and the filter alike."""
+    out = []
+    for tr in tracks:
+        dt, d = t - tr.t_s, tr.dims
+        out.append(Prediction(tr, *predict(tr.state, tr.covariance, motion.transition(dt, d),
+                                           motion.process_noise(dt, d))))
+    return out
+
+
 def innovation(x, P, m: Measurement):
     """(y, S): the measurement's residual against the state, and its covariance."""
     d = len(x) // 2
@@ -123,11 +110,10 @@ _GATES: dict = {}
 
 def gate_threshold(probability: float, dof: int) -> float:
     """The chi-square quantile that a correct measurement's squared Mahalanobis distance stays
-    under with `probability` (SciPy, cached)."""
+    under with `probability` (nlos_cl.core.stats, cached: a frame asks for the same few)."""
     key = (probability, dof)
     if key not in _GATES:
-        from scipy.stats import chi2
-        _GATES[key] = float(chi2.ppf(probability, dof))
+        _GATES[key] = chi2_quantile(probability, dof)
     return _GATES[key]
 
 

@@ -1,38 +1,21 @@
-"""Warm starts for the model estimator inside the Tracker.
+"""Warm starts for the model estimator inside the Tracker: the prior provider.
 
 Where each of the K targets the estimator fits is followed by a confirmed track whose last
 measurement was a plate fit, the next frame's fit starts from those plates moved to the tracks'
-predicted positions (`ModelEstimator.estimate(scored, start=rows)`, nlos_cl.localization.model.warm): only
-the final fit runs, ~30 model evaluations on the host instead of ~150 forward calls. Two
-fallbacks to the cold (full) fit: the estimator's own (the warm fit misses the data: Birge
-ratio above its 99.9 % point), and the tracker's (a warm-fitted position outside every start
-track's gate: the fit found another basin, or the track is wrong; either way the frame is
-fitted from its data alone). The Locator reaches the estimator through `StartedEstimator`,
-which carries the frame's start rows; the estimator itself keeps no per-frame state.
+predicted positions (a localization.estimate.Prior, `Locator(..., prior=...)`, then
+`ModelEstimator.estimate(scored, prior)`, nlos_cl.localization.model.warm): only the final fit
+runs, ~30 model evaluations on the host instead of ~150 forward calls. Two fallbacks to the
+cold (full) fit: the estimator's own (the warm fit misses the data: Birge ratio above its
+99.9 % point), and the tracker's (a warm-fitted position outside every start track's gate: the
+fit found another basin, or the track is wrong; either way the frame is fitted from its data
+alone). The estimator keeps no per-frame state: the prior travels with the call.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from ..localization.estimate import Prior
 from . import kalman
-
-PLATE = "upright plate"
-
-
-class StartedEstimator:
-    """The estimator as the tracker's Locator calls it: `estimate(scored)` with this frame's
-    `start` rows (None: a cold fit)."""
-
-    def __init__(self, estimator):
-        self.estimator, self.start = estimator, None
-
-    def __getattr__(self, name):  # name, local, needs_only_paper_estimate, ...: the estimator's
-        if name == "estimator":  # not set yet (copy, unpickling): no recursion
-            raise AttributeError(name)
-        return getattr(self.estimator, name)
-
-    def estimate(self, scored):
-        return self.estimator.estimate(scored, start=self.start)
 
 
 def can_start(estimator) -> bool:
@@ -49,45 +32,38 @@ def can_start(estimator) -> bool:
 
 def plate_of(measurement):
     """The fitted plate row (6,) behind a measurement, or None (another model, a merged pair,
-    an estimator without parameters)."""
-    details = getattr(measurement.source, "details", None) or {}
-    if measurement.merged or details.get("model") != PLATE:
+    an estimator without a typed fit)."""
+    fit = getattr(measurement.source, "fit", None)
+    if measurement.merged or fit is None or fit.shape != "plate":
         return None
-    return np.array(list(details["params"].values()), dtype=np.float64)
+    return fit.values()
 
 
-def predictions(tracks, t, motion, targets):
-    """[(track, predicted state, predicted covariance)] of the confirmed tracks with a plate,
-    if there are exactly `targets` of them (else None: no warm start)."""
-    ready = [tr for tr in tracks if tr.status == "confirmed" and tr.plate is not None]
-    if len(ready) != targets:
-        return None
-    out = []
-    for tr in ready:
-        dt, d = t - tr.t_s, tr.dims
-        F = motion.transition(dt, d)
-        out.append((tr, *kalman.predict(tr.state, tr.covariance, F,
-                                        motion.process_noise(dt, d))))
-    return out
+def starters(predictions, targets: int) -> list | None:
+    """The predictions of the confirmed tracks with a plate, if there are exactly `targets`
+    of them (else None: no warm start)."""
+    ready = [p for p in predictions if p.track.status == "confirmed" and p.track.plate is not None]
+    return ready if len(ready) == targets else None
 
 
-def start_rows(predicted) -> np.ndarray:
-    """The tracks' last plates, their centres moved to the predicted positions (z too where
-    the track is 3D; a 2D track keeps the plate's own height)."""
+def prior(starters) -> Prior:
+    """The start tracks' last plates, their centres moved to the predicted positions (z too
+    where the track is 3D; a 2D track keeps the plate's own height)."""
     rows = []
-    for tr, x, _ in predicted:
+    for tr, x, _ in starters:
         row = tr.plate.copy()
         row[:tr.dims] = x[:tr.dims]
         rows.append(row)
-    return np.array(rows)
+    return Prior(np.array(rows))
 
 
-def outside_gates(measurements, predicted, gate_probability) -> bool:
+def outside_gates(measurements, predictions, gate_probability) -> bool:
     """Is some warm-fitted measurement outside the gate of every start track?"""
     for m in measurements:
-        if not (getattr(m.source, "details", None) or {}).get("warm_start", {}).get("used"):
+        fit = getattr(m.source, "fit", None)
+        if fit is None or fit.warm_start is None or not fit.warm_start.used:
             continue
         gate = kalman.gate_threshold(gate_probability, len(m.axes))
-        if all(kalman.mahalanobis2(x, P, m) > gate for _, x, P in predicted):
+        if all(kalman.mahalanobis2(x, P, m) > gate for _, x, P in predictions):
             return True
     return False

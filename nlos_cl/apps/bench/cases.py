@@ -11,8 +11,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 import nlos_cl as nl
-from ...ops.backend import NumpyBackend
+
 from ...ops import OPERATIONS
+from ...ops.backend import NumpyBackend
 from .harness import fraction_of_limit, measure_limits, spread, time_pair
 
 

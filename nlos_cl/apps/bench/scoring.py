@@ -39,9 +39,10 @@ def _signals_of(rt, rows, spots, path0, dt_m):
 def cases(rt, smoke):
     """(label, signals, grid, log_mode, signal width m, peer grid size or None)."""
     import nlos_cl as nl
+
     from ...core.grid import Grid
-    from ...ops.ellipse_score import _point_target_inputs
     from ...core.paths import TimeAxis
+    from ...ops.ellipse_score import _point_target_inputs
     from ...physics.scene import paper_scene
     paper = nl.gauss_filter(nl.simulate(paper_scene(facet_size_m=0.02),
                                         TimeAxis(40 / 299_792_458.0, 10e-12, 4096), backend=rt))

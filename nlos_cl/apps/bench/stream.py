@@ -20,6 +20,7 @@ import time
 import numpy as np
 
 import nlos_cl as nl
+
 from ...ops.backend import NumpyBackend
 
 GOALS = {"tracker, paper estimator": 500.0, "tracker, model estimator": 30.0}  # frames/s

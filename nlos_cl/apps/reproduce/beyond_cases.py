@@ -155,7 +155,7 @@ def run_frame(clean, seed, lay, grid, s, targets=1, noise=None, model_clean=None
 def inside95(target, truth) -> bool | None:
     """Whether `truth` lies in the target's 95 % region: chi-square with as many degrees of
     freedom as observable axes (finite variance)."""
-    from scipy.stats import chi2
+    from ...core.stats import chi2_quantile
     cov = target.covariance
     if cov is None:
         return None
@@ -168,7 +168,7 @@ def inside95(target, truth) -> bool | None:
         m2 = float(d @ np.linalg.solve(c, d))
     except np.linalg.LinAlgError:
         return None
-    return bool(m2 <= chi2.ppf(0.95, int(axes.sum())))
+    return bool(m2 <= chi2_quantile(0.95, int(axes.sum())))
 
 
 def match(found, truths) -> list:

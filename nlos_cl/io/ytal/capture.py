@@ -15,10 +15,10 @@ import numpy as np
 
 from ...core.errors import InputError, require
 from ...core.histograms import HistogramSet
-from .fields import GRID_FORMATS, H_FORMATS  # noqa: F401  (the format enums, for users)
-from .fields import (REQUIRED, check_complete, check_memory, dataset, is_capture, to_histograms,
-                     write_fields)
+from .fields import (GRID_FORMATS, H_FORMATS, REQUIRED,  # noqa: F401  (the format enums, for users)
+                     check_complete, check_memory, dataset, is_capture, to_histograms, write_fields)
 from .frames import YTAL, CaptureFrame, check_wall_spots, from_ytal, to_ytal  # noqa: F401
+
 
 def write_capture(path, histograms: HistogramSet, *, device_distance_m: float = 20.0,
                   metadata: dict | None = None, compression: int = 4, force: bool = False

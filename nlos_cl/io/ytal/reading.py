@@ -76,9 +76,9 @@ class Sequence:
     def _open_stacked(self, where, max_frame_bytes):
         import h5py
 
+        from ...core.limits import memory_limit
         from .fields import REQUIRED, dataset, to_histograms
         from .frames import YTAL
-        from ...core.limits import memory_limit
         try:
             with h5py.File(self.path, "r") as f:
                 missing = [k for k in REQUIRED if k not in f]

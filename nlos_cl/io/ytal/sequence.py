@@ -93,8 +93,8 @@ def write_sequence(path, frames, *, fps: float | None = None, device_distance_m:
     """Write `frames` (an iterable, consumed one frame at a time) as a sequence file. Items:
     SimFrames (from simulate_sequence), SequenceFrames, (t_s, histograms[, truths]) tuples, or
     HistogramSet/Signals timed k / fps. compression: gzip level (0: none, the fastest)."""
-    from .fields import is_capture
     from ..safe_write import atomic_write
+    from .fields import is_capture
     require(compression in range(10), "compression", f"must be a gzip level 0-9, got "
             f"{compression!r}", "pass 0 (none) or 4")
     require(fps is None or (isinstance(fps, (int, float)) and math.isfinite(fps) and fps > 0),

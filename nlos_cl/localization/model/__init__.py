@@ -7,8 +7,8 @@ histograms with the forward model, report centre, extent and a covariance per ta
 See docs/model-estimator.md. No SciPy on this path (a one-shot `nlos-cl locate` would pay
 ~0.5 s to import it): the least squares are nlos_cl.localization.model.lm.
 """
-from .estimator import HEIGHT_WARNING, ModelEstimator, model_estimator
 from .box import box_facets
+from .estimator import HEIGHT_WARNING, ModelEstimator, model_estimator
 from .plate import height_observable, plate_facets
 
 __all__ = ["HEIGHT_WARNING", "ModelEstimator", "box_facets", "height_observable",

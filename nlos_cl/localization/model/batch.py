@@ -1,4 +1,4 @@
-"""Plates evaluated on the host, many per call: the model of nlos_cl.localization.model.plate and the
+"""Plates evaluated on the host, many per call: the model of model.plate and the
 forward operation's fast path (deposit + correlation, ops/forward.py), in float64 NumPy and
 vectorised over a batch of parameter rows.
 
@@ -19,7 +19,7 @@ the peak (the kernel's bound), and float64 has no float32 path rounding.
 Half a plate's cost is its cell statistics (the Gauss points' paths to STAT_SPOTS spots). A
 Jacobian's or a covariance's moved plates borrow their unmoved plate's statistics
 (`column_batch(rows, like)`, remembered from the call that evaluated it): a warm stream frame
-26.5 -> 21 ms (with CHUNK_ROWS), derivatives within 0.2 % (nlos_cl.localization.model.fit's docstring).
+26.5 -> 21 ms (with CHUNK_ROWS), derivatives within 0.2 % (model.fit's docstring).
 """
 from __future__ import annotations
 
@@ -28,9 +28,9 @@ import time
 
 import numpy as np
 
+from ...ops.forward import REACH_SIGMAS, SUB_BINS_PER_SIGMA
 from . import plate
 from .likelihood import Problem
-from ...ops.forward import REACH_SIGMAS, SUB_BINS_PER_SIGMA
 
 # Rows per NumPy pass. A pass's temporaries grow with its rows, and past ~6 plates (3 spots,
 # 1,536 points each) glibc's allocator maps and unmaps them on every call: 11 rows took 6.2 ms
@@ -106,7 +106,7 @@ def _cells(rows, lattice):
     """Cell centres (B, C, 3), normals (B, 3), cell areas (B,), edge vectors (B, 3) x 2, in
     plate.plate_facets' order."""
     nu, nv = lattice
-    x, w, h, yaw = rows[:, :3], rows[:, 3], rows[:, 4], rows[:, 5]
+    x, w, h, yaw = rows[:, :3], rows[:, plate.WIDTH], rows[:, plate.HEIGHT], rows[:, plate.YAW]
     zero = np.zeros_like(yaw)
     normal = np.stack([np.cos(yaw), np.sin(yaw), zero], axis=1)
     across = np.stack([-np.sin(yaw), np.cos(yaw), zero], axis=1)

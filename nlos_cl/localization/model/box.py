@@ -3,7 +3,7 @@
 Parameters (one row): centre x, y, z (m), width w (across the front face), height h, depth d
 (along the front face's normal), yaw (the front face's normal, n = (cos yaw, sin yaw, 0)). The
 centre is the box's own centre (its bounding-box centre when upright), not its front face's.
-Depth 0 is the plate (`nlos_cl.localization.model.plate`) with the same centre, size and yaw: the families
+Depth 0 is the plate (`model.plate`) with the same centre, size and yaw: the families
 are nested, so one test (nlos_cl.localization.model.select.accepts_box) decides between them.
 
 A box of depth d shows the wall its front face and, unless the wall sees it exactly head on, a
@@ -25,7 +25,7 @@ from . import plate
 
 NAMES = ("x", "y", "z", "width", "height", "depth", "yaw")
 N_PARAMS = len(NAMES)
-YAW = 6
+X, Y, Z, WIDTH, HEIGHT, DEPTH, YAW = range(N_PARAMS)  # where each parameter sits in a row
 LOWER = np.array([-np.inf, 0.05, -np.inf, 0.04, 0.04, 0.0, -np.inf])
 UPPER = np.array([np.inf, np.inf, np.inf, 3.0, 3.0, 3.0, np.inf])
 STEPS = np.array([2e-3, 2e-3, 2e-3, 2e-3, 2e-3, 2e-3, 4e-3])  # as the plate's (see plate.py)
@@ -99,7 +99,7 @@ def from_plate(q, depth) -> np.ndarray:
 
 def extent(p) -> np.ndarray:
     """Size along the box's own axes: (across, up, along the normal) = (w, h, d)."""
-    return np.array([float(p[3]), float(p[4]), float(p[5])])
+    return np.array([float(p[WIDTH]), float(p[HEIGHT]), float(p[DEPTH])])
 
 
 def normal_of(p) -> np.ndarray:

@@ -5,7 +5,7 @@ Gaussian (AWGN) data are compared after the paper's Gauss filter (sigma_f = h / 
 every sigma_f / 3: the model is the forward model with the pulse widened by the filter (widths
 added in quadrature), so a coarse facet lattice is smooth enough. The filtered noise is
 correlated; `rho` is its correlation between samples j apart (from the filter's taps), which the
-covariance (nlos_cl.localization.model.fit) uses. Photon counts are compared bin by bin with a Poisson
+covariance (model.fit) uses. Photon counts are compared bin by bin with a Poisson
 likelihood; the model is widened by the detector's timing jitter instead.
 """
 from __future__ import annotations
@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...core.constants import PAPER_H_S
+from ...core.errors import require
 from ...ops.gauss_filter import gauss_taps
 
 MAD = 1.4826  # MAD -> standard deviation for Gaussian noise
@@ -170,3 +171,21 @@ def looks_like_counts(values) -> bool:
     """Non-negative whole numbers (after undoing the upload's scale): photon counts."""
     v = np.asarray(values)
     return bool(v.min() >= 0 and np.allclose(v, np.round(v), atol=1e-3) and v.max() >= 1)
+
+
+def observation(scored, likelihood: str, *, h_s: float, pulse_sigma_s: float, jitter_s: float):
+    """A scored frame as the fit sees it: a Gauss observation of the filtered data, or (counts
+    in `raw`, likelihood 'poisson' or 'auto') a Poisson one."""
+    be, layout = scored.backend, scored.signals.layout
+    filtered = be.to_numpy(scored.signals.handle)
+    raw = None if scored.raw is None else be.to_numpy(scored.raw.handle)
+    mode = likelihood
+    if mode == "auto":
+        mode = "poisson" if raw is not None and looks_like_counts(
+            raw * scored.raw.scale_w) else "gauss"
+    if mode == "poisson":
+        require(raw is not None, "raw", "the Poisson likelihood needs the photon counts",
+                "pass raw=counts to locate")
+        return poisson_observation(layout, raw * scored.raw.scale_w, filtered,
+                                   pulse_sigma_s=pulse_sigma_s, jitter_s=jitter_s)
+    return gaussian_observation(layout, filtered, raw, h_s=h_s, pulse_sigma_s=pulse_sigma_s)

@@ -11,11 +11,13 @@ import numpy as np
 
 from ...core.constants import FWHM_PER_SIGMA, PAPER_H_S
 from ...core.errors import require
-from ..estimate import Estimate, LocatedTarget
+from ..estimate import Capabilities, Estimate, LocatedTarget, Prior
+from ..fit_result import ModelFit, Parameter, WarmStart
 from ..paper import PaperArgmax
 from . import data, plate
 from .fit import centre_covariance, covariance
 from .likelihood import Problem
+from .shape import MODELS, name_of
 
 HEIGHT_WARNING = ("height (z) is unobservable with collinear wall spots (rotating the target "
                   "about their line changes no path): z is held at {z:.3f} m; use spots off "
@@ -24,15 +26,13 @@ HEIGHT_WARNING = ("height (z) is unobservable with collinear wall spots (rotatin
 # 1 cm-facet data from the truth is then off by <= 0.25 sd (Mahalanobis) on the
 # 0.3 x 1.6 m plate, a 0.7 m and a 1 m square (10 x 20 left the 0.7 m square 1 sd off).
 GAUSS_LATTICE, POISSON_LATTICE = (16, 24), (16, 32)
-MODELS = {"plate": "upright plate", "box": "upright box", "ellipsoid": "upright ellipsoid",
-          "cylinder": "upright cylinder"}
 # With more detectors than this, the starts, the search over K and the short fits use this
 # many, evenly spread; the final fit and the covariance use every detector.
 SEARCH_DETECTORS = 64
-# Residual evaluations of a warm-started fit (nlos_cl.localization.model.warm; Jacobians not counted).
+# Residual evaluations of a warm-started fit (model.warm; Jacobians not counted).
 WARM_NFEV = 10
 # model_on="auto": plate fits with up to this many detectors evaluate the model on the host
-# (nlos_cl.localization.model.batch, a Jacobian's plates in one call), larger ones with the forward op on
+# (model.batch, a Jacobian's plates in one call), larger ones with the forward op on
 # the device. On the paper's scene a forward call costs ~2 ms of launches and read-backs for
 # ~240 samples a detector; the host's batched float64 model gives the same fit (costs within
 # 1e-4) 3-5x faster (one-shot `nlos-cl locate`: docs/performance.md).
@@ -42,18 +42,18 @@ MODEL_ON = ("auto", "host", "device")
 
 class ModelEstimator:
     """Fit `targets` plates (an int, or 'auto': add plates while they pass the test in
-    nlos_cl.localization.model.select). `likelihood`: 'gauss' (AWGN; the data are compared after a Gauss
+    model.select). `likelihood`: 'gauss' (AWGN; the data are compared after a Gauss
     filter of window h_s), 'poisson' (photon counts in `raw`), or 'auto' (counts when `raw`
     holds non-negative whole numbers). `backend`: where the forward model runs while fitting
     (default: the scored frame's backend). model_on: 'device' (the forward op on `backend`),
-    'host' (plates evaluated in float64 NumPy, many per call: nlos_cl.localization.model.batch) or 'auto'
+    'host' (plates evaluated in float64 NumPy, many per call: model.batch) or 'auto'
     (host for up to HOST_DETECTORS detectors; closed shapes always on the device). warm_nfev:
     the evaluation budget of a warm-started fit (`estimate(scored, start=...)`)."""
 
     name = "model"
     # The scored frame is used only for the paper's estimate (the starts' second candidate, the
     # no-signal test): a Locator may hand it over from its fused search, with no score map.
-    needs_only_paper_estimate = True
+    capabilities = Capabilities(from_paper=True, needs_raw=True)
 
     def __init__(self, targets=1, *, likelihood="auto", h_s=PAPER_H_S, pulse_fwhm_s=70e-12,
                  jitter_s=30e-12, lattice=None, max_targets=3, backend=None, final_nfev=30,
@@ -75,31 +75,20 @@ class ModelEstimator:
         self.warm_nfev = int(warm_nfev)
         self.timings: dict = {}
 
-    # ------------------------------------------------------------------ data
     def observation(self, scored):
-        be, layout = scored.backend, scored.signals.layout
-        filtered = be.to_numpy(scored.signals.handle)
-        raw = None if scored.raw is None else be.to_numpy(scored.raw.handle)
-        mode = self.likelihood
-        if mode == "auto":
-            mode = "poisson" if raw is not None and data.looks_like_counts(
-                raw * scored.raw.scale_w) else "gauss"
-        if mode == "poisson":
-            require(raw is not None, "raw", "the Poisson likelihood needs the photon counts",
-                    "pass raw=counts to locate")
-            return data.poisson_observation(layout, raw * scored.raw.scale_w, filtered,
-                                            pulse_sigma_s=self.pulse_sigma_s,
-                                            jitter_s=self.jitter_s)
-        return data.gaussian_observation(layout, filtered, raw, h_s=self.h_s,
-                                         pulse_sigma_s=self.pulse_sigma_s)
+        """The frame as the fit sees it (nlos_cl.localization.model.data.observation)."""
+        return data.observation(scored, self.likelihood, h_s=self.h_s,
+                                pulse_sigma_s=self.pulse_sigma_s, jitter_s=self.jitter_s)
 
     # ------------------------------------------------------------------ the estimate
-    def estimate(self, scored, start=None) -> Estimate:
-        """The targets in one frame. start: None (the full fit from the data alone), or
-        (targets, 6) plate rows (x, y, z, width, height, yaw) to warm-start from, e.g. the
-        previous frame's fit moved to where a tracker predicts it: only the final fit runs,
-        from there (nlos_cl.localization.model.warm), and the full fit replaces it where it misses the data.
-        details["warm_start"] says which (only when `start` was given)."""
+    def estimate(self, scored, prior: Prior | None = None, *, start=None) -> Estimate:
+        """The targets in one frame. prior: None (the full fit from the data alone), or a
+        Prior of (targets, 6) plate rows (x, y, z, width, height, yaw) to warm-start from, e.g.
+        the previous frame's fit moved to where a tracker predicts it: only the final fit
+        runs, from there (nlos_cl.localization.model.warm), and the full fit replaces it where
+        it misses the data; each target's fit.warm_start says which. start=rows is
+        prior=Prior(rows)."""
+        start = prior.rows if prior is not None else start
         clock = {"start": time.perf_counter()}
         paper = scored.paper  # the Locator's fused search, or (no map read yet) from the scores
         if paper is None:
@@ -191,14 +180,26 @@ class ModelEstimator:
 
     def _target(self, result, cov_all, k, info, notes, obs, history, observable, shape):
         p = result.params[k]
-        details = {"model": MODELS[shape.__name__.rsplit(".", 1)[-1]],
-                   "params": dict(zip(shape.NAMES, map(float, p))),
-                   "normal": shape.normal_of(p), "amplitude": float(result.linear[k]),
-                   "likelihood": obs.mode, "cost": result.cost, "n_residuals": result.n_residuals,
-                   "targets_tried": history, "height_observable": observable,
-                   "warnings": list(notes), "timings_s": dict(self.timings), **info}
+        fit = _model_fit(shape, p, result, cov_all, k, info, notes, obs, history, observable,
+                         self.timings)
         return LocatedTarget(p[:3].copy(), centre_covariance(cov_all, k, shape),
-                             shape.extent(p), details)
+                             shape.extent(p), fit=fit)
+
+
+def _model_fit(shape, p, result, cov_all, k, info, notes, obs, history, observable, timings):
+    """Target k of a fit as a typed ModelFit (its JSON view is the old details dict)."""
+    n = shape.N_PARAMS
+    sd = np.sqrt(np.diag(cov_all)[k * n:(k + 1) * n])
+    params = tuple(Parameter(name, float(v), float(lo), float(hi), bool(np.isfinite(s)),
+                             float(s) if np.isfinite(s) else np.nan)
+                   for name, v, lo, hi, s in zip(shape.NAMES, p, shape.LOWER, shape.UPPER, sd))
+    diagnostics = {key: v for key, v in info.items() if key not in ("birge_ratio", "warm_start")}
+    warm = info.get("warm_start")
+    short = name_of(shape)
+    return ModelFit(short, MODELS[short], params, float(result.linear[k]), shape.normal_of(p),
+                    obs.mode, result.cost, result.n_residuals, info.get("birge_ratio"),
+                    observable, dict(timings), tuple(history), tuple(notes),
+                    None if warm is None else WarmStart(**warm), diagnostics)
 
 
 def _order(result):

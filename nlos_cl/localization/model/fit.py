@@ -1,7 +1,7 @@
-"""The nonlinear fit (bounded Levenberg-Marquardt, nlos_cl.localization.model.lm) of K targets, the linear
+"""The nonlinear fit (bounded Levenberg-Marquardt, model.lm) of K targets, the linear
 factors profiled out at every step (variable projection), and the covariance of the result.
 
-The target's shape is the problem's `shape` module (default nlos_cl.localization.model.plate): its N_PARAMS,
+The target's shape is the problem's `shape` module (default model.plate): its N_PARAMS,
 LOWER, UPPER, STEPS and X_SCALE are read from there, so a new shape needs no edit here.
 Finite-difference steps are absolute (STEPS: 2 mm, 4 mrad for the plate): the forward kernel
 works in float32, so relative steps (~1e-8) would differentiate rounding noise. A Jacobian
@@ -112,7 +112,7 @@ class _Objective:
 
 def fit(problem, params0, free, max_nfev=30, tau=None, atol=None) -> FitResult:
     """Least squares from params0 (K, N_PARAMS) over the parameters marked in `free`
-    (N_PARAMS,). tau, atol: nlos_cl.localization.model.lm's (tau None: its default; atol None: off)."""
+    (N_PARAMS,). tau, atol: model.lm's (tau None: its default; atol None: off)."""
     obj = _Objective(problem, params0, free)
     shape, k = obj.shape, len(obj.base)
     lo, hi = (np.tile(b, k)[obj.free] for b in (shape.LOWER, shape.UPPER))

@@ -17,7 +17,7 @@ from . import plate
 
 class Problem:
     """Evaluates the forward model for parameter rows (K, shape.N_PARAMS) on `backend`.
-    `shape`: the target model's module (nlos_cl.localization.model.plate or .box): its model_facets, and
+    `shape`: the target model's module (model.plate or .box): its model_facets, and
     the N_PARAMS, STEPS, X_SCALE, LOWER, UPPER the fit reads."""
 
     def __init__(self, obs, backend, lattice=(16, 24), shape=plate):
@@ -45,7 +45,7 @@ class Problem:
 
     def column_batch(self, rows, like=None) -> np.ndarray:
         """(B, D, n): `column` of each parameter row, in order (one forward call each here;
-        nlos_cl.localization.model.batch.HostProblem evaluates them all in one host call). like: the rows
+        model.batch.HostProblem evaluates them all in one host call). like: the rows
         each one is a small step from (a Jacobian's), which a problem may use to share work
         between them (HostProblem: their cell statistics); here every row is exact."""
         return np.stack([self.column(p) for p in rows])

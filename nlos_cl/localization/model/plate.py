@@ -25,9 +25,9 @@ NAMES = ("x", "y", "z", "width", "height", "yaw")
 LOWER = np.array([-np.inf, 0.05, -np.inf, 0.04, 0.04, -np.inf])
 UPPER = np.array([np.inf, np.inf, np.inf, 3.0, 3.0, np.inf])
 N_PARAMS = len(NAMES)
-YAW = 5  # index of the yaw
+X, Y, Z, WIDTH, HEIGHT, YAW = range(N_PARAMS)  # where each parameter sits in a row
 # Finite-difference steps, absolute (the forward kernel is float32: relative ~1e-8 steps would
-# differentiate rounding), and the parameters' typical scales (nlos_cl.localization.model.fit reads both).
+# differentiate rounding), and the parameters' typical scales (model.fit reads both).
 STEPS = np.array([2e-3, 2e-3, 2e-3, 2e-3, 2e-3, 4e-3])
 X_SCALE = np.array([0.05, 0.05, 0.05, 0.1, 0.1, 0.1])
 UP = np.array([0.0, 0.0, 1.0])
@@ -61,9 +61,9 @@ STAT_SPOTS = 32  # the cells' path statistics from at most this many spots (an a
 
 def plate_edges(p, lattice, count):
     """Per cell of plate p, its two edge vectors (across, up), each (count, 3)."""
-    yaw = float(p[5])
-    across = np.array([-math.sin(yaw), math.cos(yaw), 0.0]) * (float(p[3]) / lattice[0])
-    up = UP * (float(p[4]) / lattice[1])
+    yaw = float(p[YAW])
+    across = np.array([-math.sin(yaw), math.cos(yaw), 0.0]) * (float(p[WIDTH]) / lattice[0])
+    up = UP * (float(p[HEIGHT]) / lattice[1])
     return np.broadcast_to(across, (count, 3)), np.broadcast_to(up, (count, 3))
 
 
@@ -153,8 +153,8 @@ def height_observable(spots, laser, tol=1e-6) -> bool:
 
 def extent(p) -> np.ndarray:
     """Size along the plate's own axes: (across, up, along the normal) = (w, h, 0)."""
-    return np.array([float(p[3]), float(p[4]), 0.0])
+    return np.array([float(p[WIDTH]), float(p[HEIGHT]), 0.0])
 
 
 def normal_of(p) -> np.ndarray:
-    return np.array([math.cos(p[5]), math.sin(p[5]), 0.0])
+    return np.array([math.cos(p[YAW]), math.sin(p[YAW]), 0.0])

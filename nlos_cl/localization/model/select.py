@@ -25,8 +25,10 @@ import math
 
 import numpy as np
 
+from ...core.stats import chi2_quantile
 from . import box, cylinder, ellipsoid, plate, starts
 from .fit import covariance, fit
+from .shape import name_of
 
 SHORT_NFEV = 6
 MIN_SHARE = 0.10
@@ -92,7 +94,7 @@ def accepts(problem, before, after, free) -> tuple[bool, dict]:
     birge, adequate = 1.0, False
     if obs.mode == "gauss":
         birge = covariance(problem, after, free)[1]["birge_ratio"]
-        adequate = birge <= _chi2_999(n_eff) / n_eff
+        adequate = birge <= chi2_quantile(0.999, n_eff) / n_eff
     gain = (before.cost - after.cost) / (k * max(1.0, birge))
     cols = problem.columns(after.params)
     energy = np.array([np.sum((a * c) ** 2) for a, c in zip(after.linear, cols)])
@@ -141,19 +143,7 @@ def misfit(problem, result, free, cov_info) -> tuple[bool, float]:
     birge = cov_info.get("birge_ratio")
     if birge is None:
         birge = result.cost / max(result.n_residuals - int(np.count_nonzero(free)) - 1, 1)
-    return birge > _chi2_999(n_eff) / n_eff, float(birge)
-
-
-Z_999 = 3.090232306167813  # the standard normal's 99.9 % point
-
-
-def _chi2_999(nu) -> float:
-    """chi^2_nu's 99.9 % point by Wilson-Hilferty: relative error 3.7e-4 at nu = 100, 1.7e-3 at
-    30, 2.3e-2 at 2, while the Birge ratio it is compared with scatters by sqrt(2 / nu) (14-100 %
-    there): exact enough for the test, and scipy.stats' import (~0.6 s) would otherwise be most
-    of a one-shot `nlos-cl locate`."""
-    a = 2.0 / (9.0 * nu)
-    return float(nu * (1.0 - a + Z_999 * math.sqrt(a)) ** 3)
+    return birge > chi2_quantile(0.999, n_eff) / n_eff, float(birge)
 
 
 def box_rows(q, centres=(), laser=None) -> np.ndarray:
@@ -164,7 +154,7 @@ def box_rows(q, centres=(), laser=None) -> np.ndarray:
         for dyaw in BOX_YAWS:
             for scale in BOX_WIDTHS:
                 p = np.array(q, float)
-                p[3], p[5] = p[3] * scale, p[5] + dyaw
+                p[plate.WIDTH], p[plate.YAW] = p[plate.WIDTH] * scale, p[plate.YAW] + dyaw
                 rows.append(box.from_plate(p, depth))
     for c in centres:
         for w, h, depth in CENTRE_SIZES:
@@ -205,7 +195,7 @@ def reseat_plate(problem, plate_result, free, final_nfev):
     for dyaw in RESEAT_YAWS:
         for scale in RESEAT_WIDTHS:
             p = q.copy()
-            p[3], p[5] = p[3] * scale, p[5] + dyaw
+            p[plate.WIDTH], p[plate.YAW] = p[plate.WIDTH] * scale, p[plate.YAW] + dyaw
             rows.append(p)
     result = best_of(problem, np.array(rows), free, final_nfev)
     return result if result.cost < plate_result.cost else plate_result
@@ -239,7 +229,7 @@ def closed_or_plate(problem, plate_result, free, final_nfev, plate_cov, closed="
     scale = max(1.0, misfit(shaped, result, free_shaped, shaped_cov[1])[1])
     gain = (plate_result.cost - result.cost) / (k * scale)
     why = {"plate_birge_ratio": birge, "closed_tried": True, "closed_bic_gain": gain - log_n,
-           "closed_costs": {f[0].shape.__name__.rsplit(".", 1)[-1]: f[1].cost for f in fits}}
+           "closed_costs": {name_of(f[0].shape): f[1].cost for f in fits}}
     if closed is True or gain > log_n:
         shaped_cov[1].update(why)
         return shaped, result, free_shaped, shaped_cov

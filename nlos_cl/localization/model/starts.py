@@ -69,7 +69,7 @@ def best_starts(problem, rows, fixed=None, keep=3) -> list[np.ndarray]:
     for i in np.argsort(costs):
         p = rows[i]
         if all(np.linalg.norm(p[:3] - q[:3]) > 0.05 or abs(p[yaw] - q[yaw]) > 0.3
-               or abs(p[3] - q[3]) > 0.2 for q in chosen):
+               or abs(p[plate.WIDTH] - q[plate.WIDTH]) > 0.2 for q in chosen):  # (width: 4th in all)
             chosen.append(p)
         if len(chosen) == keep:
             break

@@ -1,7 +1,7 @@
 """Warm-started fits: a frame's model fit started from given plate rows (a tracker's previous
 fit, moved to its predicted position) instead of from the data alone.
 
-The cold fit (nlos_cl.localization.model.select) spends ~120-200 model evaluations on finding the basin:
+The cold fit (model.select) spends ~120-200 model evaluations on finding the basin:
 the centroid start, a lattice of 20-40 yaws and sizes, three short fits, then the final
 Levenberg-Marquardt fit. Where the previous frame's plate is known and the target moved a few
 cm, the start is already in the basin, so only the final fit runs, with `warm_nfev`

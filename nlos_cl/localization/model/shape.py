@@ -1,0 +1,45 @@
+"""The Shape protocol: what the model fit needs of a target shape, and the shapes it knows.
+
+A shape is a module (plate.py, box.py, ellipsoid.py, cylinder.py) whose rows of parameters
+start x, y, z (the centre) and end with the yaw; the fit reads its names, bounds, steps and
+scales, and asks it for the lit facets of a row, its extent and its normal. A new shape is one
+module with these members, one entry in SHAPES, and its starts in select.py
+(docs/architecture.md walks through it)."""
+from __future__ import annotations
+
+from typing import Protocol
+
+import numpy as np
+
+from . import box, cylinder, ellipsoid, plate
+
+MEMBERS = ("NAMES", "N_PARAMS", "YAW", "LOWER", "UPPER", "STEPS", "X_SCALE", "model_facets",
+           "extent", "normal_of")
+
+
+class Shape(Protocol):
+    NAMES: tuple  # parameter names, x, y, z first
+    N_PARAMS: int
+    YAW: int  # the yaw's index
+    LOWER: np.ndarray  # the fit's bounds, per parameter
+    UPPER: np.ndarray
+    STEPS: np.ndarray  # absolute finite-difference steps (float32 kernels: not relative)
+    X_SCALE: np.ndarray  # typical scales (the LM fit's variable scaling)
+
+    def model_facets(self, p, lattice, spots, laser):
+        """The facets of row p that the laser spot and detectors can see, for the model."""
+
+    def extent(self, p) -> np.ndarray:
+        """Size along the shape's own axes (across, up, along the normal), m."""
+
+    def normal_of(self, p) -> np.ndarray:
+        """The unit normal of the face towards the wall."""
+
+
+SHAPES: dict = {"plate": plate, "box": box, "ellipsoid": ellipsoid, "cylinder": cylinder}
+MODELS = {name: f"upright {name}" for name in SHAPES}  # how reports name them
+
+
+def name_of(shape) -> str:
+    """'plate', 'box', ... for a shape module."""
+    return next(name for name, s in SHAPES.items() if s is shape)
