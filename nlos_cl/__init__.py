@@ -28,6 +28,7 @@ _EXPORTS = {
     ".simulation.frame": ("add_noise", "simulate"),
     ".localization.api": ("gauss_filter", "gauss_fit", "locate"),
     ".localization.background": ("subtract_background",),
+    ".localization.capture": ("locate_capture",),
     ".localization.estimate": ("Estimate", "LocatedTarget", "Location"),
     ".localization.filter": ("GaussFilter",),
     ".localization.locator": ("Locator",),
@@ -43,7 +44,8 @@ _MOVED = {"constants": ".core.constants", "errors": ".core.errors", "erf": ".cor
           "visibility": ".physics.visibility", "layouts": ".physics.layouts",
           "noise": ".physics.noise", "devices": ".device.devices", "runtime": ".device.runtime",
           "backend": ".ops.backend", "signals": ".ops.signals", "capture": ".io.ytal.capture",
-          "scenefile": ".io.scenefile", "search": ".localization.search", "model": ".localization.model"}
+          "scenefile": ".io.scenefile", "search": ".localization.search",
+          "model": ".localization.model"}
 _WHERE = {name: module for module, names in _EXPORTS.items() for name in names}
 __all__ = sorted(_WHERE)
 __version__ = "0.1.0"

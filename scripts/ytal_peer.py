@@ -8,9 +8,8 @@
     by an independent plate-scatterer model (no nlos_cl code); nlos_cl locates each:
     - `nlos-cl locate F.h5 --json` with no option: the position is taken in the frame the JSON
       declares (`frame`; none declared = the file's frame, as issue 10 requires);
-    - the Python API: region.default_region + read_capture_with_frame + nl.gauss_filter +
-      nl.locate (+ region.zoom_region when the region's step was coarsened), converted back to
-      the file's frame.
+    - the Python API: nl.locate_capture(path, estimator="paper") (the derived region, coarse
+      -> zoom -> fine where its step was coarsened), positions in the file's frame.
 Exit 1 when any error exceeds TOLERANCE_M (or the backprojection misses); 0 otherwise.
 """
 from __future__ import annotations
@@ -45,22 +44,13 @@ SCENES = [((2.5, 0.0, 2.0), SENSORS, False), ((-3.0, 0.0, 1.5), SENSORS, True),
 API_CHECK = r"""
 import json, sys
 import nlos_cl as nl
-from nlos_cl import frames
-from nlos_cl.io.ytal.capture import read_capture_with_frame
 out = []
 for path in sys.argv[1:]:
-    (h,), frame = read_capture_with_frame(path)
-    grid = region.default_region(h, %(h)r)
-    filtered = nl.gauss_filter(h, %(h)r)
-    loc = nl.locate(filtered, grid, estimator="paper")
-    zoom = grid.step[0] > region.region_step(h, %(h)r)
-    edge = region.on_region_edge(loc.position, grid)
-    if zoom:
-        loc = nl.locate(filtered, region.zoom_region(loc.position, grid, h, %(h)r),
-                        estimator="paper")
-    out.append({"position": frame.from_internal(loc.position).tolist(), "frame": frame.name,
-                "cells": grid.n_cells, "step_m": grid.step[0], "zoomed": bool(zoom),
-                "on_edge": bool(edge)})
+    found = nl.locate_capture(path, estimator="paper", h_s=%(h)r)
+    point = found.points[0]
+    out.append({"position": point.position.tolist(), "frame": found.frame.name,
+                "cells": point.region.n_cells, "step_m": point.region.step[0],
+                "zoomed": point.zoomed, "on_edge": point.on_edge})
 print(json.dumps(out))
 """ % {"h": H_S}
 

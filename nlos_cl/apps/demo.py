@@ -31,16 +31,13 @@ def _run_once(args, backend, grid):
 
 
 def _estimates(paper, model, warm) -> dict:
-    import numpy as np
-
-    from .files import _covariance_json
-    r5 = lambda v: [round(float(x), 5) for x in v]  # noqa: E731
+    from ..localization.capture import covariance_json, rounded
     first = model.targets[0]
-    return {"paper": {"position": r5(paper.position), "error_m": round(paper.error_m, 5),
+    return {"paper": {"position": rounded(paper.position), "error_m": round(paper.error_m, 5),
                       "time_s": round(warm["locate_paper"], 4)},
-            "model": {"position": r5(model.position), "error_m": round(model.error_m, 5),
-                      "covariance": _covariance_json(first.covariance, np.eye(3)),
-                      "extent_m": None if first.extent_m is None else r5(first.extent_m),
+            "model": {"position": rounded(model.position), "error_m": round(model.error_m, 5),
+                      "covariance": covariance_json(first.covariance),
+                      "extent_m": None if first.extent_m is None else rounded(first.extent_m),
                       "time_s": round(warm["locate_model"], 4)}}
 
 

@@ -22,17 +22,14 @@ import sys
 
 
 def _tracker(args, seq, backend):
+    """A Tracker on the search region `nlos-cl locate` would use for the first frame."""
     from ..io.ytal.capture import read_capture
-    from ..localization.region import default_region, region_step
+    from ..localization.capture import search_region
     from ..tracking import BackgroundRemover, ConstantVelocity, Tracker
-    first = seq[0].histograms
     h_s = args.h_ns * 1e-9
-    if args.region is None:
-        grid = default_region(first, h_s)
-    else:
-        a0, a1, b0, b1, c0, c1 = args.region
-        step = args.step if args.step is not None else region_step(first, h_s)
-        grid = seq.frame.grid(((a0, a1), (b0, b1), (c0, c1)), step)
+    region = None if args.region is None else list(zip(args.region[::2], args.region[1::2]))
+    grid, _ = search_region(seq[0].histograms, seq.frame, region, args.step, h_s,
+                            names=("--region", "--step"))
     background = None
     if args.background:
         background = BackgroundRemover(read_capture(args.background)[0], backend=backend)
@@ -52,22 +49,17 @@ def _entry(frame, tracks, measurements, cframe, smoothed=None, mark=None) -> dic
     """One frame's JSON object; `smoothed`: {(id, frame): Smoothed} replaces the filter's
     position, velocity and covariance where it holds the track; `mark`: keys added (what
     replaced them: {"smoothed": true} or {"lag_frames": L})."""
-    import numpy as np
-
-    from .files import _covariance_json
-    m = np.asarray(cframe.matrix)
-    r5 = lambda v: [round(float(x), 5) for x in np.ravel(v)]  # noqa: E731
+    from ..localization.capture import covariance_json, vector_json
     states = [(t, (smoothed or {}).get((t.id, frame.index))) for t in tracks]
     states = [(t, s.position, s.velocity, s.covariance) if s is not None else
               (t, t.position, t.velocity, t.position_covariance) for t, s in states]
     entry = {"frame": frame.index, "t_s": frame.t_s,
-             "tracks": [{"id": t.id, "status": t.status,
-                         "position": r5(cframe.from_internal(p)),
-                         "velocity": r5(cframe.from_internal(v)),
-                         "covariance": _covariance_json(c, m)} for t, p, v, c in states],
-             "measurements": [r5(cframe.from_internal(x.position)) for x in measurements],
+             "tracks": [{"id": t.id, "status": t.status, "position": vector_json(p, cframe),
+                         "velocity": vector_json(v, cframe),
+                         "covariance": covariance_json(c, cframe)} for t, p, v, c in states],
+             "measurements": [vector_json(x.position, cframe) for x in measurements],
              "truths": None if frame.truths is None else
-             [r5(cframe.from_internal(p)) for p in frame.truths]}
+             [vector_json(p, cframe) for p in frame.truths]}
     entry.update(mark or {})
     return entry
 

@@ -1,0 +1,280 @@
+"""Locate a capture: what `nlos-cl locate` does, as one library call.
+
+`locate_capture(path_or_sets)` reads a y-tal capture (or takes HistogramSets already read),
+subtracts a background and applies a calibration where given, and per laser point: chooses the
+search region (nlos_cl.localization.region: derived from the capture, or ranges along the
+file's own axes), filters, searches coarse -> zoom -> fine where the derived region had to be
+coarsened, and runs the estimator on the final grid. The answer is a `CaptureLocation`: per
+laser point the position in the file's frame and in ours, covariances, the grids and the
+warnings; `as_json()` is the CLI's --json object.
+"""
+from __future__ import annotations
+
+import math
+import warnings as pywarnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..core.constants import PAPER_H_S
+from ..core.errors import InputError, require
+from ..core.grid import Grid
+from ..core.histograms import HistogramSet
+from ..core.tuning import auto_log_mode
+from ..io.ytal.frames import INTERNAL, CaptureFrame
+from .api import gauss_filter, locate
+from .estimate import Location
+from .region import default_region, on_region_edge, region_step, zoom_region
+
+REGION_NAMES = ("region", "step_m")  # how errors name the region options (a CLI: its flags)
+
+
+def rounded(values) -> list:
+    """Numbers as the JSON gives them: 5 decimals (0.01 mm)."""
+    return [round(float(x), 5) for x in np.ravel(values)]
+
+
+def vector_json(v, frame: CaptureFrame = INTERNAL) -> list:
+    """A position (or velocity) of ours, in `frame`'s axes, rounded as the JSON gives it."""
+    return rounded(frame.from_internal(v))
+
+
+def covariance_in(cov, frame: CaptureFrame = INTERNAL) -> np.ndarray | None:
+    """A 3 x 3 covariance (m^2) of ours in `frame`'s axes (m^T C m, internal = m @ file). The
+    frame is a signed permutation, so the entries are moved, not mixed: an unobservable axis
+    (infinite variance) stays infinite in its row and column only (a product would spread NaN)."""
+    if cov is None:
+        return None
+    m = np.asarray(frame.matrix)
+    axis = np.abs(m).argmax(axis=0)  # file axis i is internal axis axis[i]
+    sign = m[axis, np.arange(3)]
+    return np.asarray(cov, dtype=np.float64)[np.ix_(axis, axis)] * np.outer(sign, sign)
+
+
+def covariance_json(cov, frame: CaptureFrame = INTERNAL):
+    """covariance_in as JSON: 6 significant digits, an infinite variance null (JSON has no
+    infinity)."""
+    out = covariance_in(cov, frame)
+    if out is None:
+        return None
+    return [[float(f"{v:.6g}") if np.isfinite(v) else None for v in row] for row in out]
+
+
+def search_region(histograms: HistogramSet, frame: CaptureFrame = INTERNAL, region=None,
+                  step_m: float | None = None, h_s: float = PAPER_H_S, *,
+                  names=REGION_NAMES) -> tuple[Grid, bool]:
+    """(grid in our frame, was it derived): `region` None derives it from the capture
+    (default_region); three (low, high) ranges are along `frame`'s axes, at `step_m` (default:
+    region_step); a Grid is ours, used as given. `names`: how errors name region and step_m."""
+    if region is None:
+        return default_region(histograms, h_s), True
+    if isinstance(region, Grid):
+        return region, False
+    try:
+        ranges = np.asarray(region, dtype=np.float64)
+    except (TypeError, ValueError):
+        ranges = np.zeros(0)
+    require(ranges.shape == (3, 2), names[0], f"expected three (low, high) ranges along the "
+            f"file's axes {frame.axes}, got {region!r}", "pass e.g. ((-5, -3), (0, 0), (1, 3))")
+    step = region_step(histograms, h_s) if step_m is None else step_m
+    grid = frame.grid(ranges, step)
+    from ..core.limits import memory_limit
+    need, limit = 4 * grid.n_cells, memory_limit()
+    if need > limit:
+        raise InputError(f"{names[0]}: {grid.n_cells:.3g} cells at a {step:g} m step need "
+                         f"{need / 2**30:.1f} GiB for the score map, more than the "
+                         f"{limit / 2**30:.1f} GiB allowed (half the memory available). "
+                         f"Fix: a smaller region or a larger {names[1]}")
+    return grid, False
+
+
+@dataclass(frozen=True)
+class PointLocation:
+    """One laser point's answer. `location` and the grids are in our frame; `position`,
+    `positions` and `covariances` in the capture's (`frame`)."""
+
+    laser_point: int
+    laser_spot: np.ndarray  # ours
+    location: Location
+    grid: Grid  # the final search grid (the zoom, where the region was coarsened)
+    region: Grid  # the search region
+    log_mode: bool
+    frame: CaptureFrame
+    warnings: tuple = ()
+
+    @property
+    def position(self) -> np.ndarray:
+        return self.frame.from_internal(self.location.position)
+
+    @property
+    def positions(self) -> list:
+        """Every target's position, best first (file frame)."""
+        return [self.frame.from_internal(t.position) for t in self.location.targets]
+
+    @property
+    def covariances(self) -> list:
+        """Every target's covariance (file frame, m^2; None where the estimator gives none)."""
+        return [covariance_in(t.covariance, self.frame) for t in self.location.targets]
+
+    @property
+    def zoomed(self) -> bool:
+        return self.grid is not self.region
+
+    @property
+    def on_edge(self) -> bool:
+        """The answer lies on the region's edge: the target may be outside it."""
+        return on_region_edge(self.location.position, self.region)
+
+    def as_json(self) -> dict:
+        """The CLI's per-laser-point object (file frame)."""
+        loc, frame = self.location, self.frame
+        targets = [{"position": vector_json(t.position, frame),
+                    "covariance": covariance_json(t.covariance, frame),
+                    "extent_m": None if t.extent_m is None else rounded(t.extent_m)}
+                   for t in loc.targets]
+        return {"laser_point": self.laser_point,
+                "laser_spot": vector_json(self.laser_spot, frame),
+                "position": targets[0]["position"], "targets": targets,
+                "truth": None if loc.truth is None else vector_json(loc.truth, frame),
+                "argmax_cell": vector_json(loc.cell_position, frame),
+                "error_m": None if loc.error_m is None else round(loc.error_m, 5),
+                "estimator": loc.estimator, "log_mode": self.log_mode,
+                "region": {"ranges_m": [list(r) for r in frame.ranges(self.grid)],
+                           "step_m": min(self.grid.step), "cells": self.grid.n_cells},
+                "warnings": list(self.warnings)}
+
+
+@dataclass(frozen=True)
+class CaptureLocation:
+    """A capture's answer: one PointLocation per laser point (`points`), and what applied to
+    all of them."""
+
+    points: tuple
+    frame: CaptureFrame
+    source: str | None  # the file, where one was read
+    device: str
+    h_s: float
+    calibration: object = None  # the PathCalibration applied, if any
+
+    @property
+    def position(self) -> np.ndarray:
+        """The first laser point's position (file frame)."""
+        return self.points[0].position
+
+    def as_json(self, entries: list | None = None) -> dict:
+        """The CLI's --json object; `entries`: the per-laser-point objects, where the caller
+        added to them (default: each point's as_json())."""
+        entries = [p.as_json() for p in self.points] if entries is None else entries
+        cal = self.calibration
+        return {"file": self.source, "frame": self.frame.as_json(), "device": self.device,
+                "h_s": self.h_s, "calibration": None if cal is None else
+                {"a_m_per_s": cal.a_m_per_s, "b_m": float(cal.b_m[0])},
+                **(entries[0] if len(entries) == 1 else {"per_laser_point": entries})}
+
+
+def _sets(capture, frame):
+    """(sets, frame, source) from a path, a HistogramSet or a sequence of them."""
+    if isinstance(capture, (str, Path)):
+        from ..io.ytal.capture import read_capture_with_frame
+        sets, file_frame = read_capture_with_frame(capture)
+        return sets, file_frame if frame is None else frame, str(capture)
+    sets = [capture] if isinstance(capture, HistogramSet) else \
+        list(capture) if isinstance(capture, (list, tuple)) else []
+    require(bool(sets) and all(isinstance(h, HistogramSet) for h in sets), "capture",
+            f"expected a capture's path or HistogramSet(s), got {type(capture).__name__}",
+            "pass the .h5 file's path, or nl.read_capture(path)")
+    return sets, INTERNAL if frame is None else frame, None
+
+
+def _prepared(sets, background, negatives, calibration):
+    """The sets with the background subtracted and the calibration applied; the calibration."""
+    if background is not None:
+        from .background import subtract_background
+        if isinstance(background, (str, Path)):
+            from ..io.ytal.capture import read_capture
+            background = read_capture(background)
+        backgrounds = [background] if isinstance(background, HistogramSet) else list(background)
+        require(len(backgrounds) == len(sets), "background", f"has {len(backgrounds)} laser "
+                f"point(s), the capture {len(sets)}", "record the background with the same "
+                "laser points as the capture")
+        sets = [subtract_background(h, b, negatives=negatives)
+                for h, b in zip(sets, backgrounds)]
+    if calibration is None:
+        return sets, None
+    from ..io.calibration import fit_calibration, read_calibration_pairs, with_calibration
+    if isinstance(calibration, (str, Path)):  # a CSV of (path, peak time) pairs: Eq. 26
+        calibration = fit_calibration(*read_calibration_pairs(calibration))
+    calibration = getattr(calibration, "calibration", calibration)  # a CalibrationFit's
+    return [with_calibration(h, calibration) for h in sets], calibration
+
+
+def _estimator(estimator, targets):
+    """'model' with `targets` plates (the CLI's --targets), 'paper', or an estimator object:
+    one object for every laser point, checked before any work."""
+    if not (isinstance(estimator, str) and estimator == "model"):
+        from .estimators import as_estimator
+        return as_estimator(estimator)
+    from .model import ModelEstimator
+    return ModelEstimator(targets=targets)
+
+
+def _locate_point(i, hist, frame, region, derived, *, h_s, estimator, log_mode, return_map,
+                  backend, names) -> PointLocation:
+    """The paper's argmax on the region (refined on a fine zoom where the derived region had to
+    be coarsened), then the estimator on the final grid; warnings collected, not raised."""
+    from ..ops.signals import upload
+    log_mode = auto_log_mode(hist.n_detectors) if log_mode is None else bool(log_mode)
+    raw = upload(hist, backend)  # once: filtered here, and fitted by the model estimator
+    filtered = gauss_filter(raw, h_s)
+    grid = region
+    if derived and min(region.step) > region_step(hist, h_s) * 1.001:
+        coarse = locate(filtered, region, log_mode=log_mode, estimator="paper")
+        grid = zoom_region(coarse.position, region, hist, h_s)
+    with pywarnings.catch_warnings(record=True) as caught:
+        pywarnings.simplefilter("always")
+        loc = locate(filtered, grid, log_mode=log_mode, estimator=estimator, raw=raw,
+                     return_map=return_map)
+    notes = [str(w.message) for w in caught]
+    if on_region_edge(loc.position, region):
+        ranges = ", ".join(f"{a} {lo:.3g}..{hi:.3g} m"
+                           for a, (lo, hi) in zip(frame.axes, frame.ranges(region)))
+        notes.append(f"the answer lies on the search region's edge ({ranges}), so the target "
+                     f"may be outside it. Fix: widen it with {names[0]} (ranges along the "
+                     "file's axes) or record a longer time window")
+    return PointLocation(i, hist.laser_spot, loc, grid, region, log_mode, frame, tuple(notes))
+
+
+def locate_capture(capture, *, region=None, step_m: float | None = None,
+                   h_s: float = PAPER_H_S, estimator="model", targets=1, log_mode=None,
+                   background=None, negatives: str = "keep", calibration=None,
+                   return_map: bool = False, backend=None, frame: CaptureFrame | None = None,
+                   names=REGION_NAMES) -> CaptureLocation:
+    """Locate every laser point of a capture, as `nlos-cl locate` does.
+
+    capture: a y-tal file's path, or HistogramSet(s) (ours; `frame` says which frame to report
+    in, default ours). region: None (derived from the capture), three (low, high) ranges along
+    the file's axes at step_m, or a Grid of ours. estimator: 'model' (with `targets` plates, or
+    'auto'), 'paper', or an estimator object. log_mode: None = auto_log_mode(detectors).
+    background: a target-free capture (path or sets) subtracted first, bins below 0 handled by
+    `negatives`; calibration: a CSV of (path m, peak time s) pairs (Eq. 26), a PathCalibration
+    or a CalibrationFit. return_map: keep each final grid's score map (location.score_map).
+    names: how errors and warnings name the region and step_m options (a CLI: its flags).
+    Warnings (e.g. an unobservable height) are collected in each point's `warnings`, not raised.
+    """
+    require(isinstance(h_s, (int, float)) and math.isfinite(h_s) and h_s > 0, "h_s",
+            f"the filter window must be a positive time in seconds, got {h_s!r}",
+            "pass e.g. 0.65e-9 (the paper's h)")
+    from ..ops.backend import resolve_backend
+    est = _estimator(estimator, targets)
+    sets, frame, source = _sets(capture, frame)
+    sets, cal = _prepared(sets, background, negatives, calibration)
+    backend = resolve_backend(backend)
+    points = []
+    for i, hist in enumerate(sets):
+        grid, derived = search_region(hist, frame, region, step_m, h_s, names=names)
+        points.append(_locate_point(i, hist, frame, grid, derived, h_s=h_s, estimator=est,
+                                    log_mode=log_mode, return_map=bool(return_map),
+                                    backend=backend, names=names))
+    return CaptureLocation(tuple(points), frame, source, getattr(backend, "name", str(backend)),
+                           h_s, cal)
