@@ -69,7 +69,7 @@ def test_two_targets_keep_their_identities_through_a_crossing():
     """Two 0.3 m squares on 8 spots crossing at (3, 2.5): the two-plate fit is ambiguous or
     wrong on most frames near the crossing (plates merged midway, Birge ratio >> 1); the
     screening and the one-blob rule let both tracks coast through, and the ids come out on the
-    right targets (scripts/tracking_accuracy.py runs 10 seeds)."""
+    right targets (`nlos-cl reproduce tracking` runs 10 seeds)."""
     from nlos_cl.physics.layouts import circle
     from nlos_cl.localization.model import ModelEstimator
     setup = nl.Setup(detector_spots=circle((-1.0, 0, 0), 0.5, 8))

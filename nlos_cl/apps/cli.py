@@ -103,6 +103,11 @@ def _reproduce_args(p):
     p.add_argument("--quick", action="store_true", help="coarse setting (CI)")
     p.add_argument("--doc", default="", help="write the paper-vs-ours report here "
                    "(default with 'all': OUT/paper-results.md)")
+    p.add_argument("--only", nargs="+", default=None, metavar="SECTION",
+                   help="beyond, tracking: only these parts (tracking: speed memory lines "
+                   "synthetic box crossing)")
+    p.add_argument("--cold", action="store_true",
+                   help="tracking: trackers with warm_start=False (for comparison; not with --doc)")
 
 
 def _simulate_args(p):

@@ -1,5 +1,6 @@
 """`nlos-cl reproduce` on the command line. `reproduce all` (the paper's experiments) writes
-paper-results.md; `reproduce beyond` writes beyond-the-paper.md (OUT/ unless --doc)."""
+paper-results.md; `reproduce beyond` writes beyond-the-paper.md (OUT/ unless --doc);
+`reproduce tracking --doc docs/tracking.md` fills that page's tables."""
 from __future__ import annotations
 
 import json
@@ -20,6 +21,11 @@ def _finite(value):
 
 
 def _write_doc(rp, args, settings, results, wall) -> None:
+    if args.name == "tracking":  # its sections go between docs/tracking.md's markers
+        if args.doc:
+            from .reproduce.tracking import write_doc
+            write_doc(results[0], Path(args.doc))
+        return
     if args.name == "beyond":
         from .reproduce.beyond_report import write_beyond_report
         doc = Path(args.doc) if args.doc else Path(args.out) / "beyond-the-paper.md"
@@ -33,7 +39,12 @@ def main(args) -> int:
     from . import reproduce as rp
     settings = rp.Settings.make(quick=args.quick, seeds=args.seeds)
     start = time.perf_counter()
-    results = rp.run(args.name, settings, Path(args.out))
+    options = {}
+    if args.only:
+        options["only"] = args.only
+    if args.cold:
+        options["cold"] = True
+    results = rp.run(args.name, settings, Path(args.out), **options)
     wall = time.perf_counter() - start
     _write_doc(rp, args, settings, results, wall)
     if args.json:

@@ -143,7 +143,7 @@ def _clean(plan: dict, values: dict):
 
 
 def _grid(plan: dict, layout, h_s: float):
-    """The study's grid, or the region this layout can see (frames.default_region)."""
+    """The study's grid, or the region this layout can see (localization.region.default_region)."""
     from ..core.grid import Grid
     from ..core.histograms import HistogramSet
     from ..localization.region import default_region

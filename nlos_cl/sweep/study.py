@@ -14,7 +14,7 @@ Schema (YAML or dict; every key but `scene` optional)::
     seeds: 10                             # the noise seeds 0..9 (or a list, or {start, count})
     h_s: 0.65e-9                          # Gauss filter window (an axis may vary `h_s`)
     filter: gauss                         # gauss | gauss_fit | none (an axis may vary it)
-    grid: {x: [0, 6], y: [0.01, 6], z: [0, 0], step_m: 0.01}   # default: frames.default_region
+    grid: {x: [0, 6], y: [0.01, 6], z: [0, 0], step_m: 0.01}   # default: localization.region.default_region
     record: [position, error, covariance, timings, photons]
     batch_size: 16                        # runs per Dask task (default: from the study's size)
 

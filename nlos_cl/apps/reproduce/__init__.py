@@ -12,17 +12,20 @@ fig10 are study files (nlos_cl/sweep/<name>.yaml) run through the sweep engine (
 
 `beyond` (beyond*.py, beyond*.yaml) is not one of the paper's experiments: it sets the paper's
 estimator against the model-based one and writes its own report; 'all' does not include it.
+Nor does `tracking` (tracking*.py, tracking.yaml): the tracker's tables of docs/tracking.md.
 """
 from __future__ import annotations
 
-import csv
+import inspect
 import time
 from pathlib import Path
 
 from tqdm import tqdm
 
-from . import beyond, fig5, fig6, fig8, fig10, sweeps
-from .common import PAPER, Result, Settings, fwhm_ns, paper_target, run_trials, stats
+from ...core.errors import require
+from . import beyond, fig5, fig6, fig8, fig10, sweeps, tracking
+from .common import (PAPER, Result, Settings, fwhm_ns, paper_target, run_trials, stats,
+                     write_csv)
 from .report import summary_json, write_report
 
 EXPERIMENTS = {"fig5": fig5.fig5, "fig6": fig6.fig6, "fig7a": sweeps.fig7a, "fig7b": sweeps.fig7b,
@@ -30,25 +33,25 @@ EXPERIMENTS = {"fig5": fig5.fig5, "fig6": fig6.fig6, "fig7a": sweeps.fig7a, "fig
                "fig10": fig10.fig10}
 PAPER_EXPERIMENTS = tuple(EXPERIMENTS)  # what 'all' runs: the paper's experiments
 EXPERIMENTS["beyond"] = beyond.beyond  # its own report (docs/beyond-the-paper.md); not in 'all'
+EXPERIMENTS["tracking"] = tracking.tracking  # docs/tracking.md's tables; not in 'all'
 
 
-def _write_csv(path: Path, rows) -> None:
-    with open(path, "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
-
-
-def run(name: str, s: Settings, out: Path) -> list[Result]:
-    """Run one experiment (or 'all'), writing out/<name>.csv and its figures."""
-    out.mkdir(parents=True, exist_ok=True)
+def run(name: str, s: Settings, out: Path, **options) -> list[Result]:
+    """Run one experiment (or 'all'), writing out/<name>.csv and its figures; `options` (only,
+    cold) go to the experiment, which refuses those it does not take."""
     names = list(PAPER_EXPERIMENTS) if name == "all" else [name]
+    for n in names:
+        taken = inspect.signature(EXPERIMENTS[n]).parameters
+        for option in options:
+            require(option in taken, f"--{option}", f"is not an option of {n}",
+                    "leave it out (beyond takes --only; tracking --only and --cold)")
+    out.mkdir(parents=True, exist_ok=True)
     results = []
     for n in tqdm(names, desc="reproduce", disable=len(names) == 1):
         start = time.perf_counter()
-        result = EXPERIMENTS[n](s, out)
+        result = EXPERIMENTS[n](s, out, **options)
         result.seconds = time.perf_counter() - start
-        _write_csv(out / f"{n}.csv", result.rows)
+        write_csv(out / f"{n}.csv", result.rows)
         results.append(result)
     return results
 

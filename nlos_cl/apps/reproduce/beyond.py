@@ -10,7 +10,6 @@ Not part of `reproduce all` (which re-runs the paper and writes paper-results.md
 its own; `--quick` is the small CI setting (tests/test_reproduce_beyond.py)."""
 from __future__ import annotations
 
-import csv
 from pathlib import Path
 
 from nlos_cl.apps import plotting
@@ -19,7 +18,7 @@ from . import beyond_cases as bc
 from .beyond_report import coverage_rows, goal_rows, summarise
 from .beyond_sweep import frames as _frames  # a case and its seeds
 from .beyond_sweep import run_entries
-from .common import Result, Settings
+from .common import Result, Settings, write_csv
 
 NAME = "beyond"
 TITLE = "Beyond the paper: the paper's argmax against the model-based estimator"
@@ -148,13 +147,6 @@ SECTIONS = (("grid", grid_section), ("extended", extended_section),
             ("photons", photon_section), ("coverage", coverage_section))
 
 
-def _write_csv(path: Path, rows) -> None:
-    with open(path, "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
-
-
 def beyond(s: Settings, out: Path, only=None) -> Result:
     """Run every section of beyond.yaml (or those in `only`) as one sweep study; frame rows go
     to beyond.csv (by `reproduce.run`), the summary to beyond-summary.csv, the figure to
@@ -167,8 +159,8 @@ def beyond(s: Settings, out: Path, only=None) -> Result:
     run_entries(entries, cfg, s, out)
     summary = [row for e in entries for row in summarise(e)]
     coverage, goals = coverage_rows(entries), goal_rows(summary, entries)
-    _write_csv(out / "beyond-summary.csv", summary)
-    _write_csv(out / "beyond-coverage.csv", coverage)
+    write_csv(out / "beyond-summary.csv", summary)
+    write_csv(out / "beyond-coverage.csv", coverage)
     figure = plotting.beyond_figure(summary, out, NAME)
     frames = [r for e in entries for r in e["rows"]]
     return Result(NAME, TITLE, frames, {"summary": summary, "coverage": coverage,

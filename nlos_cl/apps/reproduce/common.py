@@ -3,9 +3,11 @@ loop (noise seeds x methods), error statistics, and the data files (the paper's 
 our prose) loaded from this package."""
 from __future__ import annotations
 
+import csv
 import math
 from dataclasses import dataclass, field, replace
 from importlib import resources
+from pathlib import Path
 
 import numpy as np
 import yaml
@@ -137,3 +139,11 @@ def fwhm_ns(t_s, y) -> float:
     t_left = np.interp(half, [y[a], y[a + 1]], [t_s[a], t_s[a + 1]])
     t_right = np.interp(half, [y[b], y[b - 1]], [t_s[b], t_s[b - 1]])
     return float((t_right - t_left) * 1e9)
+
+
+def write_csv(path: Path, rows) -> None:
+    """Rows of dicts as a CSV table, the first row's keys as the header."""
+    with open(path, "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
