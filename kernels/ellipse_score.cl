@@ -28,7 +28,7 @@
 __kernel void ellipse_score(__global const float *signal,   // [detectors][n_bins]
                             __global const float2 *stats,   // [detectors] (row max, mean square)
                             __global const float4 *spots,   // [detectors] detector spots
-                            const float4 laser,
+                            __global const float4 *lasers,
                             __global const float2 *axis,    // [detectors] (path at bin-0 centre, 1 / path per bin)
                             const int n_bins,
                             const float4 origin, const float4 step,
@@ -44,13 +44,13 @@ __kernel void ellipse_score(__global const float *signal,   // [detectors][n_bin
     const float z = origin.z + step.z * (float)iz;
     __global float *out = score + (get_global_id(2) * ny + get_global_id(1)) * nx + ix0;
     const int n = nx - ix0;
-    const float8 joint = score8(signal, stats, spots, laser, axis, n_bins, det0, x, y, z,
+    const float8 joint = score8(signal, stats, spots, lasers, axis, n_bins, det0, x, y, z,
                                 start8(out, n, accumulate));
     store8(out, n, joint);
 }
 
 __kernel void ellipse_score_blocks(__global const float *signal, __global const float2 *stats,
-                                   __global const float4 *spots, const float4 laser,
+                                   __global const float4 *spots, __global const float4 *lasers,
                                    __global const float2 *axis, const int n_bins,
                                    const float4 origin, const float4 step,
                                    const int4 shape,              // the grid's (nx, ny, nz)
@@ -70,7 +70,7 @@ __kernel void ellipse_score_blocks(__global const float *signal, __global const 
     const float z = origin.z + step.z * (float)iz;
     __global float *out = score + ((b * tile.z + jz) * tile.y + jy) * tile.x + ix0;
     const int n = tile.x - ix0;
-    float8 joint = score8(signal, stats, spots, laser, axis, n_bins, det0, x, y, z,
+    float8 joint = score8(signal, stats, spots, lasers, axis, n_bins, det0, x, y, z,
                           start8(out, n, accumulate));
     const int row_inside = iy >= 0 && iy < shape.y && iz >= 0 && iz < shape.z;
     const int8 inside = (ix >= (int8)(0)) & (ix < (int8)(shape.x)) & (int8)(row_inside ? -1 : 0);

@@ -28,7 +28,7 @@
 
 __kernel void coarse_pair(__global const float *signal, __global const float *dilated,
                           __global const float2 *stats, __global const float4 *spots,
-                          const float4 laser,
+                          __global const float4 *lasers,
                           __global const float2 *axis,       // the record's (path0, 1/dpath)
                           __global const float2 *wide_axis,  // the widened record's
                           const int n_bins, const int n_wide,
@@ -47,9 +47,9 @@ __kernel void coarse_pair(__global const float *signal, __global const float *di
     const int8 inside = ((int8)(ix0) + (int8)(0, 1, 2, 3, 4, 5, 6, 7) < (int8)(valid.x))
                         & (int8)(iy < valid.y && iz < valid.z ? -1 : 0);
     // a block whose centre lies past the grid's edge is no fine cell: -inf, out of the maximum
-    store8(exact + at, n, select((float8)(-INFINITY), score8(signal, stats, spots, laser, axis,
+    store8(exact + at, n, select((float8)(-INFINITY), score8(signal, stats, spots, lasers, axis,
                                                              n_bins, 0, x, y, z, one), inside));
-    store8(bound + at, n, score8(dilated, stats, spots, laser, wide_axis, n_wide, 0, x, y, z,
+    store8(bound + at, n, score8(dilated, stats, spots, lasers, wide_axis, n_wide, 0, x, y, z,
                                  one));
 }
 
@@ -64,7 +64,7 @@ inline int beats(const float value, const int flat, const float best, const int 
 
 // Step 3 for one work unit: `chunk` (8 cells) of row (jy, jz) of candidate block `block`.
 inline void score_unit(__global const float *signal, __global const float2 *stats,
-                       __global const float4 *spots, const float4 laser,
+                       __global const float4 *spots, __global const float4 *lasers,
                        __global const float2 *axis, const int n_bins, const float4 origin,
                        const float4 step, const int4 shape, const int4 fa, const int4 cshape,
                        const int block, const int jy, const int jz, const int chunk,
@@ -79,7 +79,7 @@ inline void score_unit(__global const float *signal, __global const float2 *stat
     const float y = origin.y + step.y * (float)iy;
     const float z = origin.z + step.z * (float)iz;
     float cells[8];
-    vstore8(score8(signal, stats, spots, laser, axis, n_bins, 0, x, y, z,
+    vstore8(score8(signal, stats, spots, lasers, axis, n_bins, 0, x, y, z,
                    (float8)(LOG_MODE ? 0.0f : 1.0f)), 0, cells);
     const int row = (iz * shape.y + iy) * shape.x;
     for (int j = 0; j < 8 && j0 + j < fa.x && bx * fa.x + j0 + j < shape.x; ++j) {
@@ -123,7 +123,7 @@ inline int select_blocks(__global const float *exact, __global const float *boun
 
 __kernel __attribute__((reqd_work_group_size(WG, 1, 1)))
 void refine_argmax(__global const float *signal, __global const float2 *stats,
-                   __global const float4 *spots, const float4 laser,
+                   __global const float4 *spots, __global const float4 *lasers,
                    __global const float2 *axis, const int n_bins,
                    const float4 origin, const float4 step,  // the fine grid's
                    const int4 shape,                        // fine (nx, ny, nz)
@@ -145,7 +145,7 @@ void refine_argmax(__global const float *signal, __global const float2 *stats,
     for (int u = w; u < units; u += WG) {
         const int chunk = u % chunks, jy = (u / chunks) % fa.y;
         const int jz = (u / (chunks * fa.y)) % fa.z, k = u / (chunks * fa.y * fa.z);
-        score_unit(signal, stats, spots, laser, axis, n_bins, origin, step, shape, fa, cshape,
+        score_unit(signal, stats, spots, lasers, axis, n_bins, origin, step, shape, fa, cshape,
                    list[k], jy, jz, chunk, &best, &where);
     }
     lval[w] = best;
@@ -173,7 +173,7 @@ void refine_argmax(__global const float *signal, __global const float2 *stats,
             const float8 x = origin.x + step.x * convert_float8(cx);
             const float y = origin.y + step.y * (float)ry;
             const float z = origin.z + step.z * (float)rz;
-            vstore8(score8(signal, stats, spots, laser, axis, n_bins, 0, x, y, z,
+            vstore8(score8(signal, stats, spots, lasers, axis, n_bins, 0, x, y, z,
                            (float8)(LOG_MODE ? 0.0f : 1.0f)), 0, cells);
         }
         for (int j = 0; j < 3; ++j) {

@@ -3,23 +3,36 @@
 // common.h. One copy of the code is what makes coarse-to-fine scoring bit-identical to scoring
 // every cell: each cell's score is computed by the same operations, whichever kernel runs them.
 // Build options: -D N_DET=<detectors per call> -D LOG_MODE=0|1 -D LOG_FLOOR=<float>
+//                -D PAIRED=0|1 (0: lasers[0] is every detector's laser spot; 1: lasers[d] is
+//                detector d's own: confocal and paired captures)
 
 #ifndef NLOS_SCORE_H
 #define NLOS_SCORE_H
 
+// |c - p| for 8 cells c = (x, y, z): sqrt of a dot product, not distance(): PoCL's
+// overflow-safe distance() is much slower.
+inline float8 leg8(const float4 p, const float8 x, const float y, const float z)
+{
+    const float8 px = x - p.x;
+    const float pyz = (y - p.y) * (y - p.y) + (z - p.z) * (z - p.z);
+    return sqrt(fma(px, px, (float8)(pyz)));
+}
+
 // The joint likelihood of 8 cells at (x, y, z), detectors det0 .. det0 + N_DET - 1, on top of
 // `joint` (the previous tiles' result, or 1 / 0).
 inline float8 score8(__global const float *signal, __global const float2 *stats,
-                     __global const float4 *spots, const float4 laser,
+                     __global const float4 *spots, __global const float4 *lasers,
                      __global const float2 *axis, const int n_bins, const int det0,
                      const float8 x, const float y, const float z, float8 joint)
 {
-    // sqrt of a dot product, not distance(): PoCL's overflow-safe distance() is much slower.
-    const float8 lx = x - laser.x;
-    const float lyz = (y - laser.y) * (y - laser.y) + (z - laser.z) * (z - laser.z);
-    const float8 r1 = sqrt(fma(lx, lx, (float8)(lyz)));
+#if !PAIRED
+    const float8 r1 = leg8(lasers[0], x, y, z);  // one laser spot: its leg is shared
+#endif
     for (int k = 0; k < N_DET; ++k) {
         const int d = det0 + k;
+#if PAIRED
+        const float8 r1 = leg8(lasers[d], x, y, z);
+#endif
         const float4 spot = spots[d];
         const float2 ax = axis[d];
         const float8 sx = x - spot.x;

@@ -1,6 +1,11 @@
 """The container that travels the whole way: histograms with the `Layout` they belong to (time
-axis, wall spots, laser spot, the calibration from arrival time to hidden path, the truth when
-known). `Signals` on a device carry the same `Layout` without the data."""
+axis, wall spots, laser spot(s), the calibration from arrival time to hidden path, the truth
+when known). `Signals` on a device carry the same `Layout` without the data.
+
+Laser spots: one (3,) for every histogram (one laser, N detectors: the paper's layout), or one
+per histogram, (N, 3) ("paired": each histogram its own laser and detection point; confocal
+captures are paired with laser = detection point; N lasers and one detector is paired too).
+`laser_spots` is always (N, 3)."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
@@ -25,7 +30,7 @@ class Layout:
 
     time_axis: TimeAxis
     detector_spots: np.ndarray  # (n_detectors, 3)
-    laser_spot: np.ndarray  # (3,)
+    laser_spot: np.ndarray  # (3,), or (n_detectors, 3): each histogram's own (paired)
     calibration: PathCalibration
     truth: np.ndarray | None = None
     truths: np.ndarray | None = None  # (K, 3) every target's centre, where known
@@ -33,6 +38,16 @@ class Layout:
     @property
     def n_detectors(self) -> int:
         return self.detector_spots.shape[0]
+
+    @property
+    def paired(self) -> bool:
+        """Does each histogram have its own laser spot?"""
+        return np.ndim(self.laser_spot) == 2
+
+    @property
+    def laser_spots(self) -> np.ndarray:
+        """(n_detectors, 3): each histogram's laser spot."""
+        return laser_spots_of(self.laser_spot, self.n_detectors)
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -49,7 +64,7 @@ class HistogramSet:
     data: np.ndarray  # (n_detectors, n_bins), float64, W
     time_axis: TimeAxis
     detector_spots: np.ndarray  # (n_detectors, 3)
-    laser_spot: np.ndarray  # (3,)
+    laser_spot: np.ndarray  # (3,), or (n_detectors, 3): each histogram's own (paired)
     calibration: PathCalibration
     truth: np.ndarray | None = field(default=None)
     allow_negative: bool = True  # noisy or background-subtracted data dip below zero
@@ -78,7 +93,7 @@ class HistogramSet:
         self.calibration.offsets(data.shape[0])  # validates the per-detector offsets
         object.__setattr__(self, "data", _frozen(data))
         object.__setattr__(self, "detector_spots", _frozen(spots))
-        object.__setattr__(self, "laser_spot", _frozen(self.laser_spot, 3))
+        object.__setattr__(self, "laser_spot", _laser(self.laser_spot, data.shape[0]))
         if self.truth is not None:
             object.__setattr__(self, "truth", _frozen(self.truth, 3))
         if self.truths is not None:
@@ -98,6 +113,9 @@ class HistogramSet:
     def n_detectors(self) -> int:
         return self.data.shape[0]
 
+    paired = Layout.paired
+    laser_spots = Layout.laser_spots
+
     def with_data(self, data) -> "HistogramSet":
         return replace(self, data=data)
 
@@ -105,7 +123,9 @@ class HistogramSet:
         """The histograms of some detectors only (e.g. one detector's own probability map)."""
         rows = np.atleast_1d(np.asarray(rows, dtype=int))
         offsets = self.calibration.offsets(self.n_detectors)[rows]
+        laser = self.laser_spot[rows] if self.paired else self.laser_spot
         return replace(self, data=self.data[rows], detector_spots=self.detector_spots[rows],
+                       laser_spot=laser,
                        calibration=PathCalibration(self.calibration.a_m_per_s, offsets))
 
     def path_axis(self) -> PathAxis:
@@ -114,3 +134,20 @@ class HistogramSet:
     def hidden_path_axis(self) -> np.ndarray:
         """(n_detectors, n_bins) hidden path length r1 + r2 at each bin centre."""
         return self.path_axis().centres()
+
+
+def _laser(value, n: int) -> np.ndarray:
+    """A laser spot (3,) for every histogram, or one per histogram (n, 3), frozen."""
+    arr = np.array(value, dtype=np.float64)
+    if arr.size == 3 and arr.ndim <= 1:
+        return _frozen(arr, 3)
+    require(arr.shape == (n, 3), "histograms.laser_spot", f"expected (3,) (one laser for every "
+            f"histogram) or ({n}, 3) (one per histogram), got {arr.shape}",
+            "pass one laser point, or one per histogram row")
+    return _frozen(arr)
+
+
+def laser_spots_of(laser_spot, n: int) -> np.ndarray:
+    """(n, 3): the laser spot of each of n histograms."""
+    laser = np.asarray(laser_spot, dtype=np.float64)
+    return laser if laser.ndim == 2 else np.broadcast_to(laser, (n, 3))

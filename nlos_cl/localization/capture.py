@@ -24,7 +24,8 @@ from ..core.histograms import HistogramSet
 from ..core.tuning import auto_log_mode
 from ..io.ytal.frames import INTERNAL, CaptureFrame
 from .api import gauss_filter, locate
-from .estimate import Location
+from .estimate import Location, capabilities_of
+from .paper import PaperArgmax
 from .region import default_region, on_region_edge, region_step, zoom_region
 
 REGION_NAMES = ("region", "step_m")  # how errors name the region options (a CLI: its flags)
@@ -134,7 +135,8 @@ class PointLocation:
                     "extent_m": None if t.extent_m is None else rounded(t.extent_m)}
                    for t in loc.targets]
         return {"laser_point": self.laser_point,
-                "laser_spot": vector_json(self.laser_spot, frame),
+                "laser_spot": (vector_json(self.laser_spot, frame) if np.ndim(self.laser_spot) == 1
+                               else "paired: one per histogram (the capture's laser grid)"),
                 "position": targets[0]["position"], "targets": targets,
                 "truth": None if loc.truth is None else vector_json(loc.truth, frame),
                 "argmax_cell": vector_json(loc.cell_position, frame),
@@ -231,11 +233,16 @@ def _locate_point(i, hist, frame, region, derived, *, h_s, estimator, log_mode, 
     if derived and min(region.step) > region_step(hist, h_s) * 1.001:
         coarse = locate(filtered, region, log_mode=log_mode, estimator="paper")
         grid = zoom_region(coarse.position, region, hist, h_s)
+    notes = []
+    if hist.paired and not capabilities_of(estimator).paired:
+        notes.append(f"the {estimator.name} estimator fits layouts with one laser spot, and this "
+                     "capture gives each histogram its own: located with the paper's argmax")
+        estimator = PaperArgmax()
     with pywarnings.catch_warnings(record=True) as caught:
         pywarnings.simplefilter("always")
         loc = locate(filtered, grid, log_mode=log_mode, estimator=estimator, raw=raw,
                      return_map=return_map)
-    notes = [str(w.message) for w in caught]
+    notes += [str(w.message) for w in caught]
     if on_region_edge(loc.position, region):
         ranges = ", ".join(f"{a} {lo:.3g}..{hi:.3g} m"
                            for a, (lo, hi) in zip(frame.axes, frame.ranges(region)))

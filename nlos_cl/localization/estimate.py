@@ -92,12 +92,14 @@ class Capabilities:
     needs only the paper's estimate (`Scored.paper`), no score map at all (the Locator's fused
     search gives it in one read); is_paper: its answer *is* the paper's estimate (the Locator
     returns the fused search's estimate without calling it); needs_raw: it fits the unfiltered
-    histograms (`Scored.raw`)."""
+    histograms (`Scored.raw`); paired: it locates layouts whose histograms each have their own
+    laser spot (confocal and paired captures)."""
 
     local: bool = False
     from_paper: bool = False
     is_paper: bool = False
     needs_raw: bool = False
+    paired: bool = False
 
 
 NO_CAPABILITIES = Capabilities()  # an estimator that declares none: it gets the whole map

@@ -96,6 +96,10 @@ class Locator:
         self._geometry = (layout.detector_spots, layout.laser_spot, self._path0,
                           self._inv_dpath, self.log_mode, LOG_FLOOR)
         self.capabilities = capabilities_of(self.estimator)
+        require(self.capabilities.paired or not layout.paired, "estimator",
+                f"{self.estimator.name!r} fits layouts with one laser spot for every histogram, "
+                "and this one gives each histogram its own (a paired or confocal capture)",
+                "pass estimator='paper' (its argmax locates paired and confocal captures)")
         self.search = search if self.capabilities.local else "exhaustive"
         self._search = CoarseToFine(grid, self._inv_dpath, float(width))
         self._choice = SearchChoice(self.search if self._search.useful else "exhaustive")

@@ -17,7 +17,7 @@ class PaperArgmax:
     name = "paper"
     # the best cell's neighbourhood is all it reads, and its answer is what the Locator's fused
     # search computes on the device: a frame costs one small read
-    capabilities = Capabilities(local=True, is_paper=True)
+    capabilities = Capabilities(local=True, is_paper=True, paired=True)
 
     def estimate(self, scored: Scored, prior: Prior | None = None):
         """The argmax of `scored` (a prior changes nothing: the paper's estimate has no start)."""

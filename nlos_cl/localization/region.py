@@ -60,16 +60,17 @@ def visible_box(histograms: HistogramSet) -> tuple[np.ndarray, np.ndarray]:
     """(low, high) corners of the box around every point all detectors' windows reach."""
     h = histograms
     reach = h.path_axis().stop_m  # the hidden path at the end of the last bin
-    baseline = np.linalg.norm(h.detector_spots - h.laser_spot, axis=1)
+    lasers = h.laser_spots  # each histogram's (paired and confocal captures: its own)
+    baseline = np.linalg.norm(h.detector_spots - lasers, axis=1)
     i = int(np.argmin(reach - baseline))
     require(reach[i] > baseline[i], "time_axis",
             f"the window ends at a hidden path of {reach[i]:.3g} m for detector {i}, shorter "
             f"than the {baseline[i]:.3g} m between its spot and the laser spot: no hidden point "
             "is in view", "record a longer time window, or check the calibration (t_start)")
-    centre = 0.5 * (h.detector_spots + h.laser_spot)
+    centre = 0.5 * (h.detector_spots + lasers)
     semi_major = 0.5 * reach
     semi_minor2 = semi_major ** 2 - (0.5 * baseline) ** 2
-    u = (h.detector_spots - h.laser_spot) / np.maximum(baseline, 1e-12)[:, None]
+    u = (h.detector_spots - lasers) / np.maximum(baseline, 1e-12)[:, None]  # confocal: 0
     half = np.sqrt(semi_major[:, None] ** 2 * u ** 2 + semi_minor2[:, None] * (1 - u ** 2))
     return (centre - half).max(axis=0), (centre + half).min(axis=0)
 
@@ -82,7 +83,7 @@ def default_region(histograms: HistogramSet, h_s: float = PAPER_H_S, *,
     step = region_step(h, h_s)
     lo, hi = visible_box(h)
     lo[1] = max(lo[1], 0.0)
-    spots = np.vstack([h.laser_spot, h.detector_spots])
+    spots = np.vstack([h.laser_spots, h.detector_spots])
     line = _line_direction(spots)
     flat = None  # the internal axis collapsed to one plane, if height is unobservable
     if line is not None and abs(line[0]) > math.cos(math.radians(1)):

@@ -6,8 +6,10 @@ centres, 0 outside the record, negatives clipped), over the row's maximum. The j
 is the product over detectors, or the sum of log(max(v, log_floor)) in log mode.
 
 Signature (both backends): ellipse_score(signal, stats, spots, laser, path0, inv_dpath, grid,
-log_mode, log_floor) -> (nz, ny, nx) scores (a `ScoreMap` on the device). path0: hidden path
-at the centre of bin 0 per detector; inv_dpath: bins per metre of path.
+log_mode, log_floor) -> (nz, ny, nx) scores (a `ScoreMap` on the device). laser: (3,), every
+detector's laser spot, or (n_det, 3), each detector's own (paired and confocal captures: the
+kernels' -D PAIRED=1). path0: hidden path at the centre of bin 0 per detector; inv_dpath: bins
+per metre of path.
 """
 from __future__ import annotations
 
@@ -60,11 +62,12 @@ class ScoreMap:
 
 def _score_cells(cells, signal, stats, spots, laser, path0, inv_dpath, log_mode, log_floor):
     """The joint likelihood of (n, 3) cell centres, float64."""
-    r1 = np.linalg.norm(cells - laser, axis=1)
+    lasers = laser_rows(laser, len(spots))
     signal, stats = np.asarray(signal, np.float64), np.asarray(stats, np.float64)
     n_bins = signal.shape[1]
     joint = np.zeros(len(cells)) if log_mode else np.ones(len(cells))
     for d in range(signal.shape[0]):  # a loop over detectors; cells are vectorized
+        r1 = np.linalg.norm(cells - lasers[d], axis=1)
         u = (r1 + np.linalg.norm(cells - spots[d], axis=1) - path0[d]) * inv_dpath[d]
         i0 = np.floor(u).astype(np.int64)
         t = u - i0
@@ -75,6 +78,18 @@ def _score_cells(cells, signal, stats, spots, laser, path0, inv_dpath, log_mode,
         v = np.maximum(v0 + t * (v1 - v0), 0.0) * (1.0 / peak) if peak > 0 else np.zeros_like(u)
         joint = joint + np.log(np.maximum(v, log_floor)) if log_mode else joint * v
     return joint
+
+
+def laser_rows(laser, n_det: int) -> np.ndarray:
+    """(n_det, 3): each detector's laser spot, from one (3,) or one per detector (n_det, 3)."""
+    laser = np.asarray(laser, np.float64)
+    return np.broadcast_to(laser.reshape(-1, 3), (n_det, 3)) if laser.size == 3 else \
+        laser.reshape(n_det, 3)
+
+
+def paired(laser) -> int:
+    """The kernels' PAIRED option: 1 where each detector has its own laser spot."""
+    return int(np.asarray(laser).size > 3)
 
 
 def block_cells(grid, blocks, tile):
@@ -104,10 +119,11 @@ def detector_tiles(n_det: int) -> list[tuple[int, int]]:
     return [(d, min(d + DET_TILE, n_det)) for d in range(0, n_det, DET_TILE)]
 
 
-def _tiled(rt, n_det, log_mode, log_floor, launch):
+def _tiled(rt, n_det, log_mode, log_floor, launch, is_paired):
     for d0, d1 in detector_tiles(n_det):
         kern = rt.kernel("ellipse_score", launch.__name__, N_DET=d1 - d0,
-                         LOG_MODE=int(bool(log_mode)), LOG_FLOOR=f"{log_floor:.9e}f")
+                         LOG_MODE=int(bool(log_mode)), LOG_FLOOR=f"{log_floor:.9e}f",
+                         PAIRED=is_paired)
         launch(kern, np.int32(d0), np.int32(d0 > 0))
 
 
@@ -117,13 +133,15 @@ def opencl(rt, signal, stats, spots, laser, path0, inv_dpath, grid, log_mode=Fal
     from ..device.runtime import float4, float4_rows
     nx, ny, nz = grid.shape
     n_det, n_bins = signal.shape
+    is_paired = paired(laser)
     # float32 path lengths of ~10 m round to ~1e-6 m: ~0.003 of a 1 ps (0.3 mm) bin.
     axis = rt.constant(np.stack([path0, inv_dpath], axis=1))
     spots_buf = rt.constant(float4_rows(spots))
-    common = (signal, stats, spots_buf, float4(laser), axis, np.int32(n_bins),
+    lasers_buf = rt.constant(float4_rows(np.asarray(laser).reshape(-1, 3)))
+    common = (signal, stats, spots_buf, lasers_buf, axis, np.int32(n_bins),
               float4(grid.origin), float4(grid.step))
     if blocks is not None:
-        return _blocks(rt, common, grid, blocks, tile, n_det, log_mode, log_floor)
+        return _blocks(rt, common, grid, blocks, tile, n_det, log_mode, log_floor, is_paired)
     by_plane = nz > 1  # slabs of whole planes, or of rows of the single plane
     n, row_bytes = (nz, 4 * nx * ny) if by_plane else (ny, 4 * nx)
     groups = rt.groups(n, row_bytes, "a row of the score map")
@@ -138,11 +156,11 @@ def opencl(rt, signal, stats, spots, laser, path0, inv_dpath, grid, log_mode=Fal
             rt.run(kern, (-(-nx // CELLS_PER_ITEM), rows, planes), *common, np.int32(nx),
                    np.int32(rows), np.int32(0 if by_plane else a0),
                    np.int32(a0 if by_plane else 0), det0, acc, score)
-        _tiled(rt, n_det, log_mode, log_floor, ellipse_score)
+        _tiled(rt, n_det, log_mode, log_floor, ellipse_score, is_paired)
     return out
 
 
-def _blocks(rt, common, grid, blocks, tile, n_det, log_mode, log_floor):
+def _blocks(rt, common, grid, blocks, tile, n_det, log_mode, log_floor, is_paired):
     from pyopencl import cltypes
     tx, ty, tz = (int(v) for v in tile)
     first = np.zeros((len(blocks), 4), np.int32)
@@ -154,7 +172,7 @@ def _blocks(rt, common, grid, blocks, tile, n_det, log_mode, log_floor):
         rt.run(kern, (-(-tx // CELLS_PER_ITEM), ty, len(blocks) * tz), *common,
                cltypes.make_int4(*grid.shape, 0), first_buf, cltypes.make_int4(tx, ty, tz, 0),
                det0, acc, out)
-    _tiled(rt, n_det, log_mode, log_floor, ellipse_score_blocks)
+    _tiled(rt, n_det, log_mode, log_floor, ellipse_score_blocks, is_paired)
     return out
 
 
@@ -166,10 +184,13 @@ def _log_error(device, twin) -> float:
     return float(np.abs(device - twin)[lit].max()) if lit.any() else float("inf")
 
 
-def _point_target_inputs(grid, n_det=3, n_bins=3000, dt_m=3e-3, target=(4.0, 2.0, 0.0)):
+def _point_target_inputs(grid, n_det=3, n_bins=3000, dt_m=3e-3, target=(4.0, 2.0, 0.0),
+                         pairing=None):
     """Smooth, filtered-looking rows: a Gaussian of 10 cm around the path of a point target
     (the width of a filtered signal) and a negative stretch at the start of the record (the
-    kernel clips it to 0); path0 puts the record around the target's paths."""
+    kernel clips it to 0); path0 puts the record around the target's paths. pairing: None (one
+    laser at the origin), "confocal" (each detector its own laser spot, the same point) or
+    "paired" (each its own laser spot elsewhere on the wall)."""
     if n_det <= 8:  # the paper's line, slightly staggered in height
         spots = np.array([[-0.5 - 0.5 * d, 0.0, 0.1 * (d % 3 - 1)] for d in range(n_det)])
     else:  # a square SPAD-array patch
@@ -177,7 +198,11 @@ def _point_target_inputs(grid, n_det=3, n_bins=3000, dt_m=3e-3, target=(4.0, 2.0
         spots = np.array([[x, 0.0, z] for x in np.linspace(-1.6, -0.4, side)
                           for z in np.linspace(-0.6, 0.6, side)])[:n_det]
     laser, p = np.zeros(3), np.asarray(target)
-    path = np.linalg.norm(p - laser) + np.linalg.norm(p - spots, axis=1)
+    if pairing == "confocal":
+        laser = spots.copy()
+    elif pairing == "paired":
+        laser = spots[::-1] + np.array([0.3, 0.0, 0.05])
+    path = np.linalg.norm(p - laser, axis=-1) + np.linalg.norm(p - spots, axis=1)
     path0 = path - 0.5 * n_bins * dt_m
     centres = path0[:, None] + dt_m * np.arange(n_bins)[None, :]
     rows = np.exp(-0.5 * ((centres - path[:, None]) / 0.1) ** 2).astype(np.float32)
@@ -246,7 +271,11 @@ def examples(size):
                                                                           n_bins=1000))
                 + _both_modes("volume tiles of 11x11x11 cells", _with_blocks(
                     _point_target_inputs(volume), [[0, 0, 0], [33, 33, 11], [16, 20, 5]],
-                    (11, 11, 11)), masked=True))
+                    (11, 11, 11)), masked=True)
+                + _both_modes("plane 301x300, confocal", _point_target_inputs(
+                    plane, n_det=5, pairing="confocal"))
+                + _both_modes("volume 41x41x21, paired", _point_target_inputs(
+                    volume, n_det=4, pairing="paired")))
     plane = Grid((3.8, 1.92, 0.0), (0.02, 0.02, 0.02), (21, 5, 1))  # a partial 8-cell block
     volume = Grid((3.85, 1.94, -0.04), (0.02, 0.04, 0.04), (16, 4, 3))  # whole blocks only
     wide = Grid((2.0, 0.3, 0.0), (0.25, 0.25, 0.25), (19, 15, 1))  # paths past both record ends
@@ -265,7 +294,12 @@ def examples(size):
             + _both_modes(f"{DET_TILE + 4} detectors: two detector tiles", many)
             + _both_modes("tiles of 9x3x2 cells past the grid's edges", tiles, masked=True)
             + _both_modes("tiles, two detector tiles", _with_blocks(
-                many, [[3, 1, 0], [16, 3, 0]], (8, 3, 1)), masked=True))
+                many, [[3, 1, 0], [16, 3, 0]], (8, 3, 1)), masked=True)
+            + _both_modes("paired, two detector tiles", _point_target_inputs(
+                plane, n_det=DET_TILE + 4, pairing="paired", **small))
+            + _both_modes("confocal tiles", _with_blocks(_point_target_inputs(
+                volume, pairing="confocal", **small), [[-1, -1, -1], [10, 2, 1]], (9, 3, 2)),
+                masked=True))
 
 
 OP = Operation(

@@ -94,11 +94,12 @@ def opencl(rt, signal, dilated, stats, spots, laser, path0, inv_dpath, grid, fac
     if coarse.n_cells > MAX_COARSE:
         raise ValueError(f"fused_search: {coarse.n_cells} coarse cells, more than {MAX_COARSE}")
     defines = dict(N_DET=n_det, LOG_MODE=int(bool(log_mode)), LOG_FLOOR=f"{log_floor:.9e}f",
-                   WG=WG, SLACK=f"{SLACK:.9e}f")  # one program for both kernels
+                   WG=WG, SLACK=f"{SLACK:.9e}f", PAIRED=es.paired(laser))  # both kernels
     path0, inv_dpath = np.asarray(path0, np.float64), np.asarray(inv_dpath, np.float64)
     axis = rt.constant(np.stack([path0, inv_dpath], axis=1))
     wide = rt.constant(np.stack([path0 - half / inv_dpath, inv_dpath], axis=1))
-    spots_buf, laser4 = rt.constant(float4_rows(spots)), _f4(laser)
+    spots_buf = rt.constant(float4_rows(spots))
+    laser4 = rt.constant(float4_rows(np.asarray(laser).reshape(-1, 3)))
     exact, bound, blocks = rt.resource(("fused_search", coarse.n_cells), lambda: (
         rt.empty((cz, cy, cx)), rt.empty((cz, cy, cx)), rt.empty((coarse.n_cells,), np.int32)))
     rt.run(rt.kernel("fused_search", "coarse_pair", **defines), (-(-cx // 8), cy, cz), signal,
@@ -116,10 +117,12 @@ def opencl(rt, signal, dilated, stats, spots, laser, path0, inv_dpath, grid, fac
 
 # ---------------------------------------------------------------------------- examples
 
-def _inputs(grid, factors, half_m=None, n_det=3, n_bins=200, target=(4.0, 2.0, 0.0)):
+def _inputs(grid, factors, half_m=None, n_det=3, n_bins=200, target=(4.0, 2.0, 0.0),
+            pairing=None):
     """ellipse_score's point-target rows, dilated by the path spread of a block."""
     from .max_filter import numpy as dilate
-    base = es._point_target_inputs(grid, n_det=n_det, n_bins=n_bins, target=target)
+    base = es._point_target_inputs(grid, n_det=n_det, n_bins=n_bins, target=target,
+                                   pairing=pairing)
     host = base(_Host())
     radius = 0.5 * np.sqrt(sum(((f - 1) * s) ** 2 for f, s in zip(factors, grid.step)))
     half = int(np.ceil(2 * (half_m or radius) * float(np.max(host[5])) + 0.01)) + 1
@@ -156,13 +159,16 @@ def examples(size):
     cases = [("plane, partial blocks", plane, (5, 5, 1)), ("best cell on the grid's edge", edge,
                                                            (3, 3, 1)),
              ("volume, blocks of 3x3x3", volume, (3, 3, 3)),
-             ("blocks of 9 cells per row", wide, (9, 9, 1))]
+             ("blocks of 9 cells per row", wide, (9, 9, 1)),
+             ("confocal volume, blocks of 3x3x3", volume, (3, 3, 3), "confocal"),
+             ("paired plane, partial blocks", plane, (5, 5, 1), "paired")]
     if size != "tiny":
         big = Grid.from_ranges(x=(2.0, 6.0), y=(0.5, 4.0), step_m=0.01)
         cases.append(("400x350 plane, blocks of 5", big, (5, 5, 1)))
     out = []
-    for label, grid, fa in cases:
-        inputs = _inputs(grid, fa, n_bins=2000 if size != "tiny" else 400)
+    for label, grid, fa, *pairing in cases:
+        inputs = _inputs(grid, fa, n_bins=2000 if size != "tiny" else 400,
+                         pairing=pairing[0] if pairing else None)
         out += [Example(f"{label}, product", inputs, 1e-3, _same_cell),
                 Example(f"{label}, log", (lambda i: lambda be: i(be, True))(inputs), 3e-3,
                         _same_cell)]

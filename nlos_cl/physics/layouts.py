@@ -68,8 +68,9 @@ def spad_patch(centre, counts=(32, 32), pitch_m=(0.0375, 0.0375)) -> np.ndarray:
 
 
 def height_observable(laser_spot, detector_spots, tolerance_m: float = 1e-6) -> bool:
-    """False when the laser spot and every detector spot lie on one line (height invisible)."""
-    pts = np.vstack([np.asarray(laser_spot, float).reshape(1, 3),
+    """False when the laser spot(s) and every detector spot lie on one line (height invisible).
+    laser_spot: one (3,), or one per histogram (n, 3)."""
+    pts = np.vstack([np.asarray(laser_spot, float).reshape(-1, 3),
                      np.asarray(detector_spots, float).reshape(-1, 3)])
     centred = pts - pts.mean(axis=0)
     if len(pts) < 3:
