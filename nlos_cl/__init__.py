@@ -25,6 +25,7 @@ _EXPORTS = {
     ".ops.signals": ("Signals", "upload"),
     ".io.calibration": ("CalibrationFit", "fit_calibration", "peak_times", "with_calibration"),
     ".io.ytal.capture": ("read_capture", "write_capture"),
+    ".io.datasets": ("read_dataset",),
     ".simulation.frame": ("add_noise", "simulate"),
     ".localization.api": ("gauss_filter", "gauss_fit", "locate"),
     ".localization.background": ("subtract_background",),

@@ -76,6 +76,18 @@ def truncated_capture():
     return path
 
 
+def ccsocr_folder():
+    """A tiny CC-SOCR pattern folder (sub_Sig.mat, C_i.mat, C_d.mat)."""
+    import tempfile
+
+    import scipy.io
+    out = Path(tempfile.mkdtemp())
+    for name, value in (("sub_Sig", np.ones((3, 50))), ("C_i", [[0, 1, 1], [0, 2, 1], [0, 3, 1]]),
+                        ("C_d", [[0, 9, 9]] * 3)):
+        scipy.io.savemat(out / f"{name}.mat", {name: np.asarray(value, np.uint16)})
+    return str(out)
+
+
 def replace_field(name, value):
     def edit(f):
         del f[name]
@@ -264,9 +276,16 @@ CASES = [
      lambda: region.default_region(histograms(np.ones((3, 100))))),
     ("a grid in a capture's frame that reaches behind the wall", "grid.Z",
      lambda: frames.YTAL.grid([(-1, 1), (0, 0), (-1, 3)], step_m=0.1)),
-    ("a confocal capture", "confocal",
-     lambda: nl.read_capture(capture_file(replace_field("laser_grid_xyz",
-                                                        nl.capture.to_ytal(SPOTS).astype(np.float32))))),
+    ("a capture with 2 laser points for 3 sensor points (neither one nor one each)",
+     "laser_grid_xyz: has 2 points",
+     lambda: nl.read_capture(capture_file(replace_field("laser_grid_xyz", np.float32(
+         [[0, 0, 0], [0.5, 0, 0]]))))),
+    ("a Fourier-domain y-tal capture (complex H)", "H: has dtype complex64: a Fourier-domain",
+     lambda: nl.read_capture(capture_file(replace_field("H", np.ones((100, 3), np.complex64))))),
+    ("nlos-cl convert of a folder that is no known dataset", "is a folder without sub_Sig.mat",
+     lambda: cli("convert", folder("downloads"), "--out", "x.h5")),
+    ("nlos-cl convert --width for a CC-SOCR folder", "--width: is not an option",
+     lambda: cli("convert", ccsocr_folder(), "--out", "x.h5", "--width", 1)),
     ("too few calibration pairs", "calibration pairs",
      lambda: nl.fit_calibration([1.0, 2.0], [1e-9, 2e-9])),
     ("calibration peak times in nanoseconds", "peak times in nanoseconds",

@@ -178,12 +178,14 @@ def test_truncated_file_is_a_clear_error(paper_hist, tmp_path, keep):
     assert path.read_bytes() == cut
 
 
-def test_confocal_capture_is_refused(paper_hist, tmp_path):
+def test_confocal_capture_reads_as_one_paired_set(paper_hist, tmp_path):
+    """(Refused before issue 21.) A laser grid equal to the sensor grid is y-tal's confocal
+    capture: one set, each histogram's laser spot its own detector spot."""
     def confocal(f):
         del f["laser_grid_xyz"]
         f["laser_grid_xyz"] = f["sensor_grid_xyz"][()]
-    with pytest.raises(nl.InputError, match="confocal"):
-        nl.read_capture(broken(tmp_path, paper_hist, confocal))
+    [h] = nl.read_capture(broken(tmp_path, paper_hist, confocal))
+    assert h.paired and np.allclose(h.laser_spots, h.detector_spots)
 
 
 def test_cli_simulate_then_locate(tmp_path):

@@ -1,5 +1,5 @@
-"""The `nlos-cl` command: info, demo, bench, reproduce, simulate, locate, calibrate, track,
-sweep.
+"""The `nlos-cl` command: info, demo, bench, reproduce, simulate, convert, locate, calibrate,
+track, sweep.
 
 A thin argparse layer: every command's work lives in nlos_cl/apps, imported only when that
 command runs, so `nlos-cl --help` and `nlos-cl locate` pay for no import they do not use.
@@ -142,6 +142,30 @@ def _simulate_args(p):
                    help="frame rate of --frames (frame k at t = k / fps)")
 
 
+def _convert_args(p):
+    p.add_argument("src", help="the dataset as downloaded: a CC-SOCR folder (sub_Sig.mat, "
+                   "C_i.mat, C_d.mat) or an LCT .mat (rect_data, width)")
+    p.add_argument("--out", required=True, help="the y-tal .h5 capture to write (atomically)")
+    p.add_argument("--format", choices=["ccsocr", "lct"], default=None,
+                   help="the dataset's format (default: detected)")
+    p.add_argument("--force", action="store_true", help="replace a file that is not a capture")
+    p.add_argument("--dt-ps", type=_number("dt_ps", "pass picoseconds, e.g. 16", positive=True),
+                   default=None, help="bin width (ps; default: the dataset's, ccsocr 16, lct 4)")
+    p.add_argument("--t0-ps", type=_number("t0_ps", "pass picoseconds, e.g. 0"), default=None,
+                   help="time of bin 0 after the wall bounce (ps; default 0)")
+    p.add_argument("--width", type=_number("width_m", "pass metres, e.g. 0.35", positive=True),
+                   default=None, help="lct: half side of the scanned square (m; default: the "
+                   "file's `width`)")
+    p.add_argument("--grid-m", type=_number("grid_m", "pass metres, e.g. 0.01", positive=True),
+                   default=None, help="ccsocr: metres per wall index (default 0.01)")
+    p.add_argument("--transpose", action="store_true", help="lct: swap the scan's two axes")
+    p.add_argument("--flip", choices=["x", "z", "xz"], default=None,
+                   help="lct: reverse these wall axes of the scan")
+    p.add_argument("--gate-bins", type=_number("gate_bins", "pass a bin count, e.g. 600",
+                                               minimum=0, integer=True), default=None,
+                   help="lct: zero the first N bins (the direct return; upstream zeroes 600)")
+
+
 def _locate_args(p):
     p.add_argument("file")
     p.add_argument("--region", type=_number("region", "pass finite ranges in metres"), nargs=6,
@@ -231,6 +255,8 @@ COMMANDS = {
     "simulate": ("simulate a scene file (or the paper's scene) into a y-tal capture",
                  _simulate_args, True, False,
                  "files:simulate"),
+    "convert": ("convert a measured dataset as downloaded (ccsocr, lct) into a y-tal capture",
+                _convert_args, False, False, "convert:main"),
     "locate": ("locate the target of a y-tal capture", _locate_args, True, True, "files:locate"),
     "calibrate": ("fit path = a t + b (paper Eq. 26) from pairs", _calibrate_args, False, True,
                   "files:calibrate"),

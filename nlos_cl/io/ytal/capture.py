@@ -4,7 +4,9 @@ The field-by-field mapping, the frames and the safety rules are in docs/captures
 H is time-first (T_Si, T_Sx_Sy, T_Lx_Ly_Sx_Sy, T_Li_Si), delta_t and t_start are metres of
 optical path, our metadata rides in scene_info['nlos_cl'], and y-tal's frame (wall Z = 0) maps
 to ours by (x, y, z) = (-X, Z, Y). Writes are atomic; reads check truncation, sizes and
-geometry; several laser points give one HistogramSet each; confocal captures are refused.
+geometry. Pairings follow y-tal (pairing.py): one laser point -> one set; paired or confocal
+(one laser point per sensor point) -> one set with a laser spot per histogram; exhaustive
+(T_Lx_Ly_Sx_Sy, T_Li_Si) -> one set per laser point, or with joint=True one paired set.
 """
 from __future__ import annotations
 
@@ -24,7 +26,9 @@ def write_capture(path, histograms: HistogramSet, *, device_distance_m: float = 
                   metadata: dict | None = None, compression: int = 4, force: bool = False
                   ) -> Path:
     """Write one HistogramSet as a y-tal capture (H_format T_Si, sensor grid N_3); one t_start
-    for all sensors. Our exact time axis, calibration, truth and `metadata` ride in
+    for all sensors. A paired set (laser_spot (N, 3)) gets one laser_grid_xyz row per
+    histogram, so y-tal reads it as is_laser_paired_to_sensor (is_confocal where laser =
+    detector point). Our exact time axis, calibration, truth and `metadata` ride in
     scene_info['nlos_cl']. Atomic (see nlos_cl.io.safe_write.atomic_write: Ctrl-C leaves the old file,
     a concurrent writer's file is never silently lost); a non-capture file needs force=True."""
     import h5py
@@ -51,14 +55,18 @@ def check_writable(h: HistogramSet, device_distance_m) -> None:
             "device_distance_m", f"must be a positive distance, got {device_distance_m!r}", "20.0")
 
 
-def read_capture(path, *, max_bytes: int | None = None) -> list[HistogramSet]:
-    """One HistogramSet per laser point of a y-tal capture (the file is opened read-only).
+def read_capture(path, *, max_bytes: int | None = None, joint: bool = False
+                 ) -> list[HistogramSet]:
+    """The HistogramSets of a y-tal capture (the file is opened read-only): one for a single
+    laser point, and one paired set (laser_spot (N, 3)) for a paired or confocal capture; an
+    exhaustive capture (laser grid x sensor grid) gives one set per laser point, or with
+    `joint=True` one paired set of every laser/sensor pair (row i * S + j: laser i, sensor j).
     Our own metadata (from write_capture), where it agrees with the y-tal fields, restores the
     exact time axis and calibration. `max_bytes`: memory H may take (default half of RAM)."""
-    return read_capture_with_frame(path, max_bytes=max_bytes)[0]
+    return read_capture_with_frame(path, max_bytes=max_bytes, joint=joint)[0]
 
 
-def read_capture_with_frame(path, *, max_bytes: int | None = None
+def read_capture_with_frame(path, *, max_bytes: int | None = None, joint: bool = False
                             ) -> tuple[list[HistogramSet], CaptureFrame]:
     """read_capture's sets (internal frame) and the file's own frame, to give and report
     positions, grids and regions in the file's coordinates."""
@@ -75,7 +83,7 @@ def read_capture_with_frame(path, *, max_bytes: int | None = None
                     "write every field of y-tal's NLOSCaptureData (see nlos_cl.io.ytal.capture)")
             check_memory(f, path, max_bytes)
             fields = {k: dataset(f, k, path) for k in f.keys() if k != "H"}
-            sets = to_histograms(fields, f["H"], path)
+            sets = to_histograms(fields, f["H"], path, joint=joint)
     except InputError:
         raise
     except (OSError, RuntimeError, LookupError, ValueError, TypeError, AttributeError,

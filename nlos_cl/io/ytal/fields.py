@@ -12,6 +12,7 @@ from ...core.constants import SPEED_OF_LIGHT
 from ...core.errors import InputError, require
 from ...core.histograms import HistogramSet, PathCalibration, TimeAxis
 from .frames import YTAL, check_wall_spots, from_ytal, to_ytal
+from .pairing import check_h_format, plan, read_block
 
 H_FORMATS = {"UNKNOWN": 0, "T_Sx_Sy": 1, "T_Lx_Ly_Sx_Sy": 2, "T_Si": 3, "T_Li_Si": 4}
 
@@ -49,9 +50,12 @@ def write_fields(f, h: HistogramSet, device_distance_m, metadata, compression):
     f["sensor_grid_xyz"] = spots.astype(np.float32)
     f["sensor_grid_normals"] = np.tile(wall_normal, (h.n_detectors, 1)).astype(np.float32)
     enum(f, "sensor_grid_format", GRID_FORMATS, "N_3")
-    f["laser_xyz"] = (laser + device_distance_m * wall_normal).astype(np.float32)
-    f["laser_grid_xyz"] = laser.reshape(1, 3).astype(np.float32)
-    f["laser_grid_normals"] = wall_normal.reshape(1, 3).astype(np.float32)
+    # paired: one laser point per sensor point, in the sensor grid's shape and format, which is
+    # what y-tal's is_laser_paired_to_sensor() (and is_confocal(), laser = sensor) checks
+    laser = laser.reshape(-1, 3)
+    f["laser_xyz"] = (laser.mean(axis=0) + device_distance_m * wall_normal).astype(np.float32)
+    f["laser_grid_xyz"] = laser.astype(np.float32)
+    f["laser_grid_normals"] = np.tile(wall_normal, (len(laser), 1)).astype(np.float32)
     enum(f, "laser_grid_format", GRID_FORMATS, "N_3")
     f["delta_t"] = np.float32(a * axis.dt_s)
     f["t_start"] = np.float32(a * (axis.t0_s + 0.5 * axis.dt_s) + offsets[0])  # bin centre 0
@@ -124,8 +128,8 @@ def dataset(f, key, path):
     if obj.shape is None:  # h5py.Empty: y-tal's None
         return None
     value, members = obj[()], h5py.check_enum_dtype(obj.dtype)
-    if members is not None:
-        return {v: k for k, v in members.items()}.get(int(np.ravel(value)[0]), "UNKNOWN")
+    if members is not None:  # the stored number: y-tal's names changed (T_Si_Li -> T_Li_Si)
+        return int(np.ravel(value)[0])
     return value
 
 
@@ -162,9 +166,11 @@ def scalar(value, field, path):
     return x
 
 
-def to_histograms(fields, H, path) -> list[HistogramSet]:
-    """H (unread): shapes are checked first, then it is read one laser point at a time."""
+def to_histograms(fields, H, path, joint=False) -> list[HistogramSet]:
+    """H (unread): shapes are checked first, then it is read one HistogramSet at a time (one
+    laser point at a time for exhaustive captures; see pairing.py for y-tal's pairings)."""
     where = f"capture {path}"
+    check_h_format(fields["H_format"], H, path)
     h_format = enum_name(fields["H_format"], H_FORMATS, "H_format", path)
     require(H.shape is not None and (np.issubdtype(H.dtype, np.floating)
             or np.issubdtype(H.dtype, np.integer)), f"{where}: H",
@@ -172,6 +178,35 @@ def to_histograms(fields, H, path) -> list[HistogramSet]:
             "store H as float32")
     sensors = float_array(fields["sensor_grid_xyz"], "sensor_grid_xyz", path)
     lasers = float_array(fields["laser_grid_xyz"], "laser_grid_xyz", path)
+    formats = tuple(fields.get(k) for k in ("sensor_grid_format", "laser_grid_format"))
+    blocks = plan(h_format, H.shape, sensors, lasers, formats, path, joint)
+    axis = time_axis(fields, H.shape[0], path)
+    sensors, lasers = sensors.reshape(-1, 3), lasers.reshape(-1, 3)
+    spots, laser_points = from_ytal(sensors), from_ytal(lasers)
+    paired = blocks[0].paired and not joint  # joint rows: the grids are checked unpaired
+    check_wall_spots(laser_points, spots, YTAL, paired=paired, laser_field="laser_grid_xyz",
+                     spots_field="sensor_grid_xyz", prefix=f"{where}: ")
+    legs = first_and_last_legs(fields, sensors, lasers, path)
+    ours = our_metadata(fields.get("scene_info")) if len(blocks) == 1 else None
+    sets = []
+    for i, block in enumerate(blocks):
+        data = read_block(H, block)
+        bad = int(data.size - np.count_nonzero(np.isfinite(data)))
+        require(bad == 0, f"{where}: H", f"{bad} values are NaN or inf"
+                + (f" (laser point {i})" if len(blocks) > 1 else ""),
+                "replace missing bins by 0 before writing")
+        calibration = PathCalibration(SPEED_OF_LIGHT, -(legs[0][block.sensors]
+                                                        + legs[1][block.lasers]))
+        exact = restore(ours, axis, calibration) if ours else (axis, calibration, None, True)
+        laser = laser_points[block.lasers] if block.paired else laser_points[block.lasers[0]]
+        sets.append(HistogramSet(data, exact[0], spots[block.sensors], laser, exact[1],
+                                 truth=exact[2], allow_negative=exact[3]))
+    return sets
+
+
+def time_axis(fields, n_t, path) -> TimeAxis:
+    """y-tal's delta_t and t_start (metres of optical path; t_start is bin 0's centre)."""
+    where = f"capture {path}"
     delta_t = scalar(fields["delta_t"], "delta_t", path)
     t_start = scalar(fields["t_start"], "t_start", path)
     require(delta_t > 0, f"{where}: delta_t", f"must be positive, got {delta_t}",
@@ -181,68 +216,30 @@ def to_histograms(fields, H, path) -> list[HistogramSet]:
             " m)", "multiply delta_t and t_start by c")
     require(abs(t_start) < 1e5, f"{where}: t_start", f"is {t_start:.3g} m",
             "store t_start in metres of optical path")
-    slices, laser_points = arrange(h_format, H.shape, sensors, lasers, path)
-    spots = from_ytal(sensors.reshape(-1, 3))
-    check_wall_spots(from_ytal(laser_points), spots, YTAL, laser_field="laser_grid_xyz",
-                     spots_field="sensor_grid_xyz", prefix=f"{where}: ")
-    legs = np.zeros(len(spots)), np.zeros(len(laser_points))
-    if bool(np.ravel(np.asarray(fields["t_accounts_first_and_last_bounces"]))[0]):
-        require(fields.get("laser_xyz") is not None and fields.get("sensor_xyz") is not None,
-                f"{where}: laser_xyz", "t_accounts_first_and_last_bounces is set but "
-                "the device positions are missing", "store laser_xyz and sensor_xyz")
-        lxyz = float_array(fields["laser_xyz"], "laser_xyz", path).reshape(3)
-        sxyz = float_array(fields["sensor_xyz"], "sensor_xyz", path).reshape(3)
-        legs = (np.linalg.norm(sensors.reshape(-1, 3) - sxyz, axis=1),
-                np.linalg.norm(laser_points - lxyz, axis=1))
-    n_t = H.shape[0]
-    axis = TimeAxis((t_start - 0.5 * delta_t) / SPEED_OF_LIGHT, delta_t / SPEED_OF_LIGHT, n_t)
-    ours = our_metadata(fields.get("scene_info")) if len(laser_points) == 1 else None
-    sets = []
-    for i, (index, laser) in enumerate(zip(slices, laser_points)):
-        data = np.asarray(H[index], dtype=np.float64).reshape(n_t, -1).T
-        bad = int(data.size - np.count_nonzero(np.isfinite(data)))
-        require(bad == 0, f"{where}: H", f"{bad} values are NaN or inf"
-                + (f" (laser point {i})" if len(slices) > 1 else ""),
-                "replace missing bins by 0 before writing")
-        calibration = PathCalibration(SPEED_OF_LIGHT, -(legs[0] + legs[1][i]))
-        exact = restore(ours, axis, calibration) if ours else (axis, calibration, None, True)
-        sets.append(HistogramSet(data, exact[0], spots, from_ytal(laser), exact[1],
-                                 truth=exact[2], allow_negative=exact[3]))
-    return sets
+    return TimeAxis((t_start - 0.5 * delta_t) / SPEED_OF_LIGHT, delta_t / SPEED_OF_LIGHT,
+                    n_t)
 
 
-def arrange(h_format, shape, sensors, lasers, path):
-    """Per laser point, the index into H of its (time, sensors...) block; the laser points."""
-    where, n_t = f"capture {path}: H", shape[0] if len(shape) else 0
-    n_s = int(np.prod(sensors.shape[:-1]))
-    laser_points = lasers.reshape(-1, 3)
-    if h_format in ("T_Si", "T_Sx_Sy"):
-        expect = (n_t,) + sensors.shape[:-1]
-        require(tuple(shape) == expect, where, f"has shape {shape}, but sensor_grid_xyz "
-                f"{sensors.shape} needs {expect}",
-                "store H with the time axis first, then the sensor grid's shape")
-        require(len(laser_points) == 1 or len(laser_points) != n_s
-                or not np.allclose(laser_points, sensors.reshape(-1, 3)),
-                f"capture {path}: laser_grid_xyz", "is paired with the sensor grid (a confocal "
-                "capture)", "nlos_cl needs one laser spot per set of histograms: use a "
-                "non-confocal capture")
-        require(len(laser_points) == 1, f"capture {path}: laser_grid_xyz",
-                f"has {len(laser_points)} points for H_format {h_format}",
-                "store one laser point, or use H_format T_Lx_Ly_Sx_Sy / T_Li_Si")
-        slices = [()]
-    elif h_format == "T_Lx_Ly_Sx_Sy":
-        expect = (n_t,) + lasers.shape[:-1] + sensors.shape[:-1]
-        require(tuple(shape) == expect, where, f"has shape {shape}, expected {expect}",
-                "store H as (T, Lx, Ly, Sx, Sy)")
-        slices = [(slice(None),) + tuple(int(v) for v in np.unravel_index(i, lasers.shape[:-1]))
-                  for i in range(len(laser_points))]
-    else:  # T_Li_Si
-        expect = (n_t, len(laser_points), n_s)
-        require(tuple(shape) == expect, where, f"has shape {shape}, expected {expect}",
-                "store H as (T, Li, Si)")
-        slices = [(slice(None), i) for i in range(len(laser_points))]
-    require(n_t >= 2, where, f"has {n_t} time bins", "store at least 2 time bins")
-    return slices, laser_points
+def first_and_last_legs(fields, sensors, lasers, path):
+    """Per sensor point and per laser point (y-tal frame, flattened), the device legs to
+    remove when t_accounts_first_and_last_bounces is set; zeros otherwise. Device origins
+    stored empty (h5py.Empty, y-tal's None, or a 0-size array) are unknown, not an error,
+    unless these legs need them."""
+    legs = np.zeros(len(sensors)), np.zeros(len(lasers))
+    if not bool(np.ravel(np.asarray(fields["t_accounts_first_and_last_bounces"]))[0]):
+        return legs
+    lxyz, sxyz = (origin(fields.get(k)) for k in ("laser_xyz", "sensor_xyz"))
+    require(lxyz is not None and sxyz is not None, f"capture {path}: laser_xyz",
+            "t_accounts_first_and_last_bounces is set but the device positions are missing",
+            "store laser_xyz and sensor_xyz")
+    lxyz = float_array(lxyz, "laser_xyz", path).reshape(3)
+    sxyz = float_array(sxyz, "sensor_xyz", path).reshape(3)
+    return np.linalg.norm(sensors - sxyz, axis=1), np.linalg.norm(lasers - lxyz, axis=1)
+
+
+def origin(value):
+    """A device origin as stored, or None where it is empty (unknown)."""
+    return None if value is None or np.size(value) == 0 else value
 
 
 def our_metadata(info):

@@ -93,11 +93,12 @@ def from_ytal(points) -> np.ndarray:
     return YTAL.to_internal(points)
 
 
-def check_wall_spots(laser, spots, frame: CaptureFrame = INTERNAL, *, laser_field="laser_spot",
-                     spots_field="detector_spots", prefix="") -> None:
+def check_wall_spots(laser, spots, frame: CaptureFrame = INTERNAL, *, paired=False,
+                     laser_field="laser_spot", spots_field="detector_spots", prefix="") -> None:
     """nl.Setup's rules for spots a file declares (internal coordinates, messages in the
     file's): on the wall within WALL_TOLERANCE_M, no two detectors on one spot, none on the
-    laser spot."""
+    laser spot. Paired (laser row k with spot row k): no two rows the same pair instead; a
+    laser on its own spot is the confocal layout, and N lasers may share one detector."""
     laser = np.asarray(laser, dtype=np.float64).reshape(-1, 3)
     spots = np.asarray(spots, dtype=np.float64).reshape(-1, 3)
     wall = frame.axes[int(np.argmax(np.abs(np.asarray(frame.matrix)[1])))]
@@ -109,6 +110,9 @@ def check_wall_spots(laser, spots, frame: CaptureFrame = INTERNAL, *, laser_fiel
                 f"relay wall {wall} = 0 (tolerance {WALL_TOLERANCE_M} m), but the ellipse model "
                 "puts every spot on the wall", f"store wall points with {wall} = 0 (shift the "
                 f"file's frame so that the relay wall is the plane {wall} = 0)")
+    if paired:
+        _check_pairs(laser, spots, frame, spots_field, prefix)
+        return
     pair = coincident_pair(spots, SAME_SPOT_M)
     require(pair is None, f"{prefix}{spots_field}",
             "points {} and {} are the same spot {}, so their ellipses carry the same "
@@ -120,6 +124,20 @@ def check_wall_spots(laser, spots, frame: CaptureFrame = INTERNAL, *, laser_fiel
             f"a detector spot coincides with the laser spot {_fmt(frame.from_internal(laser[0]))}"
             " (the direct wall return would swamp it)", "move that sensor point off the laser "
             "point, or drop it")
+
+
+def _check_pairs(laser, spots, frame, spots_field, prefix) -> None:
+    """Two rows with the same (laser, detector) pair carry the same information. Pairs are
+    compared on a SAME_SPOT_M lattice (a pair a hair across a cell edge is missed; float32
+    files resolve ~1e-6 m, so repeated points land in one cell)."""
+    keys = np.round(np.hstack([laser, spots]) / SAME_SPOT_M)
+    _, first, counts = np.unique(keys, axis=0, return_index=True, return_counts=True)
+    require(bool(np.all(counts == 1)), f"{prefix}{spots_field}",
+            f"{int((counts > 1).sum())} laser/sensor pairs appear twice (e.g. row "
+            f"{int(first[np.argmax(counts > 1)]) if len(counts) else 0}: laser "
+            f"{_fmt(frame.from_internal(laser[first[np.argmax(counts > 1)]]))}), so their "
+            "ellipses carry the same information", "keep each laser/sensor pair once (sum "
+            "repeated measurements)")
 
 
 def require_locatable(histograms: HistogramSet, field: str = "histograms.detector_spots"

@@ -94,7 +94,7 @@ class Sequence:
                         f" GiB, more than the {limit / 2**30:.3g} GiB allowed", "crop the frames")
                 fields = {k: dataset(f, k, self.path) for k in REQUIRED + ("scene_info",)
                           if k in f and k != "H"}
-                for k in ("laser_xyz", "sensor_xyz"):
+                for k in ("laser_xyz", "sensor_xyz", "sensor_grid_format", "laser_grid_format"):
                     if k in f:
                         fields[k] = dataset(f, k, self.path)
                 self.t_s = np.asarray(f["frame_t_s"][()], dtype=np.float64).reshape(-1)
@@ -104,7 +104,10 @@ class Sequence:
                         "write it again")
                 sets = to_histograms(fields, _FrameView(H, 0), self.path)
                 require(len(sets) == 1, where, f"has {len(sets)} laser points per frame",
-                        "write one laser point per sequence")
+                        "write one laser point (or one per histogram: paired) per sequence")
+                require(int(np.prod(H.shape[2:])) == sets[0].n_detectors, f"{where}: H",
+                        f"has shape {H.shape}: a trailing Stokes axis (polarized frames)",
+                        "write each frame's first Stokes channel (S0) only")
         except InputError:
             raise
         except (OSError, RuntimeError, LookupError, ValueError, TypeError) as exc:

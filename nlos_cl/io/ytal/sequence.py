@@ -8,12 +8,14 @@ the same code) in which `H` gets a leading frame axis, plus two per-frame datase
 | H | float32 (F, T, S), H_format T_Si (or (F, T, Sx, Sy) for T_Sx_Sy); chunked one frame per chunk | frame k's histograms, time first as in y-tal |
 | frame_t_s | float64 (F,) | frame k's timestamp (s), e.g. k / fps |
 | frame_truths | float64 (F, K, 3), optional | the K targets' true centres per frame, nlos_cl's internal frame (as the capture's `truth`), NaN where unknown |
-| every other y-tal field | as in a capture | the same for all frames: one laser point, the sensor grid, delta_t, t_start, ... |
+| every other y-tal field | as in a capture | the same for all frames: the laser point (or one per histogram: paired, confocal), the sensor grid, delta_t, t_start, ... |
 | scene_info | YAML | as a capture's; `nlos_cl.metadata.sequence` holds {format_version, n_frames, fps, fields} |
 
 A single frame is written as a plain y-tal capture (H (T, S), no extra fields; its timestamp
 and truths ride in `scene_info`'s `nlos_cl.metadata.sequence`), and every plain capture reads
-back as a one-frame sequence. Several laser points per frame are not supported in sequences.
+back as a one-frame sequence. Paired frames (a laser spot per histogram) are written and read
+like a paired capture; exhaustive frames (several laser points, each with every sensor point)
+are not supported in sequences.
 
 Writing streams frames from any iterator into the file (only one frame in memory) and is atomic
 (nlos_cl.io.safe_write.atomic_write: an interrupted write leaves the old file). Reading is lazy:

@@ -1,0 +1,60 @@
+"""Readers for measured datasets as their authors publish them (MATLAB .mat files, folders),
+one module per format, each returning a HistogramSet in nlos_cl's internal frame (relay wall
+y = 0, hidden space y > 0, z up). `nlos-cl convert` writes what they return as a y-tal capture.
+
+| format | what it is | module |
+|---|---|---|
+| `ccsocr` | a folder with sub_Sig.mat, C_i.mat, C_d.mat (CC-SOCR, Liu et al. 2023): N lasers, one detector | ccsocr.py |
+| `lct` | a .mat with rect_data (Nx, Ny, T) and width (LCT, O'Toole et al. 2018): confocal | lct.py |
+"""
+from __future__ import annotations
+
+import importlib
+import inspect
+from pathlib import Path
+
+from ...core.errors import require
+
+FORMATS = {"ccsocr": "ccsocr:read_ccsocr", "lct": "lct:read_lct"}
+
+
+def reader(name: str):
+    """The reading function of a format, by name."""
+    require(name in FORMATS, "format", f"{name!r} is not one of {sorted(FORMATS)}",
+            f"pass --format {' or '.join(sorted(FORMATS))}")
+    module, function = FORMATS[name].split(":")
+    return getattr(importlib.import_module(f".{module}", __package__), function)
+
+
+def options_of(name: str) -> set:
+    """The keyword options (geometry constants, orientation) a format's reader takes."""
+    params = inspect.signature(reader(name)).parameters.values()
+    return {p.name for p in params if p.kind is p.KEYWORD_ONLY}
+
+
+def detect(path) -> str:
+    """The format of `path` where unambiguous: a folder with sub_Sig.mat is ccsocr, a .mat file
+    holding rect_data is lct."""
+    from .matfile import variables
+    path = Path(path)
+    require(path.exists(), f"dataset {path}", "does not exist", "pass the downloaded file or "
+            "folder")
+    if path.is_dir():
+        require((path / "sub_Sig.mat").is_file(), f"dataset {path}", "is a folder without "
+                "sub_Sig.mat, so its format is unknown", "pass --format NAME "
+                f"({', '.join(sorted(FORMATS))})")
+        return "ccsocr"
+    require("rect_data" in variables(path), f"dataset {path}", "holds no variable rect_data, "
+            "so its format is unknown", f"pass --format NAME ({', '.join(sorted(FORMATS))})")
+    return "lct"
+
+
+def read_dataset(path, format: str | None = None, **options):
+    """A measured dataset as one HistogramSet (internal frame). `format`: a name of FORMATS, or
+    None to detect it; `options`: the reader's geometry constants (e.g. dt_ps, t0_ps)."""
+    name = detect(path) if format is None else format
+    fn = reader(name)
+    extra = sorted(set(options) - options_of(name))
+    require(not extra, f"{name} options", f"{extra} are not options of the {name} format "
+            f"(it takes {sorted(options_of(name))})", "drop them")
+    return fn(path, **options)
