@@ -60,3 +60,18 @@ def morton_order(points: np.ndarray) -> np.ndarray:
         for axis in range(3):
             code |= ((q[:, axis] >> np.uint64(bit)) & np.uint64(1)) << np.uint64(3 * bit + axis)
     return np.argsort(code, kind="stable")
+
+
+def farthest_points(points, k: int) -> np.ndarray:
+    """Indices of k of the points spread over them (greedy farthest-point sampling, from the
+    point nearest their mean), sorted. Index strides are no substitute: on a raster scan every
+    64th point of 64 x 64 lies on one diagonal line, which hides the height."""
+    pts = np.asarray(points, dtype=np.float64).reshape(len(points), -1)
+    if k >= len(pts):
+        return np.arange(len(pts))
+    chosen = [int(np.argmin(np.linalg.norm(pts - pts.mean(axis=0), axis=1)))]
+    gap = np.linalg.norm(pts - pts[chosen[0]], axis=1)
+    for _ in range(k - 1):
+        chosen.append(int(np.argmax(gap)))
+        gap = np.minimum(gap, np.linalg.norm(pts - pts[chosen[-1]], axis=1))
+    return np.sort(np.array(chosen))

@@ -14,6 +14,11 @@ FRAME_FACET_M = 0.02
 # per-detector likelihoods underflows float32.
 LOG_MODE_ABOVE_DETECTORS = 8
 
+# With more histograms than this, searches that only need the neighbourhood of the answer
+# (locate_capture's coarse region, the model fit's starts and short fits) use this many,
+# spread over the wall (core.geometry.farthest_points); the final answer uses every one.
+SEARCH_DETECTORS = 64
+
 # search="auto": frames timed per search (after one warm-up each) before the Locator keeps the
 # faster one for its grid.
 AUTO_TRIALS = 3

@@ -11,6 +11,8 @@ import numpy as np
 
 from ...core.constants import FWHM_PER_SIGMA, PAPER_H_S
 from ...core.errors import require
+from ...core.geometry import farthest_points
+from ...core.tuning import SEARCH_DETECTORS
 from ..estimate import Capabilities, Estimate, LocatedTarget, Prior
 from ..fit_result import ModelFit, Parameter, WarmStart
 from ..paper import PaperArgmax
@@ -26,9 +28,6 @@ HEIGHT_WARNING = ("height (z) is unobservable with collinear wall spots (rotatin
 # 1 cm-facet data from the truth is then off by <= 0.25 sd (Mahalanobis) on the
 # 0.3 x 1.6 m plate, a 0.7 m and a 1 m square (10 x 20 left the 0.7 m square 1 sd off).
 GAUSS_LATTICE, POISSON_LATTICE = (16, 24), (16, 32)
-# With more detectors than this, the starts, the search over K and the short fits use this
-# many, evenly spread; the final fit and the covariance use every detector.
-SEARCH_DETECTORS = 64
 # Residual evaluations of a warm-started fit (model.warm; Jacobians not counted).
 WARM_NFEV = 10
 # model_on="auto": plate fits with up to this many detectors evaluate the model on the host
@@ -170,7 +169,9 @@ class ModelEstimator:
         n_det = len(problem.obs.spots)
         if n_det <= SEARCH_DETECTORS:
             return fit_targets(problem, self, argmax_position, free, z0)
-        rows = np.unique(np.linspace(0, n_det - 1, SEARCH_DETECTORS).round().astype(int))
+        obs = problem.obs  # spread over the wall (an index stride can pick one line of a raster)
+        rows = farthest_points(np.hstack([obs.spots, np.broadcast_to(obs.laser, obs.spots.shape)]),
+                               SEARCH_DETECTORS)
         search = Problem(problem.obs.detectors(rows), problem.backend, problem.lattice)
         rough, history = fit_targets(search, self, argmax_position, free, z0)
         result = fit(problem, rough.params, free, self.final_nfev)
