@@ -98,7 +98,7 @@ def test_lct_is_confocal_on_the_documented_grid(tmp_path):
     (lambda p: nl.read_dataset(p, "lct", flip="y"), "flip: must be"),
     (lambda p: nl.read_dataset(p, "lct", gate_bins=50), "gate_bins: must be"),
     (lambda p: nl.read_dataset(p, "lct", grid_m=0.1), "lct options: \\['grid_m'\\]"),
-    (lambda p: nl.read_dataset(p, "keyhole"), "format: 'keyhole' is not one of"),
+    (lambda p: nl.read_dataset(p, "fk"), "format: 'fk' is not one of"),
     (lambda p: nl.read_dataset(p.with_name("none.mat")), "does not exist"),
 ])
 def test_bad_dataset_calls_name_the_field(tmp_path, call, message):

@@ -6,6 +6,11 @@ y = 0, hidden space y > 0, z up). `nlos-cl convert` writes what they return as a
 |---|---|---|
 | `ccsocr` | a folder with sub_Sig.mat, C_i.mat, C_d.mat (CC-SOCR, Liu et al. 2023): N lasers, one detector | ccsocr.py |
 | `lct` | a .mat with rect_data (Nx, Ny, T) and width (LCT, O'Toole et al. 2018): confocal | lct.py |
+| `consumer-nlos` | a folder of volume_*.npz frames (Somasundaram et al. 2026): a sequence of confocal frames | consumer_nlos.py |
+| `keyhole` | a folder with scan_*.mat, direct_after.mat, LongExpNoObject_after.mat (Metzler et al. 2021): a sequence of one confocal spot, range only (localization.ranges) | keyhole.py |
+
+A sequence format (SEQUENCES) returns (frames, metadata) instead: frames a list of (t_s,
+HistogramSet[, truths]) that write_sequence takes, metadata what the file keeps beside them.
 """
 from __future__ import annotations
 
@@ -15,7 +20,9 @@ from pathlib import Path
 
 from ...core.errors import require
 
-FORMATS = {"ccsocr": "ccsocr:read_ccsocr", "lct": "lct:read_lct"}
+FORMATS = {"ccsocr": "ccsocr:read_ccsocr", "lct": "lct:read_lct",
+           "consumer-nlos": "consumer_nlos:read_consumer_nlos", "keyhole": "keyhole:read_keyhole"}
+SEQUENCES = {"consumer-nlos", "keyhole"}  # formats whose reader returns (frames, metadata)
 
 
 def reader(name: str):
@@ -33,15 +40,19 @@ def options_of(name: str) -> set:
 
 
 def detect(path) -> str:
-    """The format of `path` where unambiguous: a folder with sub_Sig.mat is ccsocr, a .mat file
-    holding rect_data is lct."""
+    """The format of `path` where unambiguous: a folder with sub_Sig.mat is ccsocr, one with
+    volume_*.npz frames consumer-nlos, a .mat file holding rect_data is lct."""
     from .matfile import variables
     path = Path(path)
     require(path.exists(), f"dataset {path}", "does not exist", "pass the downloaded file or "
             "folder")
+    if path.is_dir() and any(path.glob("volume_*.npz")):
+        return "consumer-nlos"
+    if path.is_dir() and any(path.glob("scan_*.mat")):
+        return "keyhole"
     if path.is_dir():
         require((path / "sub_Sig.mat").is_file(), f"dataset {path}", "is a folder without "
-                "sub_Sig.mat, so its format is unknown", "pass --format NAME "
+                "sub_Sig.mat, volume_*.npz or scan_*.mat, so its format is unknown", "pass --format NAME "
                 f"({', '.join(sorted(FORMATS))})")
         return "ccsocr"
     require("rect_data" in variables(path), f"dataset {path}", "holds no variable rect_data, "
@@ -50,8 +61,9 @@ def detect(path) -> str:
 
 
 def read_dataset(path, format: str | None = None, **options):
-    """A measured dataset as one HistogramSet (internal frame). `format`: a name of FORMATS, or
-    None to detect it; `options`: the reader's geometry constants (e.g. dt_ps, t0_ps)."""
+    """A measured dataset as one HistogramSet (internal frame), or for a format of SEQUENCES a
+    (frames, metadata) pair. `format`: a name of FORMATS, or None to detect it; `options`: the
+    reader's geometry constants (e.g. dt_ps, t0_ps)."""
     name = detect(path) if format is None else format
     fn = reader(name)
     extra = sorted(set(options) - options_of(name))
