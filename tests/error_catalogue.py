@@ -15,7 +15,7 @@ import nlos_cl as nl
 import nlos_cl.io.ytal.capture  # noqa: F401  (nl.capture)
 from nlos_cl.core import limits  # noqa: F401
 from nlos_cl.io import calibration, safe_write
-from nlos_cl.io.ytal import frames
+from nlos_cl.io.ytal import fields, frames
 from nlos_cl.localization import region
 import nlos_cl.io.ytal.frames  # noqa: F401
 import nlos_cl.io.calibration  # noqa: F401
@@ -116,7 +116,7 @@ def concurrent_writers():
     def slow(tmp):
         nl.write_capture(path, histograms(2 * np.ones((3, 100))))
         Path(tmp).write_bytes(b"")
-    safe_write.atomic_write(path, slow, what="capture")
+    safe_write.atomic_write(path, slow, what="capture", keep_unless=fields.is_capture)
 
 
 def huge_declared_capture():
@@ -138,6 +138,64 @@ def one_detector():
 
 def small_scene():
     return nl.paper_scene(facet_size_m=0.05)
+
+
+def symlink_to(target):
+    """A link `out.h5` beside a fresh folder's file, pointing at `target`."""
+    import tempfile
+    link = Path(tempfile.mkdtemp()) / "link.h5"
+    link.symlink_to(target)
+    return link
+
+
+def fifo(name="F.h5"):
+    import os
+    import tempfile
+    path = Path(tempfile.mkdtemp()) / name
+    os.mkfifo(path)
+    return path
+
+
+def external_h_capture():
+    """A capture whose H is HDF5 external raw storage reading /etc/passwd."""
+    import h5py
+
+    def edit(f):
+        shape = f["H"].shape
+        del f["H"]
+        f.create_dataset("H", shape=shape, dtype="u1",
+                         external=[("/etc/passwd", 0, h5py.h5f.UNLIMITED)])
+    return capture_file(edit)
+
+
+def virtual_h_capture():
+    import h5py
+    source = capture_file()
+
+    def edit(f):
+        shape, dtype = f["H"].shape, f["H"].dtype
+        del f["H"]
+        layout = h5py.VirtualLayout(shape=shape, dtype=dtype)
+        layout[:] = h5py.VirtualSource(str(source), "H", shape=shape)
+        f.create_virtual_dataset("H", layout)
+    return capture_file(edit)
+
+
+def linked_h_capture():
+    import h5py
+    source = capture_file()
+    return capture_file(lambda f: (f.__delitem__("H"),
+                                   f.__setitem__("H", h5py.ExternalLink(str(source), "H"))))
+
+
+def runner_study(runner, axes=({"name": "command", "values": ["echo owned"]},)):
+    from nlos_cl.sweep import load_study
+    return load_study({"runner": runner, "axes": list(axes)})
+
+
+def study_file():
+    return write_file("study.yaml", "runner: \"os:system\"\naxes:\n"
+                      "  - {name: command, values: [\"echo owned\"]}\n")
 
 
 class CommandLineError(Exception):
@@ -337,6 +395,49 @@ CASES = [
      lambda: cli("locate", capture_file(), "--map", existing_file("notes.txt"))),
     ("nlos-cl calibrate on a CSV with ';' and one column", "calibration file",
      lambda: cli("calibrate", write_file("pairs.csv", "path\n2.5\n3.0\n"))),
+    ("a study whose runner is os:system", "runner 'os:system': cannot import 'os' from a "
+     "study file", lambda: runner_study("os:system")),
+    ("a study whose runner is subprocess:getoutput", "runner 'subprocess:getoutput'",
+     lambda: runner_study("subprocess:getoutput")),
+    ("a study whose runner is shutil:rmtree", "runner 'shutil:rmtree'",
+     lambda: runner_study("shutil:rmtree", [{"name": "path", "values": ["/tmp/x"]}])),
+    ("a runner reached through an nlos_cl module's import (os.system)", "runner "
+     "'nlos_cl.sweep.engine:os.system': is posix's system", lambda: runner_study(
+         "nlos_cl.sweep.engine:os.system")),
+    ("nlos-cl sweep of a study file whose runner is os:system", "--allow-runner os",
+     lambda: cli("sweep", study_file(), "--out", folder("o") / "s", "--workers", 0)),
+    ("nlos-cl sweep --out into a folder holding the user's summary.csv", "--out",
+     lambda: cli("sweep", write_file("s.yaml", "runner: nlos_cl.sweep.examples:paper_target\n"
+                                     "axes: [{name: x, values: [3.0]}]\nseeds: 1\n"),
+                 "--out", existing_file("summary.csv").parent, "--workers", 0)),
+    ("a capture whose H is external raw storage (/etc/passwd)", "H: uses external raw storage",
+     lambda: nl.read_capture(external_h_capture())),
+    ("a capture whose H is a virtual dataset", "H: uses a virtual dataset",
+     lambda: nl.read_capture(virtual_h_capture())),
+    ("a capture whose H is an external link", "H: is an external link",
+     lambda: nl.read_capture(linked_h_capture())),
+    ("a capture path that is a FIFO", "is a FIFO (named pipe), not a regular file",
+     lambda: nl.read_capture(fifo())),
+    ("a capture path that is a folder", "is a folder, not a regular file",
+     lambda: nl.read_capture(folder("F.h5"))),
+    ("writing a capture through a symbolic link", "is a symbolic link",
+     lambda: nl.write_capture(symlink_to(capture_file()), histograms())),
+    ("nlos-cl simulate --out link.h5 (a link to the user's file)", "is a symbolic link",
+     lambda: cli("simulate", "--out", symlink_to(existing_file("thesis.h5")), "--facet", 0.05)),
+    ("nlos-cl simulate --out /dev/null --force", "is a character device",
+     lambda: cli("simulate", "--out", "/dev/null", "--force", "--facet", 0.05)),
+    ("nlos-cl simulate --out onto a FIFO --force", "is a FIFO",
+     lambda: cli("simulate", "--out", fifo(), "--force", "--facet", 0.05)),
+    ("nlos-cl demo --png over the user's thesis.pdf", "--png",
+     lambda: cli("demo", "--png", existing_file("thesis.pdf"))),
+    ("nlos-cl locate --map over the user's own .npz", "--map",
+     lambda: cli("locate", capture_file(), "--map", existing_file("mine.npz"))),
+    ("nlos-cl reproduce fig5 --doc over the user's notes.md", "--doc",
+     lambda: cli("reproduce", "fig5", "--quick", "--doc", existing_file("notes.md"))),
+    ("nlos-cl reproduce --out over the user's fig5.csv", "--out",
+     lambda: cli("reproduce", "fig5", "--quick", "--out", existing_file("fig5.csv").parent)),
+    ("nlos-cl bench --out over the user's performance.md", "--out",
+     lambda: cli("bench", "--smoke", "--out", existing_file("performance.md").parent)),
     ("no OpenCL device on the machine", "No OpenCL device found", no_device),
     ("a device choice that matches no device", "matches no OpenCL device",
      lambda: devices.choose_device("no-such-device-xyz")),

@@ -12,6 +12,7 @@ import pytest
 from PIL import Image
 
 import nlos_cl as nl
+from nlos_cl.io.safe_write import MANIFEST
 from nlos_cl.apps import track, track_video
 from nlos_cl.ops.backend import NumpyBackend
 from nlos_cl.apps.cli import parser
@@ -157,7 +158,8 @@ def test_interrupted_video_leaves_no_file_and_no_temporary(walk, tmp_path, monke
     assert sorted(os.listdir(tmp_path)) == ["old.gif"] and old.read_bytes() == b"old"
     monkeypatch.setattr(track_video._GifWriter, "grab_frame", grab)  # a complete write replaces it
     assert _track(walk, "--max-frames", "2", "--video", str(old), "--force") == 0
-    assert sorted(os.listdir(tmp_path)) == ["old.gif"] and Image.open(old).n_frames == 2
+    # a GIF carries no mark of ours: the folder's manifest (io/safe_write.py) says we wrote it
+    assert sorted(os.listdir(tmp_path)) == [MANIFEST, "old.gif"] and Image.open(old).n_frames == 2
 
 
 @pytest.mark.skipif(shutil.which("ffmpeg") is None, reason="no ffmpeg on the PATH")

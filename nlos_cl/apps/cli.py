@@ -54,6 +54,8 @@ def _parents():
 def _demo_args(p):
     p.add_argument("--reference", action="store_true", help="run on the NumPy twins")
     p.add_argument("--png", default="nlos_demo.png", help="figure path ('' for none)")
+    p.add_argument("--force", action="store_true",
+                   help="let --png replace a file nlos_cl did not write")
     p.add_argument("--snr-db", type=_number("snr_db", "pass decibels, e.g. 10"), default=10.0)
     p.add_argument("--seed", type=SEED, default=0)
     p.add_argument("--h-ns", type=H_NS, default=0.65, help="Gauss filter window h (ns)")
@@ -70,6 +72,8 @@ def _demo_args(p):
 def _bench_args(p):
     p.add_argument("--smoke", action="store_true", help="tiny sizes (for CI)")
     p.add_argument("--out", default="", help="write performance.md/.json/.png here")
+    p.add_argument("--force", action="store_true",
+                   help="let --out replace performance.* files nlos_cl did not write")
 
 
 class _LazyChoices:
@@ -103,6 +107,8 @@ def _reproduce_args(p):
     p.add_argument("--quick", action="store_true", help="coarse setting (CI)")
     p.add_argument("--doc", default="", help="write the paper-vs-ours report here "
                    "(default with 'all': OUT/paper-results.md)")
+    p.add_argument("--force", action="store_true",
+                   help="replace files in --out and --doc that nlos_cl did not write")
     p.add_argument("--only", nargs="+", default=None, metavar="SECTION",
                    help="beyond, tracking: only these parts (tracking: speed memory lines "
                    "synthetic box crossing)")
@@ -144,13 +150,17 @@ def _simulate_args(p):
 
 def _convert_args(p):
     p.add_argument("src", help="the dataset as downloaded: a CC-SOCR folder (sub_Sig.mat, "
-                   "C_i.mat, C_d.mat) or an LCT .mat (rect_data, width)")
-    p.add_argument("--out", required=True, help="the y-tal .h5 capture to write (atomically)")
-    p.add_argument("--format", choices=["ccsocr", "lct"], default=None,
+                   "C_i.mat, C_d.mat), an LCT .mat (rect_data, width), or a consumer-nlos folder "
+                   "of volume_*.npz frames or a Keyhole folder (scan_*.mat; both written as "
+                   "sequences)")
+    p.add_argument("--out", required=True, help="the y-tal .h5 capture (or sequence) to write "
+                   "(atomically)")
+    p.add_argument("--format", choices=["ccsocr", "consumer-nlos", "keyhole", "lct"], default=None,
                    help="the dataset's format (default: detected)")
     p.add_argument("--force", action="store_true", help="replace a file that is not a capture")
     p.add_argument("--dt-ps", type=_number("dt_ps", "pass picoseconds, e.g. 16", positive=True),
-                   default=None, help="bin width (ps; default: the dataset's, ccsocr 16, lct 4)")
+                   default=None, help="bin width (ps; default: the dataset's, ccsocr 16, lct 4, "
+                   "consumer-nlos 250)")
     p.add_argument("--t0-ps", type=_number("t0_ps", "pass picoseconds, e.g. 0"), default=None,
                    help="time of bin 0 after the wall bounce (ps; default 0)")
     p.add_argument("--width", type=_number("width_m", "pass metres, e.g. 0.35", positive=True),
@@ -164,6 +174,9 @@ def _convert_args(p):
     p.add_argument("--gate-bins", type=_number("gate_bins", "pass a bin count, e.g. 600",
                                                minimum=0, integer=True), default=None,
                    help="lct: zero the first N bins (the direct return; upstream zeroes 600)")
+    p.add_argument("--fps", type=_number("fps", "pass frames per second, e.g. 14",
+                                         positive=True), default=None,
+                   help="sequences: frame rate, frame k at k / fps (consumer-nlos default 14)")
 
 
 def _locate_args(p):
@@ -255,7 +268,7 @@ COMMANDS = {
     "simulate": ("simulate a scene file (or the paper's scene) into a y-tal capture",
                  _simulate_args, True, False,
                  "files:simulate"),
-    "convert": ("convert a measured dataset as downloaded (ccsocr, lct) into a y-tal capture",
+    "convert": ("convert a measured dataset as downloaded (ccsocr, lct, consumer-nlos, keyhole) to y-tal",
                 _convert_args, False, False, "convert:main"),
     "locate": ("locate the target of a y-tal capture", _locate_args, True, True, "files:locate"),
     "calibrate": ("fit path = a t + b (paper Eq. 26) from pairs", _calibrate_args, False, True,

@@ -61,15 +61,16 @@ def _print_text(args, result, scene, grid, cold, warm):
         print(f"figure   : {args.png}")
 
 
-def _check_png(path_text: str) -> None:
+def _check_png(path_text: str, force: bool = False) -> None:
     """Before any work: a figure path that can be written as given (matplotlib would turn a
-    folder 'out' into 'out.png' beside it)."""
+    folder 'out' into 'out.png' beside it), and not over a file nlos_cl did not write
+    (`--png thesis.pdf`) unless --force (nlos_cl.io.safe_write's rule)."""
     from pathlib import Path
 
     from ..core.errors import require
     from ..io.safe_write import require_writable
     path = Path(path_text)
-    require_writable(path, what="--png")
+    require_writable(path, force=force, what="--png", kind="a figure")
     require(path.suffix.lower() in (".png", ".svg", ".pdf"), "--png", f"{path.name} has no "
             ".png, .svg or .pdf suffix", "name the figure e.g. demo.png")
 
@@ -80,14 +81,16 @@ def run(args) -> int:
     if args.track:
         return run_track(args)
     if args.png:
-        _check_png(args.png)
+        _check_png(args.png, args.force)
     backend = resolve_backend("reference" if args.reference else args.device)
     grid = Grid.from_ranges(x=(0.0, 6.0), y=(0.01, 6.0), step_m=args.step)
     (scene, sim, noisy, filtered, paper, model), cold, notes = _run_once(args, backend, grid)
     warm = _run_once(args, backend, grid)[1]  # programs built, buffers pooled: steady state
     if args.png:
+        from .files import write_figure
         from .plotting import demo_figure
-        demo_figure(noisy.histograms(), filtered.histograms(), paper, args.png)
+        write_figure(args.png, lambda fh: demo_figure(noisy.histograms(), filtered.histograms(),
+                                                      paper, fh), what="--png", force=args.force)
     estimates = _estimates(paper, model, warm)
     chosen = estimates[args.estimator]
     result = {

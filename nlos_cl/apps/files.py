@@ -96,6 +96,36 @@ def simulate(args) -> int:
     return 0
 
 
+def write_figure(path, draw, *, what: str, force: bool = False, keep_unless=None):
+    """The figure `draw(fh)` saves (a plotting function given an open binary file) written to
+    `path` through nlos_cl.io.safe_write.atomic_write: whole or not at all, never over a file
+    nlos_cl did not write unless force, never through a link or onto a device. matplotlib takes
+    a file object's format from savefig.format, so that is set from the suffix (.png, .pdf)."""
+    from pathlib import Path
+
+    import matplotlib
+
+    from ..io.safe_write import atomic_write
+    fmt = Path(path).suffix.lstrip(".").lower() or "png"
+
+    def write(tmp):
+        with matplotlib.rc_context({"savefig.format": fmt}), open(tmp, "wb") as fh:
+            draw(fh)
+    return atomic_write(path, write, keep_unless=keep_unless, force=force, what=what,
+                        kind="a figure")
+
+
+def is_map(path) -> bool:
+    """A map `locate --map` wrote: an .npz whose arrays are exactly score, x, y, z (read with
+    allow_pickle=False: nothing in the file runs)."""
+    import numpy as np
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            return sorted(data.files) == ["score", "x", "y", "z"]
+    except Exception:  # noqa: BLE001 - anything unreadable is not our map
+        return False
+
+
 def _save_map(args, i, n_sets, loc, grid):
     from pathlib import Path
 
@@ -108,16 +138,17 @@ def _save_map(args, i, n_sets, loc, grid):
     def write(tmp):
         with open(tmp, "wb") as fh:  # a file object: savez would append .npz to a name
             np.savez_compressed(fh, score=loc.score_map, x=x, y=y, z=z)
-    atomic_write(out, write, keep_unless=lambda p: p.suffix == ".npz", force=args.force,
-                 what="--map", kind="a .npz map")
+    atomic_write(out, write, keep_unless=is_map, force=args.force, what="--map",
+                 kind="a map nlos-cl locate wrote")
     return str(out)
 
 
 def _check_map_path(args) -> None:
-    """Before any work: --map must be writable as a .npz map (never over another kind of file)."""
+    """Before any work: --map must be writable (never over a file nlos_cl did not write: an
+    .npz of the user's own is kept unless --force)."""
     from ..io.safe_write import require_writable
-    require_writable(args.map, keep_unless=lambda p: p.suffix == ".npz", force=args.force,
-                     what="--map", kind="a .npz map")
+    require_writable(args.map, keep_unless=is_map, force=args.force, what="--map",
+                     kind="a map nlos-cl locate wrote")
 
 
 def locate(args) -> int:

@@ -20,6 +20,50 @@ def _finite(value):
     return value
 
 
+def _doc_path(args) -> Path | None:
+    """The page this run writes (tracking's is spliced by its own writer between markers)."""
+    if args.name == "beyond":
+        return Path(args.doc) if args.doc else Path(args.out) / "beyond-the-paper.md"
+    if args.name != "tracking" and (args.name == "all" or args.doc):
+        return Path(args.doc) if args.doc else Path(args.out) / "paper-results.md"
+    return None
+
+
+def _ours(names):
+    """The files of OUT a run of `names` writes: those whose name starts with an experiment's
+    (fig5.csv, fig7a.png, beyond-summary.csv, tracking-speed.csv...)."""
+    return lambda p: p.is_file() and p.name.startswith(tuple(names))
+
+
+def _check_outputs(args) -> list:
+    """Before any experiment runs (minutes to hours): the page, and every existing file of OUT
+    that the run may replace, must be nlos_cl's (safe_write's manifest, or a generated page's
+    mark) or --force; a user's own fig5.csv or notes.md is refused now, not lost later. The
+    experiments' CSV and figure writers are not atomic, so their names are matched by prefix
+    (conservative: a user's fig5-notes.txt in OUT is refused too). Returns the names."""
+    from ..io.safe_write import is_generated_doc, require_writable
+    from .reproduce import PAPER_EXPERIMENTS
+    names = list(PAPER_EXPERIMENTS) if args.name == "all" else [args.name]
+    doc = _doc_path(args)
+    if doc is not None and doc.parent.is_dir():
+        require_writable(doc, keep_unless=is_generated_doc, force=args.force, what="--doc",
+                         kind="a page nlos_cl generated")
+    out = Path(args.out)
+    if out.is_dir() and not args.force:
+        for path in sorted(filter(_ours(names), out.iterdir())):
+            if doc is None or path.resolve() != doc.resolve():
+                require_writable(path, what="--out", kind="a file nlos-cl reproduce wrote")
+    return names
+
+
+def _record_outputs(out: Path, names) -> None:
+    """Note the files the experiments wrote in OUT as nlos_cl's (safe_write.record), so the
+    next run may replace them without --force."""
+    from ..io.safe_write import record
+    for path in filter(_ours(names), out.iterdir() if out.is_dir() else ()):
+        record(path)
+
+
 def _write_doc(rp, args, settings, results, wall) -> None:
     if args.name == "tracking":  # its sections go between docs/tracking.md's markers
         if args.doc:
@@ -28,16 +72,16 @@ def _write_doc(rp, args, settings, results, wall) -> None:
         return
     if args.name == "beyond":
         from .reproduce.beyond_report import write_beyond_report
-        doc = Path(args.doc) if args.doc else Path(args.out) / "beyond-the-paper.md"
-        write_beyond_report(results[0], settings, doc, Path(args.out), wall)
+        write_beyond_report(results[0], settings, _doc_path(args), Path(args.out), wall,
+                            args.force)
     elif args.name == "all" or args.doc:
-        doc = Path(args.doc) if args.doc else Path(args.out) / "paper-results.md"
-        rp.write_report(results, settings, doc, Path(args.out), wall)
+        rp.write_report(results, settings, _doc_path(args), Path(args.out), wall, args.force)
 
 
 def main(args) -> int:
     from . import reproduce as rp
     settings = rp.Settings.make(quick=args.quick, seeds=args.seeds)
+    names = _check_outputs(args)
     start = time.perf_counter()
     options = {}
     if args.only:
@@ -45,6 +89,7 @@ def main(args) -> int:
     if args.cold:
         options["cold"] = True
     results = rp.run(args.name, settings, Path(args.out), **options)
+    _record_outputs(Path(args.out), names)
     wall = time.perf_counter() - start
     _write_doc(rp, args, settings, results, wall)
     if args.json:

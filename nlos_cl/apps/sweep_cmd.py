@@ -41,6 +41,12 @@ def add_arguments(p) -> None:
     p.add_argument("--example", action="store_true",
                    help="print a small runnable study (about 30 s on 2 cores) and exit")
     p.add_argument("--json", action="store_true", help="print one JSON object at the end")
+    p.add_argument("--force", action="store_true",
+                   help="replace files in --out that no sweep wrote (summary.csv, figures)")
+    p.add_argument("--allow-runner", action="append", default=[], metavar="MODULE",
+                   help="let the study's `runner:` be a function of MODULE (and its submodules)"
+                   ": a study with a runner is a program, so only nlos_cl's own functions run "
+                   "without this (repeatable)")
 
 
 def main(args) -> int:
@@ -56,7 +62,8 @@ def main(args) -> int:
     try:
         result = sweep(args.study, args.out, workers=args.workers, scheduler=args.scheduler,
                           resume=args.resume, batch_size=args.batch_size,
-                          progress=not args.no_progress, log=log)
+                          progress=not args.no_progress, log=log,
+                          allow_runner=args.allow_runner, force=args.force)
     except KeyboardInterrupt:
         print(f"\nsweep: interrupted; the finished batches are in {args.out}/runs.parquet. "
               f"Finish with: nlos-cl sweep {args.study} --out {args.out} --resume",

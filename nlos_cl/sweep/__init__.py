@@ -12,9 +12,11 @@ the function carries `load_study`, `read_table`, `example_text` and `worker_cach
 `nl.sweep(...)` and `nl.sweep.read_table(...)` work whichever of the two an import left under
 that name.
 
-A study may instead name a `runner`, any importable function, whose axes are its keyword
-parameters and whose return values the table keeps as JSON (runner.py; `worker_cache` keeps a
-worker's expensive part, e.g. a clean simulation, for the runs that share it).
+A study may instead name a `runner`, a function whose axes are its keyword parameters and
+whose return values the table keeps as JSON (runner.py; `worker_cache` keeps a worker's
+expensive part, e.g. a clean simulation, for the runs that share it). A study with a runner is
+a program: only nlos_cl's own functions run unless the user allows a module
+(`nl.sweep(..., allow_runner=["mypackage"])`, `nlos-cl sweep --allow-runner mypackage`).
 
 Modules: study (the file format, the runs), runner (studies of a function), runs (what a worker
 does), engine (Dask, writing, progress), results (the Parquet table, the summary), plots. Dask

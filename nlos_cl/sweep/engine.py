@@ -23,7 +23,7 @@ from .runner import RunnerStudy
 from .runs import run_batch, worker_info
 from .study import SPECIAL, Study, check_scenes
 
-STUDY_FILE = "study.json"
+STUDY_FILE = results.STUDY_FILE
 
 
 @dataclass
@@ -48,16 +48,18 @@ class SweepResult:
 
 def sweep(study, out, *, workers: int | None = None, scheduler: str | None = None,
           resume: bool = False, batch_size: int | None = None, progress: bool = True,
-          report: bool = True, log=None) -> SweepResult:
+          report: bool = True, log=None, allow_runner=(), force: bool = False) -> SweepResult:
     """Run every run of `study` (a study file, dict or Study) not yet in OUT/runs.parquet, on
     `workers` local processes (default: one per core; 0: in this process, no Dask, for studies
     too small to pay for a cluster's start-up) or on the cluster at `scheduler`; then
     write OUT/summary.csv and the plots (report=True). Status lines go to `log` (default:
-    stderr, so a --json on stdout stays parseable)."""
+    stderr, so a --json on stdout stays parseable). `allow_runner`: modules (besides nlos_cl's)
+    whose functions a study file's `runner` may name; a runner is code the study runs
+    (runner.resolve). `force`: replace files in OUT that no sweep wrote (summary.csv...)."""
     log = log or _to_stderr
-    study = load_study(study)
+    study = load_study(study, allow_runner=allow_runner)
     out = Path(out)
-    done = _prepare(out, study, resume)
+    done = _prepare(out, study, resume, force)
     if not isinstance(study, RunnerStudy):  # a runner was checked when the study was loaded
         check_scenes(study)
     pending = [(rid, v) for rid, v in study.runs() if rid not in done]
@@ -85,13 +87,17 @@ def sweep(study, out, *, workers: int | None = None, scheduler: str | None = Non
     result = SweepResult(out, study.n_runs, len(done), failed, wall, n_workers, n_tasks, run_s)
     if report and table is not None:
         from .plots import plot_all
-        result.summary = results.write_summary(study, table, out)
-        result.figures = plot_all(study, table, out)
+        result.summary = results.write_summary(study, table, out, force)
+        result.figures = plot_all(study, table, out, force)
     return result
 
 
-def _prepare(out: Path, study: Study, resume: bool) -> set:
-    """Create OUT, record the study; with resume, the run_ids already done (same study only)."""
+def _prepare(out: Path, study: Study, resume: bool, force: bool = False) -> set:
+    """Create OUT, record the study; with resume, the run_ids already done (same study only).
+    Before anything is written, the files the study will write in OUT are checked
+    (results.check_outputs): a folder holding the user's summary.csv is refused."""
+    require(not out.exists() or out.is_dir(), f"--out {out}", "is a file, not a folder",
+            "pass a folder (it is created if missing)")
     out.mkdir(parents=True, exist_ok=True)
     record = out / STUDY_FILE
     done = results.done_ids(out)
@@ -103,10 +109,10 @@ def _prepare(out: Path, study: Study, resume: bool) -> set:
             require(old == study.fingerprint(), f"--out {out}", "holds a different study "
                     "(its axes, scene or settings differ)", "resume with the same study file, "
                     "or pick another folder")
-    tmp = record.with_suffix(".tmp")
-    tmp.write_text(json.dumps({"fingerprint": study.fingerprint(), "n_runs": study.n_runs,
-                               "study": study.as_dict()}, indent=1, default=str), "utf-8")
-    os.replace(tmp, record)
+    results.check_outputs(out, force)
+    text = json.dumps({"fingerprint": study.fingerprint(), "n_runs": study.n_runs,
+                       "study": study.as_dict()}, indent=1, default=str)
+    results.write_output(out, STUDY_FILE, lambda tmp: Path(tmp).write_text(text, "utf-8"), force)
     return done
 
 

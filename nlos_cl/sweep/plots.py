@@ -11,9 +11,9 @@ import numpy as np
 from .study import Study
 
 
-def plot_all(study: Study, table, out) -> list[str]:
-    """Write OUT/errors_by_axis.png and OUT/error_map.png (where the study has a map); return
-    their paths."""
+def plot_all(study: Study, table, out, force: bool = False) -> list[str]:
+    """Write OUT/errors_by_axis.png and OUT/error_map.png (where the study has a map; each
+    through results.write_output's rule); return their paths."""
     import matplotlib
     matplotlib.use("Agg")
     if "error_m" not in table.column_names:
@@ -21,10 +21,10 @@ def plot_all(study: Study, table, out) -> list[str]:
     data = _ok_rows(table)
     if not data["error_m"].size:
         return []
-    figures = [errors_by_axis(study, data, Path(out) / "errors_by_axis.png")]
+    figures = [errors_by_axis(study, data, Path(out) / "errors_by_axis.png", force)]
     pair = _map_axes(study, data)
     if pair:
-        figures.append(error_map(data, *pair, Path(out) / "error_map.png"))
+        figures.append(error_map(data, *pair, Path(out) / "error_map.png", force))
     return [str(f) for f in figures if f]
 
 
@@ -47,7 +47,20 @@ def _label(value) -> str:
     return value if isinstance(value, str) else json.dumps(value)[:24]
 
 
-def errors_by_axis(study: Study, data: dict, path: Path):
+def _save(fig, path: Path, force: bool) -> Path:
+    """The figure as PNG at `path` (atomically, never over a file no sweep wrote), closed."""
+    import matplotlib.pyplot as plt
+
+    from .results import write_output
+    try:
+        write_output(path.parent, path.name, lambda tmp: fig.savefig(tmp, format="png",
+                                                                     dpi=110), force)
+    finally:
+        plt.close(fig)
+    return path
+
+
+def errors_by_axis(study: Study, data: dict, path: Path, force: bool = False):
     import matplotlib.pyplot as plt
     axes = _varied(study) or [a for a in study.axes if a.name == "estimator"]
     fig, panels = plt.subplots(1, len(axes), figsize=(4.2 * len(axes), 3.4), squeeze=False)
@@ -77,9 +90,7 @@ def errors_by_axis(study: Study, data: dict, path: Path):
     fig.suptitle((study.description or "sweep") + f": error per axis (mean, 16-84 %, max; "
                  f"{len(data['error_m'])} runs)", fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, path, force)
 
 
 def _map_axes(study: Study, data: dict):
@@ -93,7 +104,7 @@ def _map_axes(study: Study, data: dict):
     return tuple(numeric[:2]) if len(numeric) >= 2 else None
 
 
-def error_map(data: dict, xcol: str, ycol: str, path: Path):
+def error_map(data: dict, xcol: str, ycol: str, path: Path, force: bool = False):
     """Mean error per (x, y) cell over everything else, one panel per estimator."""
     import matplotlib.pyplot as plt
     estimators = list(dict.fromkeys(data["estimator"]))
@@ -116,6 +127,4 @@ def error_map(data: dict, xcol: str, ycol: str, path: Path):
         ax.set_ylabel(ycol)
         ax.set_aspect("equal", adjustable="datalim")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, path, force)

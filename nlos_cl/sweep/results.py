@@ -18,6 +18,35 @@ from .runs import record_columns
 from .study import Study
 
 TABLE = "runs.parquet"
+STUDY_FILE = "study.json"
+OUTPUTS = (STUDY_FILE, "summary.csv", "errors_by_axis.png", "error_map.png")  # OUT/ files
+
+
+def is_study_folder(out) -> bool:
+    """Whether OUT holds a study record (study.json with a fingerprint), written by a sweep:
+    its OUTPUTS are then a sweep's, replaced on --resume (folders from before the manifest of
+    nlos_cl.io.safe_write included)."""
+    try:
+        return "fingerprint" in json.loads((Path(out) / STUDY_FILE).read_text("utf-8"))
+    except (OSError, ValueError, TypeError):
+        return False
+
+
+def write_output(out, name: str, write, force: bool = False) -> Path:
+    """OUT/name written atomically by write(tmp), under safe_write's rule: a file there that no
+    sweep wrote is replaced only with force (nlos-cl sweep --force)."""
+    from ..io.safe_write import atomic_write
+    return atomic_write(Path(out) / name, write, keep_unless=lambda p: is_study_folder(p.parent),
+                        force=force, what="--out", kind="a sweep's output")
+
+
+def check_outputs(out, force: bool = False) -> None:
+    """Before any run: every file the study will write in OUT may be written (see
+    write_output), so a user's summary.csv is refused now, not replaced at the end."""
+    from ..io.safe_write import require_writable
+    for name in OUTPUTS:
+        require_writable(Path(out) / name, keep_unless=lambda p: is_study_folder(p.parent),
+                         force=force, what="--out", kind="a sweep's output")
 
 
 def axis_type(values) -> pa.DataType:
@@ -125,11 +154,9 @@ def summary(study: Study, table: pa.Table) -> pa.Table | None:
     return grouped.rename_columns([names.get(c, c) for c in grouped.column_names])
 
 
-def write_summary(study: Study, table: pa.Table, out) -> Path | None:
+def write_summary(study: Study, table: pa.Table, out, force: bool = False) -> Path | None:
     import pyarrow.csv as pcsv
     table = summary(study, table)
     if table is None:
         return None
-    path = Path(out) / "summary.csv"
-    pcsv.write_csv(table, path)
-    return path
+    return write_output(out, "summary.csv", lambda tmp: pcsv.write_csv(table, tmp), force)

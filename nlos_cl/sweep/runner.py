@@ -61,8 +61,25 @@ def runner_name(runner) -> str:
     return f"{runner.__module__}:{getattr(runner, '__qualname__', type(runner).__name__)}"
 
 
-def resolve(runner):
-    """The function a `runner` value names ('package.module:function', or a callable)."""
+OWN = ("nlos_cl",)  # packages whose functions a study file may name without an opt-in
+
+
+def allowed(module: str, allow=()) -> bool:
+    """Whether a study file may name a function of `module`: one of nlos_cl's own packages, or
+    a module the user allowed (`allow`: module names; each allows its submodules too)."""
+    return any(module == m or module.startswith(m + ".") for m in (*OWN, *allow))
+
+
+def resolve(runner, allow=()):
+    """The function a `runner` value names ('package.module:function', or a callable).
+
+    A study file is data, but a runner is code it runs: `runner: "os:system"` with an axis of
+    commands would run each one. So a name resolves only to a function defined in nlos_cl's
+    own packages, unless its module is in `allow` (nlos-cl sweep --allow-runner MODULE,
+    nl.sweep(..., allow_runner=[MODULE])): the user's explicit word that the module is theirs
+    to run. The module is checked before it is imported (an import runs its code), and the
+    function found must be defined in an allowed module (not `os.system` reached through an
+    allowed module's `import os`). A callable passed from Python is the caller's own code."""
     fix = ("write runner: \"package.module:function\", a function the workers can import "
            "(from Python you may pass the function itself)")
     if not isinstance(runner, str):
@@ -70,6 +87,23 @@ def resolve(runner):
         return runner
     require(bool(_NAME.fullmatch(runner)), "runner", f"expected 'package.module:function', "
             f"got {runner!r}", fix)
+    module, _, name = runner.partition(":")
+    allow = (allow,) if isinstance(allow, str) else tuple(allow or ())
+    require(allowed(module, allow), f"runner {runner!r}", f"cannot import {module!r} from a "
+            "study file: a runner is code the study runs, and only nlos_cl's own functions "
+            "run without your word", f"if you trust {module!r}, allow it: nlos-cl sweep "
+            f"--allow-runner {module} (nl.sweep(..., allow_runner=[{module!r}]))")
+    obj = _import(runner)
+    home = getattr(inspect.unwrap(obj), "__module__", None) or ""
+    require(allowed(home, allow), f"runner {runner!r}", f"is {home or 'a builtin'}'s "
+            f"{getattr(obj, '__name__', name)}, not a function of {module!r}",
+            f"name the function where it is defined (and allow that module only if you trust "
+            "it)")
+    return obj
+
+
+def _import(runner: str):
+    """The callable `runner` names (already allowed: see resolve), imported."""
     module, _, name = runner.partition(":")
     try:
         obj = importlib.import_module(module)
@@ -80,8 +114,8 @@ def resolve(runner):
         require(hasattr(obj, part), f"runner {runner!r}", f"{module!r} has no {name!r}",
                 "check the function's name after the colon")
         obj = getattr(obj, part)
-    require(callable(obj), f"runner {runner!r}", f"is not callable (a {type(obj).__name__})",
-            "name a function")
+    require(callable(obj) and not inspect.ismodule(obj), f"runner {runner!r}",
+            f"is not callable (a {type(obj).__name__})", "name a function")
     return obj
 
 
@@ -116,13 +150,13 @@ def _axis(where: str, spec) -> Axis:
     return Axis(name, name, values, spec.get("scale"))
 
 
-def load_runner_study(raw: dict, base_dir=None) -> RunnerStudy:
-    """A RunnerStudy from a study mapping with a `runner` (checked: importable, callable,
-    taking every axis and params name)."""
+def load_runner_study(raw: dict, base_dir=None, allow_runner=()) -> RunnerStudy:
+    """A RunnerStudy from a study mapping with a `runner` (checked: allowed (see resolve),
+    importable, callable, taking every axis and params name)."""
     unknown = sorted(set(raw) - TOP)
     require(not unknown, f"study.{unknown[0] if unknown else ''}", "is not a known key of a "
             "runner study", f"use one of {sorted(TOP)} (scene studies: no runner)")
-    fn = resolve(raw["runner"])
+    fn = resolve(raw["runner"], allow_runner)
     axes = raw.get("axes") or []
     require(isinstance(axes, list), "axes", "expected a list", "write axes: [{name, values}]")
     groups = [axis_group(i, spec, _axis) for i, spec in enumerate(axes)]
@@ -147,7 +181,8 @@ def load_runner_study(raw: dict, base_dir=None) -> RunnerStudy:
 
 @functools.lru_cache(maxsize=16)
 def _named(runner: str):
-    return resolve(runner)
+    """On a worker: the study was checked when it was loaded (resolve), so only import."""
+    return _import(runner)
 
 
 def _plain(value):

@@ -8,11 +8,12 @@ from .cases import Row, all_rows
 from .report import report
 
 
-def run(device=None, smoke=False, out_dir: Path | None = None, say=print) -> str:
+def run(device=None, smoke=False, out_dir: Path | None = None, say=print, force=False) -> str:
+    """Bench, then report; `force` lets out_dir's files replace ones nlos_cl did not write."""
     from ...ops.opencl_backend import get_runtime
     rt = get_runtime(device)
     rows = all_rows(rt, smoke, say)
-    return report(rt.name, rows, smoke, out_dir)
+    return report(rt.name, rows, smoke, out_dir, force)
 
 
 __all__ = ["Row", "all_rows", "report", "run"]

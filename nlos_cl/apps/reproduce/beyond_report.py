@@ -146,7 +146,10 @@ def _remarks(summary) -> list[str]:
     return out
 
 
-def write_beyond_report(result, s: Settings, path: Path, out: Path, wall_s: float) -> None:
+def write_beyond_report(result, s: Settings, path: Path, out: Path, wall_s: float,
+                        force: bool = False) -> None:
+    """docs/beyond-the-paper.md, atomically; never over a page nlos_cl did not generate
+    unless `force` (nlos_cl.io.safe_write)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     try:
         fig_dir = out.resolve().relative_to(path.parent.resolve())
@@ -174,4 +177,5 @@ def write_beyond_report(result, s: Settings, path: Path, out: Path, wall_s: floa
              "## " + TEXT["titles"]["sections"], "",
              *[f"- **{v['title']}**: {v['about']}" for v in TEXT["sections"].values()], "",
              "## " + TEXT["titles"]["model"], "", TEXT["model"], ""]
-    path.write_text("\n".join(parts))
+    from ...io.safe_write import write_text
+    write_text(path, "\n".join(parts), what="--doc", force=force)

@@ -97,9 +97,11 @@ def _section(r: Result) -> str:
     return SECTIONS[r.name](r) if r.name in SECTIONS else ""
 
 
-def write_report(results, s: Settings, path: Path, out: Path, wall_s: float) -> None:
+def write_report(results, s: Settings, path: Path, out: Path, wall_s: float,
+                 force: bool = False) -> None:
     """docs/paper-results.md: every experiment's numbers from this run, the paper's beside
-    them, the settings, and the remarks (text.yaml) on where and why they differ."""
+    them, the settings, and the remarks (text.yaml) on where and why they differ. Written
+    atomically, never over a page nlos_cl did not generate unless `force` (safe_write)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     try:
         figure_dir = out.resolve().relative_to(path.parent.resolve())
@@ -114,4 +116,5 @@ def write_report(results, s: Settings, path: Path, out: Path, wall_s: float) -> 
         parts += [f"## {r.title}", "", _section(r), "", remark, ""]
         parts += [f"![{r.name}]({figure_dir / png})" for png in r.figures]
         parts.append("")
-    path.write_text("\n".join(parts))
+    from ...io.safe_write import write_text
+    write_text(path, "\n".join(parts), what="--doc", force=force)

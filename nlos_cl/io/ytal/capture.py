@@ -18,7 +18,8 @@ import numpy as np
 from ...core.errors import InputError, require
 from ...core.histograms import HistogramSet
 from .fields import (GRID_FORMATS, H_FORMATS, REQUIRED,  # noqa: F401  (the format enums, for users)
-                     check_complete, check_memory, dataset, is_capture, to_histograms, write_fields)
+                     check_complete, check_memory, check_regular, check_storage, dataset,
+                     is_capture, to_histograms, write_fields)
 from .frames import YTAL, CaptureFrame, check_wall_spots, from_ytal, to_ytal  # noqa: F401
 
 
@@ -41,7 +42,8 @@ def write_capture(path, histograms: HistogramSet, *, device_distance_m: float = 
     def write(tmp):
         with h5py.File(tmp, "w") as f:
             write_fields(f, h, device_distance_m, metadata, compression)
-    return atomic_write(path, write, keep_unless=is_capture, force=force, what="capture",
+    return atomic_write(path, write, keep_unless=is_capture, force=force, record=False,
+                        what="capture",
                         kind="an HDF5 capture (nlos_cl's or y-tal's)")
 
 
@@ -74,10 +76,11 @@ def read_capture_with_frame(path, *, max_bytes: int | None = None, joint: bool =
 
     path = Path(path)
     where = f"capture {path}"
-    require(path.is_file(), where, "does not exist", "pass the path of an .h5 file")
+    check_regular(path)
     check_complete(path)
     try:
         with h5py.File(path, "r") as f:
+            check_storage(f, path)  # before any field is looked up: links resolve on lookup
             missing = [k for k in REQUIRED if k not in f]
             require(not missing, where, f"missing field(s) {missing}",
                     "write every field of y-tal's NLOSCaptureData (see nlos_cl.io.ytal.capture)")

@@ -4,6 +4,8 @@ memory, types, geometry) into HistogramSets. docs/captures.md has the field-by-f
 from __future__ import annotations
 
 import math
+import os
+import stat
 from pathlib import Path
 
 import numpy as np
@@ -69,8 +71,12 @@ def enum(f, name, members, value):
 
 
 def is_capture(path: Path) -> bool:
+    """Whether `path` is a regular file holding a capture's H and H_format (a FIFO or device is
+    not: opening one could block or consume it)."""
     import h5py
     try:
+        if not stat.S_ISREG(os.stat(path).st_mode):
+            return False
         with open(path, "rb") as fh:
             if fh.read(8) != HDF5_SIGNATURE:
                 return False
@@ -101,6 +107,50 @@ def check_complete(path: Path) -> None:
             f"incomplete or corrupted file: its HDF5 header declares {sum(end) if o else '?'} "
             f"bytes but the file has {size} (cut off by an interrupted copy, download or write)",
             "copy or write the capture again")
+
+
+def check_regular(path: Path) -> None:
+    """A capture is a regular file: a FIFO would block the read (forever, if nobody writes),
+    a device would be read without end, a folder is no capture."""
+    where = f"capture {path}"
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        mode = None
+    except OSError as exc:
+        raise InputError(f"{where}: cannot be read ({exc.strerror}). Fix: pass the path of a "
+                         "readable .h5 file") from None
+    require(mode is not None, where, "does not exist", "pass the path of an .h5 file")
+    kind = ("a folder" if stat.S_ISDIR(mode) else "a FIFO (named pipe)" if stat.S_ISFIFO(mode)
+            else "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) else "a socket")
+    require(stat.S_ISREG(mode), where, f"is {kind}, not a regular file (reading it could block "
+            "or never end)", "pass the path of an .h5 file (copy a stream to a file first)")
+
+
+def check_storage(f, path) -> None:
+    """Every field's data is inside the file, checked before any is opened or read: an HDF5
+    external link or soft link resolves to another file or object, external raw storage
+    (dataset.external) reads the bytes of any file named in the capture (a crafted capture
+    pointing H at /etc/passwd or ~/.ssh/id_rsa would read it), and a virtual dataset maps
+    other files in. y-tal writes none of these."""
+    import h5py
+    for key in f.keys():
+        link = f.get(key, getlink=True)
+        kind = ("an external link (to another file)" if isinstance(link, h5py.ExternalLink)
+                else "a soft link" if isinstance(link, h5py.SoftLink) else None)
+        require(kind is None, f"capture {path}: {key}", f"is {kind}, not data stored in the "
+                "capture", "write the field's data into the capture itself (h5py: copy it)")
+        obj = f[key]
+        if not isinstance(obj, h5py.Dataset):
+            continue
+        plist = obj.id.get_create_plist()
+        external = plist.get_external_count() > 0
+        virtual = plist.get_layout() == h5py.h5d.VIRTUAL
+        kind = ("external raw storage (its bytes are read from other files)" if external
+                else "a virtual dataset (mapped from other files)" if virtual else None)
+        require(kind is None, f"capture {path}: {key}", f"uses {kind}; nlos_cl reads only data "
+                "stored in the capture itself", "write the data into the capture (h5py: "
+                "f.create_dataset(name, data=...)), or convert it with y-tal")
 
 
 def check_memory(f, path, max_bytes) -> None:

@@ -104,7 +104,8 @@ def write_sequence(path, frames, *, fps: float | None = None, device_distance_m:
 
     def write(tmp):
         _write(tmp, iter(frames), fps, device_distance_m, metadata, compression)
-    return atomic_write(path, write, keep_unless=is_capture, force=force, what="sequence",
+    return atomic_write(path, write, keep_unless=is_capture, force=force, record=False,
+                        what="sequence",
                         kind="an HDF5 capture or sequence")
 
 
