@@ -22,10 +22,25 @@
 // order of the additions, so the result is bit-identical run after run.
 //
 // Build options: -D CHUNK=<facets per chunk> [-D REFLECTANCE_FACTOR(n, to_laser, to_detector)=...]
-// (with the GGX model also -D GGX_A2, GGX_KD, GGX_KS). Occlusion (nlos_cl/visibility.py) comes
-// as a per-(detector, facet) mask: a facet that does not see both spots sends nothing.
+// (with the GGX model also -D GGX_A2, GGX_KD, GGX_KS) [-D PAIRED=0|1]. Occlusion
+// (nlos_cl/visibility.py) comes as a per-(detector, facet) mask: a facet that does not see both
+// spots sends nothing.
+// PAIRED (facet_paths only): 0 (default), one laser spot O for every detector, passed as a
+// float4 argument; 1, each detector its own, lasers[d] (confocal and paired layouts). Each work
+// item computes its facets' laser legs either way: only where O comes from differs.
 
 #include "common.h"
+
+#ifndef PAIRED
+#define PAIRED 0
+#endif
+#if PAIRED
+#define LASER_ARG __global const float4 *lasers  // [n_det]: each detector's laser spot
+#define LASER_OF(d) lasers[d].xyz
+#else
+#define LASER_ARG const float4 laser             // laser spot O, every detector's
+#define LASER_OF(d) laser.xyz
+#endif
 
 // The target's direction-dependent reflectance (nlos_cl/reflectance.py); its constant part is
 // applied on the host. Lambertian: 1.
@@ -55,7 +70,7 @@ __kernel void facet_paths(__global const float4 *centres,  // xyz of each facet
                           __global const float4 *normals,  // unit normal xyz, w = area (m^2)
                           const int n_facets,
                           __global const float4 *spots,    // detector spots on the wall
-                          const float4 laser,              // laser spot O
+                          LASER_ARG,                       // laser spot(s): see PAIRED
                           const int det0,                  // first detector of this group
                           __global const uchar *visible,   // [n_det][n_facets] if has_visible
                           const int has_visible,           // 0: every facet sees both spots
@@ -68,7 +83,7 @@ __kernel void facet_paths(__global const float4 *centres,  // xyz of each facet
     const int n_chunks = get_global_size(0);
     const int row = det * n_chunks * CHUNK;
     const float3 spot = spots[det0 + det].xyz;
-    const float3 o = laser.xyz;
+    const float3 o = LASER_OF(det0 + det);
     float lo = INFINITY, hi = -INFINITY, total = 0.0f;
     for (int k = 0; k < CHUNK; ++k) {
         const int f = chunk * CHUNK + k;

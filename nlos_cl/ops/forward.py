@@ -9,7 +9,9 @@ inside the bin. The host applies the physical constants in float64.
 Signature (both backends): forward(facets, spots, laser, edge0, dpath, sigma_path, n_bins,
 reflectance=None, method=..., visible=None) -> (histograms (D, n_bins), path span (D, 2): min
 and max contributing path). `visible` (D, F) bool: occlusion, a facet sends nothing to a
-detector where it does not see the laser spot or that detector's spot.
+detector where it does not see the laser spot or that detector's spot. laser: (3,), every
+detector's laser spot O, or (D, 3), each detector's own (paired and confocal layouts: the
+kernel's -D PAIRED=1 reads lasers[d]).
 """
 from __future__ import annotations
 
@@ -19,6 +21,7 @@ import math
 import numpy as np
 
 from .base import Example, Operation, relative_error
+from .ellipse_score import laser_rows, paired
 
 REACH_SIGMAS = 6.0  # a facet's pulse is cut off 6 sigma from its centre: 2e-9 of its energy
 FACET_CHUNK = 64  # facets per culling chunk in the kernel
@@ -30,22 +33,34 @@ SUB_BINS_PER_SIGMA = 24  # deposit: sub-bins of at most sigma / 24 (linear depos
 # ---------------------------------------------------------------------------- twin
 
 def facet_paths(centres, normals, areas, spots, laser, reflectance=None, visible=None):
-    """Hidden path r1 + r2 and geometric weight per (detector, facet), float64."""
-    v1 = centres - laser  # (F, 3) O -> facet
-    r1 = np.linalg.norm(v1, axis=1)
+    """Hidden path r1 + r2 and geometric weight per (detector, facet), float64. laser: (3,),
+    whose leg is computed once per facet and shared, or (D, 3), each detector's own."""
+    lasers = laser_rows(laser, len(spots)) if paired(laser) else np.reshape(laser, (1, 3))
+    v1 = centres[None, :, :] - lasers[:, None, :]  # (L, F, 3) O -> facet
+    r1 = np.linalg.norm(v1, axis=2)
     v2 = spots[:, None, :] - centres[None, :, :]  # (D, F, 3) facet -> spot
     r2 = np.linalg.norm(v2, axis=2)
-    cos_b1 = -np.einsum("fk,fk->f", normals, v1) / r1
+    cos_b1 = -np.einsum("fk,lfk->lf", normals, v1) / r1
     cos_a2 = np.einsum("fk,dfk->df", normals, v2) / r2
-    cos_a1 = np.abs(v1[:, 1]) / r1  # the wall's normal is +y
+    cos_a1 = np.abs(v1[:, :, 1]) / r1  # the wall's normal is +y
     cos_b2 = np.abs(v2[:, :, 1]) / r2
-    lit = (cos_b1 > 0)[None, :] & (cos_a2 > 0)
+    lit = (cos_b1 > 0) & (cos_a2 > 0)
     if visible is not None:  # occlusion: the facet must see the laser and the detector spot
         lit = lit & np.asarray(visible, bool)
     weight = cos_a1 * cos_b1 * cos_a2 * cos_b2 * areas / (r1 ** 2 * r2 ** 2)
     if reflectance is not None:
-        weight = weight * reflectance.factor(normals, -v1 / r1[:, None], v2 / r2[..., None])
-    return r1[None, :] + r2, np.where(lit, weight, 0.0)
+        weight = weight * _direction_factor(reflectance, normals, -v1 / r1[..., None],
+                                            v2 / r2[..., None])
+    return r1 + r2, np.where(lit, weight, 0.0)
+
+
+def _direction_factor(reflectance, normals, to_laser, to_detector):
+    """(D, F) reflectance.factor for (L, F, 3) laser directions: one call where L = 1, one per
+    detector where each has its own laser spot (factor takes one (F, 3) laser direction)."""
+    if len(to_laser) == 1:
+        return reflectance.factor(normals, to_laser[0], to_detector)
+    return np.concatenate([reflectance.factor(normals, to_laser[d], to_detector[d:d + 1])
+                           for d in range(len(to_detector))])
 
 
 def pulse_bins(path, weight, edge0, dpath, sigma_path, n_bins):
@@ -105,14 +120,17 @@ def opencl(rt, facets, spots, laser, edge0, dpath, sigma_path, n_bins, reflectan
     mask = rt.constant(np.ascontiguousarray(visible if visible is not None else np.ones(1),
                                             np.uint8), np.uint8)
     defines = dict(CHUNK=FACET_CHUNK, **(reflectance.kernel_defines() if reflectance else {}))
-    paths_kernel = rt.kernel("forward", "facet_paths", **defines)
+    is_paired = paired(laser)  # -D PAIRED=1: each detector's laser spot from a buffer
+    paths_kernel = rt.kernel("forward", "facet_paths", **defines,
+                             **(dict(PAIRED=1) if is_paired else {}))
+    lasers = rt.constant(float4_rows(laser_rows(laser, n_det))) if is_paired else float4(laser)
     hist = out if out is not None else rt.empty((n_det, n_bins))
     spans = []
     for d0, d1 in rt.groups(n_det, 4 * n_pad, "facet paths of one detector"):
         path, weight = rt.empty((d1 - d0, n_pad)), rt.empty((d1 - d0, n_pad))
         ranges = rt.empty((d1 - d0, n_chunks, 4))
         rt.run(paths_kernel, (n_chunks, d1 - d0), centres, normals, np.int32(n_facets),
-               spots_buf, float4(laser), np.int32(d0), mask, np.int32(visible is not None),
+               spots_buf, lasers, np.int32(d0), mask, np.int32(visible is not None),
                path, weight, ranges)
         r = rt.to_numpy(ranges)  # tiny (D, chunks, 4): the window check and the deposit's
         span = np.stack([r[..., 0].min(axis=1), r[..., 1].max(axis=1)], axis=1)
@@ -206,12 +224,14 @@ def scene_inputs(scene, time_axis):
             SPEED_OF_LIGHT * setup.pulse.sigma_s, time_axis.n_bins, scene.target.reflectance)
 
 
-def _window(scene, dt_s, margin_m=0.1):
-    """A short time axis over every hidden path the facets produce, plus a margin."""
+def _window(scene, dt_s, margin_m=0.1, laser=None):
+    """A short time axis over every hidden path the facets produce, plus a margin; laser: the
+    setup's laser spot, or (D, 3) spots (paired)."""
     from ..core.constants import SPEED_OF_LIGHT as C
     from ..core.paths import TimeAxis
     setup, facets = scene.setup, scene.facets()
-    paths = np.linalg.norm(facets.centres - setup.laser_spot, axis=1)[None] + np.linalg.norm(
+    lasers = np.reshape(setup.laser_spot if laser is None else laser, (-1, 1, 3))
+    paths = np.linalg.norm(facets.centres - lasers, axis=2) + np.linalg.norm(
         facets.centres[None] - setup.detector_spots[:, None], axis=2)
     t0 = (2 * setup.device_distance_m + paths.min() - margin_m) / C + setup.pulse.peak_delay_s
     return TimeAxis(t0, dt_s, int(math.ceil((np.ptp(paths) + 2 * margin_m) / (C * dt_s))))
@@ -275,7 +295,7 @@ def examples(size):
                    max_alloc_bytes=4 * n_pad),
            Example("one detector per group, erf", lambda be: args + ("erf",), 1e-3, hist_err,
                    max_alloc_bytes=4 * n_pad)]
-    out += _occlusion_examples(args, hist_err)
+    out += _occlusion_examples(args, hist_err) + _paired_examples(scene, size, hist_err, n_pad)
     if size == "check":  # 1 ps bins: one sub-bin per bin, 363 taps
         fine = scene_inputs(scene, _window(scene, 1e-12))
         out.append(Example("paper rectangle at 1 ps, deposit", lambda be: fine, 1e-3, hist_err))
@@ -296,6 +316,26 @@ def _occlusion_examples(args, hist_err):
             Example("glossy GGX target, erf", lambda be: glossy + ("erf",), 1e-3, hist_err)]
 
 
+def _paired_examples(scene, size, hist_err, n_pad):
+    """Each detector its own laser spot (-D PAIRED=1): confocal-like (laser = detector spot) and
+    paired (the spots reversed, shifted along the wall), on time axes that cover their paths;
+    one detector per group (det0 > 0 indexes lasers[d]) and, in "check", a glossy target."""
+    from ..physics.reflectance import GGX
+    spots, fixed, out = scene.setup.detector_spots, (lambda a: lambda be: a), []
+    for label, lasers in (("confocal", spots), ("paired", spots[::-1] + [0.4, 0.0, 0.1])):
+        args = scene_inputs(scene, _window(scene, 10e-12, laser=lasers))
+        args = args[:2] + (np.array(lasers),) + args[3:]
+        out += [Example(f"{label}: histograms, deposit", fixed(args), 1e-3, hist_err),
+                Example(f"{label}: one detector per group, erf", fixed(args + ("erf",)), 1e-3,
+                        hist_err, max_alloc_bytes=4 * n_pad),
+                Example(f"{label}: contributing path span (m)", fixed(args), 1e-5, _span_error)]
+        if size == "check":
+            glossy = args[:7] + (GGX(specular=0.6, roughness=0.3, diffuse=0.2), "erf")
+            out.append(Example(f"{label}: glossy GGX target, erf", fixed(glossy), 1e-3,
+                               hist_err))
+    return out
+
+
 OP = Operation(
     "forward", "forward", opencl, numpy, examples,
     tolerance_note="histograms 1e-3 of the peak: paths of ~10 m round to ~1e-6 m in float32, "
@@ -303,5 +343,7 @@ OP = Operation(
     "against a bin's erf difference of ~0.03. Deposit: a linear split between sub-bins of "
     "sigma / 24 errs by at most (dsub / sigma)^2 / 8 = 2e-4 of the peak (measured 1.2e-5 to "
     "1.5e-5); the fixed-point sums keep 2^-40 of a detector's weight. Path span 1e-5 m: float32 "
-    "paths of ~10 m.",
+    "paths of ~10 m. Paired and confocal layouts: the same tolerances, for the same reasons: "
+    "each (facet, detector) runs the same float32 arithmetic on paths of the same size, only "
+    "the laser spot comes from lasers[d].",
     bound="deposit: atomics and FMA (one correlation per sub-bin phase); erf: exp")
