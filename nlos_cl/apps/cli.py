@@ -18,6 +18,18 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: {message}\n")
 
 
+class _Defaults(argparse.HelpFormatter):
+    """--help says each option's default, where it has one and its help does not say it."""
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        default = action.default
+        if (default in (None, False, "", argparse.SUPPRESS) or "default" in text
+                or not action.option_strings):
+            return text
+        return f"{text} (default: {default})" if text else f"default: {default}"
+
+
 def _number(field: str, fix: str, *, positive=False, minimum=None, integer=False):
     """An argparse type: a finite number (int if `integer`), checked as the API checks it."""
     def parse(text):
@@ -286,7 +298,7 @@ def parser() -> argparse.ArgumentParser:
     sub = top.add_subparsers(dest="command", required=True)
     for name, (help_text, add_args, takes_device, takes_json, _) in COMMANDS.items():
         parents = [p for p, on in ((device, takes_device), (as_json, takes_json)) if on]
-        p = sub.add_parser(name, help=help_text, parents=parents)
+        p = sub.add_parser(name, help=help_text, parents=parents, formatter_class=_Defaults)
         if add_args:
             add_args(p)
     return top
