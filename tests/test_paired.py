@@ -11,6 +11,7 @@ import pytest
 
 import nlos_cl as nl
 from nlos_cl.core.errors import InputError
+from nlos_cl.localization.estimate import Capabilities
 
 TARGET = (3.0, 2.0, 0.0)
 AXIS = nl.default_time_axis(nl.paper_setup(), 1e-11, max_hidden_path_m=9.0)  # every leg here
@@ -85,17 +86,41 @@ def test_one_laser_written_as_paired_gives_the_same_answer(runtime):
         assert np.array_equal(a.position, b.position) and a.score == b.score
 
 
-def test_the_model_estimator_says_it_fits_one_laser_layouts(runtime):
-    d = (-1.0, 0.0, 0.1)
-    h = _paired(SCAN[:3], [d] * 3, runtime)
-    with pytest.raises(InputError, match="estimator: 'model' fits layouts with one laser"):
-        nl.Locator(h, GRID, estimator="model")
+def test_the_model_estimator_fits_a_paired_layout(runtime):
+    """N lasers + one detector at 20 dB: the plate fit (the forward op with a laser per
+    detector) finds the centre within 1 cm and the 0.3 x 0.6 m size within 2 cm."""
+    h = _paired(SCAN, [(-1.0, 0.0, 0.1)] * len(SCAN), runtime)
+    noisy = nl.add_noise(nl.upload(h, runtime), 20.0, seed=1)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        found = nl.locate_capture(h, region=GRID, estimator="model")
-    point = found.points[0]
-    assert any("located with the paper's argmax" in w for w in point.warnings)
+        loc = nl.locate(nl.gauss_filter(noisy), GRID, estimator="model", raw=noisy,
+                        log_mode=True)
+    fit = loc.targets[0].fit
+    assert np.linalg.norm(loc.position - TARGET) < 0.01
+    assert fit.shape == "plate" and abs(fit["width"].value - 0.3) < 0.02
+    assert abs(fit["height"].value - 0.6) < 0.02
+
+
+def test_paired_captures_default_to_the_papers_argmax_and_say_so(runtime):
+    d = (-1.0, 0.0, 0.1)
+    h = _paired(SCAN[:3], [d] * 3, runtime)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        point = nl.locate_capture(h, region=GRID).points[0]
     assert point.location.estimator == "paper"
+    assert any("located with the paper's argmax by default" in w for w in point.warnings)
+
+
+class _OneLaserOnly(nl.PaperArgmax):
+    capabilities = Capabilities(local=True)  # paired=False: says it cannot
+
+
+def test_an_estimator_without_pairing_is_refused_or_replaced(runtime):
+    h = _paired(SCAN[:3], [(-1.0, 0.0, 0.1)] * 3, runtime)
+    with pytest.raises(InputError, match="fits layouts with one laser"):
+        nl.Locator(h, GRID, estimator=_OneLaserOnly())
+    point = nl.locate_capture(h, region=GRID, estimator=_OneLaserOnly()).points[0]
+    assert any("located with the paper's argmax" in w for w in point.warnings)
 
 
 def test_a_laser_per_histogram_must_match_the_histograms():

@@ -218,9 +218,10 @@ def _targets(text):
 
 
 def _estimator_args(p):
-    p.add_argument("--estimator", choices=["model", "paper"], default="model",
+    p.add_argument("--estimator", choices=["model", "paper"], default=None,
                    help="model: fit a plate's centre, size and yaw with the forward model, with "
-                   "a covariance (docs/model-estimator.md); paper: the paper's argmax")
+                   "a covariance (docs/model-estimator.md); paper: the paper's argmax "
+                   "(default: model; paper for paired and confocal captures)")
     p.add_argument("--targets", type=_targets, default=1,
                    help="targets to fit (model estimator): a count, or 'auto' (by BIC)")
 

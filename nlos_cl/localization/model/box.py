@@ -52,8 +52,12 @@ def _lattices(lattice):
 
 
 def seen(centre, normal, spots, laser) -> bool:
-    """Can the face be lit by the laser spot and seen from at least one wall spot?"""
-    return bool(normal @ (laser - centre) > 0 and np.any((spots - centre) @ normal > 0))
+    """Can the face be lit by the laser spot and seen from at least one wall spot? (Paired
+    layouts, a laser spot per detector: lit and seen by one pair.)"""
+    seen_by = (spots - centre) @ normal > 0
+    if np.ndim(laser) == 2:
+        return bool(np.any(((laser - centre) @ normal > 0) & seen_by))
+    return bool(normal @ (laser - centre) > 0 and np.any(seen_by))
 
 
 def box_cells(p, lattice, spots=None, laser=None):

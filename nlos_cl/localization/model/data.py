@@ -26,7 +26,7 @@ MAD = 1.4826  # MAD -> standard deviation for Gaussian noise
 class Observation:
     mode: str  # "gauss" (AWGN, filtered samples) or "poisson" (photon counts per bin)
     spots: np.ndarray  # (D, 3)
-    laser: np.ndarray  # (3,)
+    laser: np.ndarray  # (3,), or (D, 3): each detector's own (paired and confocal layouts)
     edge0: np.ndarray  # (D,) hidden path at the first model bin's lower edge
     dpath: np.ndarray  # (D,) model bin width (m of path)
     y: np.ndarray  # (D, n) data
@@ -48,7 +48,8 @@ class Observation:
     def detectors(self, rows) -> "Observation":
         """The same observation on a subset of detectors (rows)."""
         from dataclasses import replace
-        return replace(self, spots=self.spots[rows], edge0=self.edge0[rows],
+        laser = self.laser[rows] if self.laser.ndim == 2 else self.laser
+        return replace(self, spots=self.spots[rows], laser=laser, edge0=self.edge0[rows],
                        dpath=self.dpath[rows], y=self.y[rows], valid=self.valid[rows],
                        noise=self.noise[rows], path0=self.path0[rows])
 

@@ -55,8 +55,12 @@ def lit_cells(centres, normals, e_u, e_v, spots=None, laser=None):
     keep = np.ones(len(centres), bool)
     if spots is not None:
         spots, laser = np.asarray(spots, float), np.asarray(laser, float)
-        keep = (np.einsum("fk,fk->f", normals, laser - centres) > 0) & np.any(
-            np.einsum("fk,dfk->df", normals, spots[:, None] - centres[None]) > 0, axis=0)
+        seen = np.einsum("fk,dfk->df", normals, spots[:, None] - centres[None]) > 0
+        if laser.ndim == 2:  # paired: lit and seen by one (laser, detector) pair
+            lit = np.einsum("fk,dfk->df", normals, laser[:, None] - centres[None]) > 0
+            keep = np.any(lit & seen, axis=0)
+        else:
+            keep = (np.einsum("fk,fk->f", normals, laser - centres) > 0) & np.any(seen, axis=0)
         if not keep.any():
             keep[0] = True  # one cell keeps the shapes valid (its weight is zero)
     return (Facets(centres[keep], np.ascontiguousarray(normals[keep]), areas[keep]),

@@ -52,7 +52,7 @@ class ModelEstimator:
     name = "model"
     # The scored frame is used only for the paper's estimate (the starts' second candidate, the
     # no-signal test): a Locator may hand it over from its fused search, with no score map.
-    capabilities = Capabilities(from_paper=True, needs_raw=True)
+    capabilities = Capabilities(from_paper=True, needs_raw=True, paired=True)
 
     def __init__(self, targets=1, *, likelihood="auto", h_s=PAPER_H_S, pulse_fwhm_s=70e-12,
                  jitter_s=30e-12, lattice=None, max_targets=3, backend=None, final_nfev=30,
@@ -138,6 +138,8 @@ class ModelEstimator:
         """The plates' Problem: the model on the host or with the forward op on `backend`
         (model_on); a HostProblem keeps `backend` for the closed shapes."""
         lattice = self.lattice_for(obs)
+        if obs.laser.ndim == 2:  # paired: the host's batched model knows one laser spot
+            return Problem(obs, backend, lattice)
         if self.model_on == "host" or (self.model_on == "auto"
                                        and len(obs.spots) <= HOST_DETECTORS):
             from .batch import HostProblem

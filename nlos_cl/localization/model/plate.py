@@ -104,7 +104,9 @@ def cell_model(cells, edges, spots, laser):
     spots, laser = np.asarray(spots, float), np.asarray(laser, float)
     some = np.unique(np.linspace(0, len(spots) - 1, min(len(spots), STAT_SPOTS)).round()
                      ).astype(int)
-    mean, centre, var_df, wsum = _cell_stats(cells, edges, spots[some], laser)
+    paired = laser.ndim == 2
+    mean, centre, var_df, wsum = _cell_stats(cells, edges, spots[some],
+                                             laser[some] if paired else laser)
     var_f = (var_df * wsum).sum(axis=0) / np.maximum(wsum.sum(axis=0), 1e-300)  # (F,)
     lit = wsum.sum(axis=0) > 0
     blur2 = BLUR_SHARE * float(np.mean(var_f[lit])) if lit.any() else 0.0
@@ -112,7 +114,8 @@ def cell_model(cells, edges, spots, laser):
     lost = (1.0 - keep ** 2)[None] * (mean - centre) * wsum
     shift = lost.sum(axis=1) / np.maximum(wsum.sum(axis=1), 1e-300)
     if len(some) < len(spots):  # affine in the spot's position, least squares over `some`
-        basis = np.hstack([np.ones((len(spots), 1)), spots - spots.mean(axis=0)])
+        basis = np.hstack([np.ones((len(spots), 1)), spots - spots.mean(axis=0)]
+                          + ([laser - laser.mean(axis=0)] if paired else []))
         coef, *_ = np.linalg.lstsq(basis[some], shift, rcond=None)
         shift = basis @ coef
     return _gauss_points(cells, edges, keep), math.sqrt(blur2), shift
@@ -135,15 +138,16 @@ def _cell_stats(cells, edges, spots, laser):
 
 
 def facing(centre, laser) -> float:
-    """The yaw that turns a plate at `centre` to face the laser spot."""
-    d = np.asarray(laser, float) - np.asarray(centre, float)
+    """The yaw that turns a plate at `centre` to face the laser spot (the mean of a paired
+    layout's spots)."""
+    d = np.asarray(laser, float).reshape(-1, 3).mean(axis=0) - np.asarray(centre, float)
     return math.atan2(d[1], d[0])
 
 
 def height_observable(spots, laser, tol=1e-6) -> bool:
     """Height (and the rotation about the wall spots' line) is observable only when the laser
     spot and the detector spots do not all lie on one straight line."""
-    pts = np.vstack([np.asarray(laser, float)[None], np.asarray(spots, float)])
+    pts = np.vstack([np.asarray(laser, float).reshape(-1, 3), np.asarray(spots, float)])
     diffs = pts[1:] - pts[0]
     if len(diffs) < 2:
         return False

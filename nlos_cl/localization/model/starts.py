@@ -30,15 +30,16 @@ def ellipse_point(obs, paths, z0=0.0, free_z=False) -> np.ndarray:
     """The point (y > 0) whose paths to the laser and each spot best match `paths`."""
     from .lm import least_squares  # not SciPy's: its import costs a one-shot locate ~0.25 s
     spots, laser = obs.spots, obs.laser
+    x0 = float(np.reshape(laser, (-1, 3))[:, 0].mean())  # a paired layout: its lasers' middle
 
     def res(v):
         c = np.array([v[0], v[1], v[2] if free_z else z0])
-        return np.linalg.norm(c - laser) + np.linalg.norm(spots - c, axis=1) - paths
+        return np.linalg.norm(c - laser, axis=-1) + np.linalg.norm(spots - c, axis=1) - paths
 
     best = None
     reach = float(np.median(paths)) / 2
     for gx, gy in ((0.5, 0.7), (0.9, 0.3), (0.2, 0.9)):
-        v0 = [laser[0] + gx * reach, max(gy * reach, 0.1)] + ([z0] if free_z else [])
+        v0 = [x0 + gx * reach, max(gy * reach, 0.1)] + ([z0] if free_z else [])
         lo = [-np.inf, 0.05] + ([-np.inf] if free_z else [])
         sol = least_squares(res, v0, bounds=(lo, np.inf))
         if best is None or sol.cost < best.cost:
