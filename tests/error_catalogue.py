@@ -12,6 +12,7 @@ import numpy as np
 import trimesh
 
 import nlos_cl as nl
+from nlos_cl.io.ytal.reading import read_sequence
 import nlos_cl.io.ytal.capture  # noqa: F401  (nl.capture)
 from nlos_cl.core import limits  # noqa: F401
 from nlos_cl.io import calibration, safe_write
@@ -166,6 +167,19 @@ def external_h_capture():
         f.create_dataset("H", shape=shape, dtype="u1",
                          external=[("/etc/passwd", 0, h5py.h5f.UNLIMITED)])
     return capture_file(edit)
+
+
+def external_h_sequence():
+    """A sequence file (frame axis) whose H is external raw storage reading /etc/passwd."""
+    import h5py
+    path = capture_file()
+    with h5py.File(path, "a") as f:
+        shape = (2,) + f["H"].shape
+        del f["H"]
+        f.create_dataset("H", shape=shape, dtype="u1",
+                         external=[("/etc/passwd", 0, h5py.h5f.UNLIMITED)])
+        f["frame_t_s"] = np.array([0.0, 0.1])
+    return path
 
 
 def virtual_h_capture():
@@ -412,6 +426,8 @@ CASES = [
                  "--out", existing_file("summary.csv").parent, "--workers", 0)),
     ("a capture whose H is external raw storage (/etc/passwd)", "H: uses external raw storage",
      lambda: nl.read_capture(external_h_capture())),
+    ("a sequence whose H is external raw storage (/etc/passwd)", "H: uses external raw storage",
+     lambda: read_sequence(external_h_sequence())),
     ("a capture whose H is a virtual dataset", "H: uses a virtual dataset",
      lambda: nl.read_capture(virtual_h_capture())),
     ("a capture whose H is an external link", "H: is an external link",

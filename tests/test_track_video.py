@@ -182,3 +182,19 @@ def test_mp4_through_ffmpeg_appears_whole_or_not_at_all(walk, tmp_path, monkeypa
     with pytest.raises(KeyboardInterrupt):
         _track(walk, "--max-frames", "3", "--video", str(bad))
     assert sorted(os.listdir(tmp_path)) == ["tracks.mp4"]  # no broken.mp4, no .tmp(.mp4)
+
+
+def test_a_file_that_appears_during_the_run_is_kept(walk, tmp_path, monkeypatch):
+    """A file someone else writes at the --video path while we track is not replaced by ours:
+    the check before tracking saw no file, and the atomic write's concurrent-writer check at
+    the end sees theirs (io/safe_write.py), whatever --force says."""
+    grab, path = track_video._GifWriter.grab_frame, tmp_path / "tracks.gif"
+
+    def appearing(self):
+        if not path.exists():
+            path.write_bytes(b"theirs")
+        return grab(self)
+    monkeypatch.setattr(track_video._GifWriter, "grab_frame", appearing)
+    with pytest.raises(nl.InputError, match="--video"):
+        _track(walk, "--max-frames", "2", "--video", str(path))
+    assert path.read_bytes() == b"theirs"

@@ -44,12 +44,13 @@ class Sequence:
         import h5py
 
         from .capture import read_capture_with_frame
-        from .fields import check_complete
+        from .fields import check_complete, check_storage
         self.path = Path(path)
         where = f"sequence {self.path}"
         require(self.path.is_file(), where, "does not exist", "pass the path of an .h5 file")
         check_complete(self.path)
         with h5py.File(self.path, "r") as f:
+            check_storage(f, self.path)  # links and external storage: refused before any field
             require("H" in f, where, "has no field H",
                     "write it with nlos_cl.tracking.write_sequence")
             stacked = "frame_t_s" in f
