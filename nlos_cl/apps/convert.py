@@ -3,6 +3,8 @@
 for a sequence format (consumer-nlos) into a sequence file that `nlos-cl track` reads."""
 from __future__ import annotations
 
+import numpy as np
+
 # CLI option -> the readers' keyword (nlos_cl.io.datasets.<format>.read_<format>)
 OPTIONS = {"dt_ps": "dt_ps", "t0_ps": "t0_ps", "width": "width_m", "grid_m": "grid_m",
            "transpose": "transpose", "flip": "flip", "gate_bins": "gate_bins", "fps": "fps"}
@@ -12,17 +14,19 @@ def main(args) -> int:
     from ..core.errors import require
     from ..io.datasets import SEQUENCES, detect, options_of, read_dataset
     name = args.format or detect(args.src)
-    given = {key: getattr(args, opt) for opt, key in OPTIONS.items()
-             if getattr(args, opt, None) not in (None, False)}
+    # not `not in (None, False)`: 0 == False, and --t0-ps 0 or --gate-bins 0 was dropped
+    given = {key: value for opt, key in OPTIONS.items()
+             if (value := getattr(args, opt, None)) is not None and value is not False}
     extra = sorted(set(given) - options_of(name))
     flag = {key: "--" + opt.replace("_", "-") for opt, key in OPTIONS.items()}
     require(not extra, flag[extra[0]] if extra else "", f"is not an option of the {name} "
             "format", "drop it (`nlos-cl convert --help` says which options each format takes)")
     meta = {"converted_from": str(args.src), "dataset_format": name, "options": given}
+    read = read_dataset(args.src, name, **given)
     if name in SEQUENCES:
-        return _sequence(args, read_dataset(args.src, name, **given), meta)
+        return _sequence(args, read, meta)
     from ..io.ytal.capture import write_capture
-    h = read_dataset(args.src, name, **given)
+    h = read
     path = write_capture(args.out, h, metadata=meta, force=args.force)
     print(f"wrote {path}: {name}, {_describe(h)}")
     return 0
@@ -42,7 +46,7 @@ def _sequence(args, read, meta) -> int:
 
 
 def _describe(h) -> str:
-    kind = "confocal" if h.paired and (h.laser_spots == h.detector_spots).all() else (
+    kind = "confocal" if h.paired and np.allclose(h.laser_spots, h.detector_spots) else (
         "paired (a laser spot per histogram)" if h.paired else "one laser spot")
     return (f"{h.n_detectors} histograms x {h.time_axis.n_bins} bins of "
             f"{h.time_axis.dt_s * 1e12:g} ps, {kind}")

@@ -86,7 +86,7 @@ def main(args) -> int:
         def write(tmp):  # the whole run writes the temporary: moved in only when complete
             with Video(args.video, tmp, tracker) as video:
                 kept.extend(_loop(args, seq, tracker, stop, video))
-        # --force as asked (check_video_path refused an existing file without it already)
+        # the same rule as check_video_path, applied again now that the video is complete
         atomic_write(args.video, write, force=args.force, what="--video", kind="a video")
     else:
         kept = _loop(args, seq, tracker, stop, None)

@@ -12,13 +12,15 @@ def check_video_path(args) -> None:
     from pathlib import Path
 
     from ..core.errors import require
+    from ..io.safe_write import require_writable
     path = Path(args.video)
     require(path.suffix in (".gif", ".mp4"), "--video", f"{path} is neither .gif nor .mp4",
             "pass e.g. tracks.gif")
     require(path.parent.is_dir(), "--video", f"the folder {path.parent} does not exist",
             "pass a path in an existing folder")
-    require(args.force or not path.exists(), "--video", f"{path} exists",
-            "pick another path, or pass --force to replace it")
+    # the rule every writer follows (links, non-regular files, files nlos_cl did not write),
+    # checked before tracking: atomic_write applies it again when the video is complete
+    require_writable(path, force=args.force, what="--video", kind="a video")
     if path.suffix == ".mp4":  # before any tracking, not after the last frame
         from matplotlib import animation
         require(animation.writers.is_available("ffmpeg"), "--video", "an .mp4 needs ffmpeg, "

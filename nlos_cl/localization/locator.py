@@ -152,8 +152,7 @@ class Locator:
         start = time.perf_counter()
         fusable = not return_map and (mode == "exhaustive"
                                       or self._search.fusable(sig.n_detectors))
-        raw = None if raw is None else as_signals(raw, sig.backend)
-        can = self.capabilities
+        can, raw = self.capabilities, _raw_for(self.estimator, raw, sig.backend)
         if fusable and can.is_paper:
             estimate, full = self._fused(sig, mode), None
         elif fusable and can.from_paper:  # a model fit starts from the fused search's one read
@@ -214,3 +213,10 @@ def _in_grid(estimate, grid: Grid, found):
     shift = cell - estimate.cell_position
     targets = [replace(t, position=t.position + shift) for t in estimate.targets]
     return replace(estimate, cell_position=cell, targets=targets)
+
+
+def _raw_for(estimator, raw, backend):
+    """The unfiltered frame, for estimators that fit it (no upload for the others); one that
+    declares no capabilities gets it, as before capabilities were declared."""
+    wants = capabilities_of(estimator).needs_raw or not hasattr(estimator, "capabilities")
+    return as_signals(raw, backend) if raw is not None and wants else None

@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.constants import LOG_FLOOR
+from ..core.histograms import laser_spots_of
 from .base import Example, Operation, relative_error
 
 CELLS_PER_ITEM = 8  # float8 arithmetic along x (ellipse_score.cl)
@@ -62,7 +63,7 @@ class ScoreMap:
 
 def _score_cells(cells, signal, stats, spots, laser, path0, inv_dpath, log_mode, log_floor):
     """The joint likelihood of (n, 3) cell centres, float64."""
-    lasers = laser_rows(laser, len(spots))
+    lasers = laser_spots_of(laser, len(spots))
     signal, stats = np.asarray(signal, np.float64), np.asarray(stats, np.float64)
     n_bins = signal.shape[1]
     joint = np.zeros(len(cells)) if log_mode else np.ones(len(cells))
@@ -78,13 +79,6 @@ def _score_cells(cells, signal, stats, spots, laser, path0, inv_dpath, log_mode,
         v = np.maximum(v0 + t * (v1 - v0), 0.0) * (1.0 / peak) if peak > 0 else np.zeros_like(u)
         joint = joint + np.log(np.maximum(v, log_floor)) if log_mode else joint * v
     return joint
-
-
-def laser_rows(laser, n_det: int) -> np.ndarray:
-    """(n_det, 3): each detector's laser spot, from one (3,) or one per detector (n_det, 3)."""
-    laser = np.asarray(laser, np.float64)
-    return np.broadcast_to(laser.reshape(-1, 3), (n_det, 3)) if laser.size == 3 else \
-        laser.reshape(n_det, 3)
 
 
 def paired(laser) -> int:

@@ -20,8 +20,9 @@ import math
 
 import numpy as np
 
+from ..core.histograms import laser_spots_of
 from .base import Example, Operation, relative_error
-from .ellipse_score import laser_rows, paired
+from .ellipse_score import paired
 
 REACH_SIGMAS = 6.0  # a facet's pulse is cut off 6 sigma from its centre: 2e-9 of its energy
 FACET_CHUNK = 64  # facets per culling chunk in the kernel
@@ -35,7 +36,7 @@ SUB_BINS_PER_SIGMA = 24  # deposit: sub-bins of at most sigma / 24 (linear depos
 def facet_paths(centres, normals, areas, spots, laser, reflectance=None, visible=None):
     """Hidden path r1 + r2 and geometric weight per (detector, facet), float64. laser: (3,),
     whose leg is computed once per facet and shared, or (D, 3), each detector's own."""
-    lasers = laser_rows(laser, len(spots)) if paired(laser) else np.reshape(laser, (1, 3))
+    lasers = laser_spots_of(laser, len(spots)) if paired(laser) else np.reshape(laser, (1, 3))
     v1 = centres[None, :, :] - lasers[:, None, :]  # (L, F, 3) O -> facet
     r1 = np.linalg.norm(v1, axis=2)
     v2 = spots[:, None, :] - centres[None, :, :]  # (D, F, 3) facet -> spot
@@ -123,7 +124,7 @@ def opencl(rt, facets, spots, laser, edge0, dpath, sigma_path, n_bins, reflectan
     is_paired = paired(laser)  # -D PAIRED=1: each detector's laser spot from a buffer
     paths_kernel = rt.kernel("forward", "facet_paths", **defines,
                              **(dict(PAIRED=1) if is_paired else {}))
-    lasers = rt.constant(float4_rows(laser_rows(laser, n_det))) if is_paired else float4(laser)
+    lasers = rt.constant(float4_rows(laser_spots_of(laser, n_det))) if is_paired else float4(laser)
     hist = out if out is not None else rt.empty((n_det, n_bins))
     spans = []
     for d0, d1 in rt.groups(n_det, 4 * n_pad, "facet paths of one detector"):

@@ -59,7 +59,8 @@ def tracking(s: Settings, out: Path, only=None, cold: bool = False) -> Result:
     header = (f"# {TITLE}\n\nWritten by `nlos-cl reproduce tracking{options}` on {device}, "
               f"{os.cpu_count()} CPU cores; the cases: nlos_cl/apps/reproduce/tracking.yaml. "
               "Do not edit by hand.")
-    (out / f"{NAME}.md").write_text(report.page(texts, header))
+    from ...io.safe_write import write_text
+    write_text(out / f"{NAME}.md", report.page(texts, header), what="--out")
     return Result(NAME, TITLE, index, {"warm_start": c.tracker["warm_start"], "quick": s.quick,
                                        "sections": summary, "markdown": texts})
 

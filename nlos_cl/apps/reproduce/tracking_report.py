@@ -99,4 +99,6 @@ def splice(path: Path, texts: dict) -> None:
         require(bool(pattern.search(doc)), f"{path}", f"has no markers for section {name}",
                 f"add <!-- {MARK}:{name} --> and <!-- /{MARK}:{name} --> where it should go")
         doc = pattern.sub(lambda _: _marked(name, text), doc)
-    Path(path).write_text(doc)
+    from ...io.safe_write import write_text
+    # atomic, never through a link; the page is ours to edit: it holds our markers (above)
+    write_text(path, doc, what="--doc", keep_unless=lambda _: True)
