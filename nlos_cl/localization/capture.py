@@ -104,6 +104,7 @@ class PointLocation:
     log_mode: bool
     frame: CaptureFrame
     warnings: tuple = ()
+    processing: dict | None = None  # what measured-data processing found and did, per step
 
     @property
     def position(self) -> np.ndarray:
@@ -145,7 +146,7 @@ class PointLocation:
                 "estimator": loc.estimator, "log_mode": self.log_mode,
                 "region": {"ranges_m": [list(r) for r in frame.ranges(self.grid)],
                            "step_m": min(self.grid.step), "cells": self.grid.n_cells},
-                "warnings": list(self.warnings)}
+                "processing": self.processing, "warnings": list(self.warnings)}
 
 
 @dataclass(frozen=True)
@@ -190,19 +191,39 @@ def _sets(capture, frame):
     return sets, INTERNAL if frame is None else frame, None
 
 
-def _prepared(sets, background, negatives, calibration):
-    """The sets with the background subtracted and the calibration applied; the calibration."""
-    if background is not None:
+def _backgrounds(background, sets) -> list | None:
+    """A target-free capture (path, set or sets) as one set per laser point, or None."""
+    if background is None:
+        return None
+    if isinstance(background, (str, Path)):
+        from ..io.ytal.capture import read_capture
+        background = read_capture(background)
+    backgrounds = [background] if isinstance(background, HistogramSet) else list(background)
+    require(len(backgrounds) == len(sets), "background", f"has {len(backgrounds)} laser "
+            f"point(s), the capture {len(sets)}", "record the background with the same "
+            "laser points as the capture")
+    return backgrounds
+
+
+def measured_processing(sets, background, *, negatives, pulses, h_s, calibrated, preprocess):
+    """The measured-data steps (localization.measured: time zero, gate, background, response,
+    bins, pile-up), or with preprocess=False the background alone: (sets, reports, h)."""
+    backgrounds = _backgrounds(background, sets)
+    if preprocess:
+        from .measured import process_capture
+        sets, reports, h, _ = process_capture(sets, backgrounds, negatives=negatives,
+                                              pulses=pulses, h_s=h_s, calibrated=calibrated)
+        return sets, reports, h
+    require(pulses is None, "pulses", "the pile-up correction is a processing step, and "
+            "preprocess is off", "pass preprocess=True, or leave pulses out")
+    if backgrounds is not None:
         from .background import subtract_background
-        if isinstance(background, (str, Path)):
-            from ..io.ytal.capture import read_capture
-            background = read_capture(background)
-        backgrounds = [background] if isinstance(background, HistogramSet) else list(background)
-        require(len(backgrounds) == len(sets), "background", f"has {len(backgrounds)} laser "
-                f"point(s), the capture {len(sets)}", "record the background with the same "
-                "laser points as the capture")
-        sets = [subtract_background(h, b, negatives=negatives)
-                for h, b in zip(sets, backgrounds)]
+        sets = [subtract_background(h, b, negatives=negatives) for h, b in zip(sets, backgrounds)]
+    return sets, [None] * len(sets), PAPER_H_S if h_s is None else h_s
+
+
+def _calibrated(sets, calibration):
+    """The sets with the calibration applied; the calibration."""
     if calibration is None:
         return sets, None
     from ..io.calibration import fit_calibration, read_calibration_pairs, with_calibration
@@ -233,7 +254,7 @@ def _estimator(estimator, targets):
 
 
 def _locate_point(i, hist, frame, region, derived, *, h_s, estimator, log_mode, return_map,
-                  backend, names, notes=()) -> PointLocation:
+                  backend, names, notes=(), processing=None) -> PointLocation:
     """The paper's argmax on the region (refined on a fine zoom where the derived region had to
     be coarsened), then the estimator on the final grid; warnings collected, not raised."""
     from ..ops.signals import upload
@@ -261,7 +282,8 @@ def _locate_point(i, hist, frame, region, derived, *, h_s, estimator, log_mode, 
         notes.append(f"the answer lies on the search region's edge ({ranges}), so the target "
                      f"may be outside it. Fix: widen it with {names[0]} (ranges along the "
                      "file's axes) or record a longer time window")
-    return PointLocation(i, hist.laser_spot, loc, grid, region, log_mode, frame, tuple(notes))
+    return PointLocation(i, hist.laser_spot, loc, grid, region, log_mode, frame, tuple(notes),
+                         processing)
 
 
 def _spread(hist, filtered, h_s, backend):
@@ -276,10 +298,11 @@ def _spread(hist, filtered, h_s, backend):
 
 
 def locate_capture(capture, *, region=None, step_m: float | None = None,
-                   h_s: float = PAPER_H_S, estimator=None, targets=1, log_mode=None,
+                   h_s: float | None = None, estimator=None, targets=1, log_mode=None,
                    background=None, negatives: str = "keep", calibration=None,
                    return_map: bool = False, backend=None, frame: CaptureFrame | None = None,
-                   names=REGION_NAMES) -> CaptureLocation:
+                   names=REGION_NAMES, pulses: int | None = None,
+                   preprocess: bool = True) -> CaptureLocation:
     """Locate every laser point of a capture, as `nlos-cl locate` does.
 
     capture: a y-tal file's path, or HistogramSet(s) (ours; `frame` says which frame to report
@@ -291,16 +314,24 @@ def locate_capture(capture, *, region=None, step_m: float | None = None,
     `negatives`; calibration: a CSV of (path m, peak time s) pairs (Eq. 26), a PathCalibration
     or a CalibrationFit. return_map: keep each final grid's score map (location.score_map).
     names: how errors and warnings name the region and step_m options (a CLI: its flags).
-    Warnings (e.g. an unobservable height) are collected in each point's `warnings`, not raised.
+    h_s: the Gauss filter's window; None: from the direct return's width where the capture has
+    one, else the paper's 0.65 ns. preprocess: the measured-data steps (measured_processing;
+    each point's `processing` says what they found); pulses: laser pulses per histogram for
+    the pile-up correction (off without it). Warnings (e.g. an unobservable height) are
+    collected in each point's `warnings`, not raised.
     """
-    require(isinstance(h_s, (int, float)) and math.isfinite(h_s) and h_s > 0, "h_s",
+    require(h_s is None or isinstance(h_s, (int, float)) and math.isfinite(h_s) and h_s > 0,
+            "h_s",
             f"the filter window must be a positive time in seconds, got {h_s!r}",
             "pass e.g. 0.65e-9 (the paper's h)")
     from ..ops.backend import resolve_backend
     est = _estimator(estimator, targets)
     by_default = estimator is None
     sets, frame, source = _sets(capture, frame)
-    sets, cal = _prepared(sets, background, negatives, calibration)
+    sets, reports, h_s = measured_processing(
+        sets, background, negatives=negatives, pulses=pulses, h_s=h_s,
+        calibrated=calibration is not None, preprocess=bool(preprocess))
+    sets, cal = _calibrated(sets, calibration)
     backend = resolve_backend(backend)
     points = []
     for i, hist in enumerate(sets):
@@ -310,6 +341,7 @@ def locate_capture(capture, *, region=None, step_m: float | None = None,
                                     estimator=PaperArgmax() if paired_default else est,
                                     log_mode=log_mode, return_map=bool(return_map),
                                     backend=backend, names=names,
-                                    notes=[PAIRED_DEFAULT] if paired_default else []))
+                                    notes=[PAIRED_DEFAULT] if paired_default else [],
+                                    processing=reports[i]))
     return CaptureLocation(tuple(points), frame, source, getattr(backend, "name", str(backend)),
                            h_s, cal)
