@@ -199,7 +199,11 @@ def _locate_args(p):
                    "with the wall at Z = 0); default: derived from the capture")
     p.add_argument("--step", type=_number("grid.step", "pass metres, e.g. 0.01", positive=True),
                    default=None, help="grid step with --region (m; default from the bins and h)")
-    p.add_argument("--h-ns", type=H_NS, default=0.65, help="Gauss filter window h (ns)")
+    p.add_argument("--h-ns", type=H_NS, default=None, help="Gauss filter window h (ns; default: "
+                   "from the direct return's width where the capture has one, else 0.65)")
+    p.add_argument("--pulses", type=_number("pulses", "pass the laser pulses per histogram, e.g. "
+                                            "1e6", minimum=1), default=None,
+                   help="laser pulses per histogram: correct SPAD pile-up (Coates; default off)")
     p.add_argument("--log", action="store_true", help="sum of logs (many detectors)")
     p.add_argument("--background", help="capture without the target, subtracted first")
     p.add_argument("--negatives", default="keep", choices=["keep", "clip", "floor"],

@@ -151,13 +151,17 @@ def _check_map_path(args) -> None:
                      kind="a map nlos-cl locate wrote")
 
 
+NO_TARGET_STATUS = 3  # `nlos-cl locate`: no laser point held target signal
+
+
 def locate(args) -> int:
     """nl.locate_capture with the command's options; the JSON is its as_json()."""
     from ..localization.capture import locate_capture
     if args.map:
         _check_map_path(args)
     region = None if args.region is None else list(zip(args.region[::2], args.region[1::2]))
-    found = locate_capture(args.file, region=region, step_m=args.step, h_s=args.h_ns * 1e-9,
+    h_s = None if args.h_ns is None else args.h_ns * 1e-9
+    found = locate_capture(args.file, region=region, step_m=args.step, h_s=h_s, pulses=args.pulses,
                            estimator=args.estimator, targets=args.targets,
                            log_mode=True if args.log else None, background=args.background,
                            negatives=args.negatives, calibration=args.calibration,
@@ -177,10 +181,12 @@ def locate(args) -> int:
     else:
         frame = found.frame
         for r in entries:
-            print(f"laser point {r['laser_point']}: located {r['position']} m in the file's "
-                  f"frame ({frame.name})" + (f", truth {r['truth']}, error {r['error_m']:.4f} m"
-                                             if r["truth"] else ""))
-    return 0
+            print(f"laser point {r['laser_point']}: " + (
+                  f"located {r['position']} m in the file's frame ({frame.name})"
+                  if r["detected"] else f"no target (argmax of noise {r['argmax_cell']} m)")
+                  + (f", truth {r['truth']}, error {r['error_m']:.4f} m" if r["truth"] else ""))
+    # exit status 3: no laser point's histograms hold target signal (docs/captures.md)
+    return 0 if any(r["detected"] for r in entries) else NO_TARGET_STATUS
 
 
 def calibrate(args) -> int:

@@ -43,21 +43,24 @@ def gauss_fit(signals, *, backend=None):
 
 def locate(signals, grid: Grid | None = None, *, log_mode: bool = False,
            return_map: bool = False, estimator=None, raw=None, backend=None,
-           search: str = "coarse_to_fine", signal_width_m: float | None = None) -> Location:
+           search: str = "coarse_to_fine", signal_width_m: float | None = None,
+           detect: bool = True) -> Location:
     """Score every grid cell by the signals at its ellipse path |c - O| + |c - spot| per
     detector, combine (product, or sum of logs when log_mode), and estimate the position
     (default: the model estimator, which fits a target to the histograms; "paper": the paper's
     argmax, refined with a parabola per axis). `raw`: the unfiltered
     signals, for estimators that fit a model to the histograms. search: "coarse_to_fine"
     (default: the same argmax cell as "exhaustive" for a fraction of the work; see `Locator`)
-    or "exhaustive"; signal_width_m: the filtered signal's width in path metres (speed only)."""
+    or "exhaustive"; signal_width_m: the filtered signal's width in path metres (speed only);
+    detect: first test the frame for any target signal (a Location with `detected` False and no
+    targets where there is none; see Locator)."""
     sig = as_signals(signals, backend)
     key = _plan_key(sig, grid, estimator, log_mode, search, signal_width_m)
     plan = PLANS.take(key, sig.backend, estimator)
     if plan is None:
         plan = Locator(sig.layout, grid, estimator=estimator, log_mode=log_mode, search=search,
                        signal_width_m=signal_width_m)
-    location = plan(sig, raw=raw, return_map=return_map)
+    location = plan(sig, raw=raw, return_map=return_map, detect=detect)
     PLANS.give(key, plan, sig.backend)  # only after a call that worked
     return location
 

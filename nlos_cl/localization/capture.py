@@ -139,7 +139,8 @@ class PointLocation:
         return {"laser_point": self.laser_point,
                 "laser_spot": (vector_json(self.laser_spot, frame) if np.ndim(self.laser_spot) == 1
                                else "paired: one per histogram (the capture's laser grid)"),
-                "position": targets[0]["position"], "targets": targets,
+                "detected": loc.detected, "detection": loc.detection and loc.detection.as_dict(),
+                "position": targets[0]["position"] if targets else None, "targets": targets,
                 "truth": None if loc.truth is None else vector_json(loc.truth, frame),
                 "argmax_cell": vector_json(loc.cell_position, frame),
                 "error_m": None if loc.error_m is None else round(loc.error_m, 5),
@@ -264,7 +265,7 @@ def _locate_point(i, hist, frame, region, derived, *, h_s, estimator, log_mode, 
     grid = region
     if derived and min(region.step) > region_step(hist, h_s) * 1.001:
         coarse = locate(_spread(hist, filtered, h_s, backend), region, log_mode=log_mode,
-                        estimator="paper")
+                        estimator="paper", detect=False)  # the final grid's call detects
         grid = zoom_region(coarse.position, region, hist, h_s)
     notes = list(notes)
     if hist.paired and not capabilities_of(estimator).paired:
@@ -276,7 +277,9 @@ def _locate_point(i, hist, frame, region, derived, *, h_s, estimator, log_mode, 
         loc = locate(filtered, grid, log_mode=log_mode, estimator=estimator, raw=raw,
                      return_map=return_map)
     notes += [str(w.message) for w in caught]
-    if on_region_edge(loc.position, region):
+    if not loc.detected:
+        notes.append(loc.detection.message)
+    elif on_region_edge(loc.position, region):
         ranges = ", ".join(f"{a} {lo:.3g}..{hi:.3g} m"
                            for a, (lo, hi) in zip(frame.axes, frame.ranges(region)))
         notes.append(f"the answer lies on the search region's edge ({ranges}), so the target "

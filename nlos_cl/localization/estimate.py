@@ -53,11 +53,27 @@ class Location:
     score_map: np.ndarray | None = field(default=None, repr=False)  # (nz, ny, nx) if asked
     estimator: str = "paper"
     targets: list = field(default_factory=list)  # every LocatedTarget, best first
+    # localization.detection.Detection, where the Locator tested the frame for any target
+    # signal; with `detected` False, `targets` is empty and `position` the argmax of noise
+    detection: object = None
 
     @classmethod
-    def of(cls, estimate: Estimate, grid: Grid, truth, score_map, estimator: str) -> "Location":
+    def of(cls, estimate: Estimate, grid: Grid, truth, score_map, estimator: str,
+           detection=None) -> "Location":
         return cls(estimate.targets[0].position, estimate.cell_position, estimate.score, grid,
-                   truth, score_map, estimator, list(estimate.targets))
+                   truth, score_map, estimator, list(estimate.targets), detection)
+
+    @classmethod
+    def undetected(cls, paper: Estimate, grid: Grid, truth, detection, estimator: str,
+                   score_map=None) -> "Location":
+        """No target signal in the frame: the argmax as `position`, no targets."""
+        return cls(paper.targets[0].position, paper.cell_position, paper.score, grid, truth,
+                   score_map, estimator, [], detection)
+
+    @property
+    def detected(self) -> bool:
+        """False only where the frame was tested and holds no target signal."""
+        return self.detection is None or bool(self.detection.detected)
 
     @property
     def covariance(self) -> np.ndarray | None:

@@ -18,6 +18,7 @@ from ..core.tuning import AUTO_TRIALS
 from ..ops.argmax_patch import decode
 from ..ops.signals import Signals, as_signals
 from .estimate import Location, Scored, capabilities_of
+from .detection import detect, reachable_bins
 from .estimators import as_estimator
 from .filter import layout_of
 from .paper import PaperArgmax
@@ -104,6 +105,7 @@ class Locator:
         self._search = CoarseToFine(grid, self._inv_dpath, float(width))
         self._choice = SearchChoice(self.search if self._search.useful else "exhaustive")
         self.last_search = None  # what the last frame's search did (search.Found)
+        self._window = None  # each row's bins a target in the grid can reach (detection)
 
     @property
     def chosen(self) -> str | None:
@@ -142,13 +144,23 @@ class Locator:
         sub, scores = self._search.neighbourhood(sig.backend, sig.handle, args, found.index)
         return Scored(sig.backend, scores, sub, self.log_mode, sig.n_detectors, sig, raw)
 
-    def __call__(self, signals, *, raw=None, prior=None, return_map: bool = False) -> Location:
+    def __call__(self, signals, *, raw=None, prior=None, return_map: bool = False,
+                 detect: bool = True) -> Location:
         """Locate from filtered signals; `raw`: the same frame unfiltered, for estimators that
         fit a model to the histograms (the paper's argmax does not need it); `prior`: where
         the targets are expected (a localization.estimate.Prior, e.g. a tracker's prediction),
-        for estimators that start a fit from it."""
-        sig = self._checked(signals)
+        for estimators that start a fit from it. detect: first test the frame for any target
+        signal (localization.detection; ~1 ms for 3 x 60,000 bins); where there is none the
+        estimator is not run, and the Location has no targets (`detected` False) and the paper's
+        argmax as its position."""
+        sig = _checked(as_signals(signals, self.backend), self.layout)
         mode = self._choice.mode() if self._search.useful else "exhaustive"
+        if detect and self._window is None:
+            self._window = reachable_bins(self.layout, self.grid)
+        detection = detected_in(sig, self._window) if detect else None
+        if detection is not None and not detection.detected and not return_map:
+            return Location.undetected(self._fused(sig, mode), self.grid, sig.layout.truth,
+                                       detection, self.estimator.name)
         start = time.perf_counter()
         fusable = not return_map and (mode == "exhaustive"
                                       or self._search.fusable(sig.n_detectors))
@@ -158,31 +170,18 @@ class Locator:
         elif fusable and can.from_paper:  # a model fit starts from the fused search's one read
             scored = Scored(sig.backend, None, self.grid, self.log_mode, sig.n_detectors, sig,
                             raw, paper=self._fused(sig, mode))
-            estimate, full = self._estimate(scored, prior), None
+            estimate, full = _estimate(self.estimator, scored, prior), None
         else:
             scored = self._scored(sig, raw, return_map, mode)
-            estimate = _in_grid(self._estimate(scored, prior), self.grid, self.last_search)
+            estimate = _in_grid(_estimate(self.estimator, scored, prior), self.grid, self.last_search)
             full = sig.backend.to_numpy(scored.scores) if return_map else None
         if not return_map:
             self._choice.learn(mode, time.perf_counter() - start)
-        return Location.of(estimate, self.grid, sig.layout.truth, full, self.estimator.name)
-
-    def _estimate(self, scored: Scored, prior):
-        # estimators written before priors take estimate(scored) only
-        if prior is None:
-            return self.estimator.estimate(scored)
-        return self.estimator.estimate(scored, prior)
-
-    def _checked(self, signals) -> Signals:
-        sig = as_signals(signals, self.backend)
-        require(sig.layout.shape == self.layout.shape, "signals", f"shape {sig.layout.shape} "
-                f"differs from the plan's {self.layout.shape}", "build a Locator for this layout")
-        if sig.layout is not self.layout:  # the same setup frame after frame: one comparison
-            require(np.array_equal(sig.layout.detector_spots, self.layout.detector_spots)
-                    and sig.layout.time_axis == self.layout.time_axis, "signals",
-                    "come from another wall layout or time axis than the plan's",
-                    "build a Locator for this layout")
-        return sig
+        if detection is not None and not detection.detected:  # a map was asked for
+            return Location.undetected(estimate, self.grid, sig.layout.truth, detection,
+                                       self.estimator.name, full)
+        return Location.of(estimate, self.grid, sig.layout.truth, full, self.estimator.name,
+                           detection)
 
     # ------------------------------------------------------------ the paper's argmax, fused
     def _fused(self, sig: Signals, mode: str):
@@ -201,6 +200,30 @@ class Locator:
         self.last_search = found
         return PaperArgmax().from_patch(index, best, patch, self.grid, self.log_mode,
                                         sig.n_detectors)
+
+
+def _estimate(estimator, scored: Scored, prior):
+    # estimators written before priors take estimate(scored) only
+    if prior is None:
+        return estimator.estimate(scored)
+    return estimator.estimate(scored, prior)
+
+
+def _checked(sig: Signals, layout) -> Signals:
+    require(sig.layout.shape == layout.shape, "signals", f"shape {sig.layout.shape} "
+            f"differs from the plan's {layout.shape}", "build a Locator for this layout")
+    if sig.layout is not layout:  # the same setup frame after frame: one comparison
+        require(np.array_equal(sig.layout.detector_spots, layout.detector_spots)
+                and sig.layout.time_axis == layout.time_axis, "signals",
+                "come from another wall layout or time axis than the plan's",
+                "build a Locator for this layout")
+    return sig
+
+
+def detected_in(signals: Signals, window):
+    """Whether the filtered frame holds target signal in each row's reachable bins `window`
+    (localization.detection.detect, on the host: one read of the rows)."""
+    return detect(signals.backend.to_numpy(signals.handle), window)
 
 
 def _in_grid(estimate, grid: Grid, found):

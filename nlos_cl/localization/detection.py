@@ -1,0 +1,172 @@
+"""Detection before location: is there any target signal in a frame at all?
+
+Every estimator returns a position, even for pure noise. `detect` tests each filtered row's
+highest value inside the bins a target in the search region can reach against that row's own
+noise floor, and combines the rows:
+
+- noise: the row's median and 1.4826 x MAD (robust: a target's pulse covers a small share of
+  a row), from the bins no target in the region can reach where there are enough of them,
+  else from the whole row;
+- per row, the p-value of its peak z under "noise only": the smaller of the union bound over the
+  window's samples (n Q(z), exact as a bound for any correlation) and Rice's formula for the
+  expected number of up-crossings of a smooth Gaussian process (n / 2 pi x sigma(dx) / sigma(x)
+  x exp(-z^2 / 2), from the row's own first differences, so any filter and any correlation
+  length are measured rather than assumed). Both are upper bounds in practice, so the rate of
+  false alarms is at most the nominal one;
+- Fisher's combination, -2 sum ln p ~ chi^2 with 2 D degrees of freedom under no target, and
+  detected where it exceeds the (1 - false_alarm) quantile.
+The false-alarm rate is measured on pure-noise frames in tests/test_detection.py.
+"""
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..core.grid import Grid
+from ..core.stats import chi2_quantile
+
+FALSE_ALARM = 1e-3  # nominal rate of "target" said on pure noise, per frame
+MAD_TO_SIGMA = 1.4826
+MIN_FREE_SAMPLES = 200  # independent unreachable samples needed before they alone set the floor
+STRIDE_SAMPLES = 1024  # robust statistics on at most this many evenly strided samples a row
+SAMPLE_BUDGET = 1 << 19  # ... and on at most this many in all (4,096 rows: 128 a row)
+
+
+@dataclass(frozen=True)
+class Detection:
+    """detected: the frame holds target signal at the false-alarm rate `false_alarm`;
+    statistic: Fisher's -2 sum ln p over rows (threshold: its chi^2 quantile); peak_z: each
+    row's highest value in the reachable window, in units of its noise floor."""
+
+    detected: bool
+    statistic: float
+    threshold: float
+    false_alarm: float
+    peak_z: tuple
+
+    def as_dict(self) -> dict:
+        return {"detected": self.detected, "statistic": round(self.statistic, 3),
+                "threshold": round(self.threshold, 3), "false_alarm": self.false_alarm,
+                "peak_z_median": round(float(np.median(self.peak_z)), 3) if self.peak_z else None}
+
+    @property
+    def message(self) -> str:
+        return (f"no target signal: the strongest peaks are {np.median(self.peak_z):.1f} noise "
+                f"sigma (median over {len(self.peak_z)} histograms), which noise alone reaches "
+                f"(Fisher statistic {self.statistic:.1f} <= {self.threshold:.1f}, false-alarm "
+                f"rate {self.false_alarm:g}); the position is the argmax of noise")
+
+
+def reachable_bins(layout, grid: Grid | None) -> np.ndarray:
+    """(D, 2) first and last bin each row's target in the grid's box can reach: paths from
+    dist(laser, box) + dist(spot, box) (a lower bound) to the box's farthest corner's path."""
+    axis = layout.path_axis()
+    if grid is None:
+        return np.tile([0, axis.n_bins - 1], (layout.n_detectors, 1))
+    lo, hi = _box(grid)
+    spots = np.asarray(layout.detector_spots, dtype=np.float64)
+    lasers = np.broadcast_to(np.asarray(layout.laser_spot, dtype=np.float64), spots.shape)
+    near = _distance_to_box(lasers, lo, hi) + _distance_to_box(spots, lo, hi)
+    corners = np.array(np.meshgrid(*zip(lo, hi), indexing="ij")).reshape(3, -1).T
+    far = np.max(np.linalg.norm(corners[None] - lasers[:, None], axis=2)
+                 + np.linalg.norm(corners[None] - spots[:, None], axis=2), axis=1)
+    first = np.floor((near - axis.start_m) / axis.step_m)
+    last = np.ceil((far - axis.start_m) / axis.step_m)
+    return np.clip(np.stack([first, last], axis=1), 0, axis.n_bins - 1).astype(np.int64)
+
+
+def detect(rows: np.ndarray, window: np.ndarray | None = None,
+           false_alarm: float = FALSE_ALARM) -> Detection:
+    """Test filtered rows (D, n_bins) for target signal; window (D, 2): each row's reachable
+    first and last bin (default: the whole row). Vectorised over rows: 4,096 x 1,024 bins in
+    ~0.1 s."""
+    rows = np.asarray(rows)  # float32 from a device: the samples are taken in float64
+    n_rows, n = rows.shape
+    window = np.tile([0, n - 1], (n_rows, 1)) if window is None else np.asarray(window)
+    first, last = window[:, :1], window[:, 1:]
+    per_row = max(128, min(STRIDE_SAMPLES, SAMPLE_BUDGET // n_rows))
+    at = np.arange(0, n - 1, max(1, (n - 1) // per_row))
+    values = rows[:, at].astype(np.float64)
+    steps = rows[:, at + 1].astype(np.float64) - values
+    outside = (at[None, :] < first) | (at[None, :] > last)
+    floor = _floor(values, steps, np.ones_like(outside), n)  # the whole row
+    free = _floor(values, steps, outside, (first + n - 1 - last)[:, 0])
+    use_free = free[3] >= MIN_FREE_SAMPLES
+    centre, sigma, ratio, dof = (np.where(use_free, f, w) for f, w in zip(free, floor))
+    peak = _window_peaks(rows, first[:, 0], last[:, 0])
+    # a floor that is exactly constant on most samples (MAD 0: a noise-free simulation) makes
+    # any peak above it certain; a row constant throughout (dead, all zero) says nothing
+    live = (sigma > 0) | (peak > centre)
+    exact = live & ~(sigma > 0)
+    z = np.where(sigma > 0, (peak - centre) / np.where(sigma > 0, sigma, 1.0), 0.0)
+    shrink = (z > 0) & (dof > 1)  # exp(-z_t^2 / 2) = (1 + z^2 / n)^(-(n - 1) / 2)
+    z = np.where(shrink, np.sqrt(np.maximum(dof - 1, 0)
+                                 * np.log1p(np.minimum(z * z, 1e300) / np.maximum(dof, 1))), z)
+    n_window = (last - first + 1)[:, 0]
+    union = n_window * 0.5 * _erfc(z / math.sqrt(2.0))
+    rice = n_window / (2.0 * math.pi) * ratio * np.exp(-0.5 * np.minimum(z * z, 1400.0))
+    p = np.where(exact, 0.0, np.minimum(union, rice + union / n_window))
+    p = np.clip(p, 1e-300, 1.0)[live]
+    z = np.where(exact, np.inf, z)
+    statistic = float(-2.0 * np.sum(np.log(p)))
+    threshold = _threshold(false_alarm, 2 * max(int(p.size), 1))
+    return Detection(bool(p.size) and statistic > threshold, statistic, threshold, false_alarm,
+                     tuple(np.round(z[live], 3).tolist()))
+
+
+@functools.lru_cache(maxsize=64)
+def _threshold(false_alarm: float, dof: int) -> float:
+    return chi2_quantile(1.0 - false_alarm, dof)
+
+
+_erfc = np.vectorize(math.erfc, otypes=[float])
+
+
+def _floor(values: np.ndarray, steps: np.ndarray, mask: np.ndarray, count):
+    """Per row, from the samples where `mask`: median, robust sigma (1.4826 x MAD), sigma(dx) /
+    sigma(x), and the
+    independent samples the floor rests on (count x sigma(dx) / (sigma(x) sqrt(pi)) for a
+    smooth row, at most count and the samples taken; 0 where fewer than 3 are masked)."""
+    enough = mask.sum(axis=1) >= 3
+    mask = mask | ~enough[:, None]  # too few samples: computed on all, and given no weight
+    centre, sigma = _robust(values, mask)
+    _, sigma_step = _robust(steps, mask)
+    ratio = np.where(sigma > 0, sigma_step / np.where(sigma > 0, sigma, 1.0), 0.0)
+    dof = np.minimum(count * np.minimum(1.0, ratio / math.sqrt(math.pi)), mask.sum(axis=1))
+    return centre, sigma, ratio, np.where(enough, dof, 0.0)
+
+
+def _robust(sample: np.ndarray, mask: np.ndarray):
+    """Per row, the median and 1.4826 x MAD of the masked samples. Sort-based: nanmedian
+    loops over rows in Python."""
+    centre = _masked_median(sample, mask)
+    return centre, MAD_TO_SIGMA * _masked_median(np.abs(sample - centre[:, None]), mask)
+
+
+def _masked_median(sample: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    ordered = np.sort(np.where(mask, sample, np.inf), axis=1)
+    k = np.maximum(mask.sum(axis=1), 1)[:, None]
+    lo = np.take_along_axis(ordered, (k - 1) // 2, axis=1)
+    hi = np.take_along_axis(ordered, k // 2, axis=1)
+    return 0.5 * (lo + hi)[:, 0]
+
+
+def _window_peaks(rows: np.ndarray, first: np.ndarray, last: np.ndarray) -> np.ndarray:
+    """Each row's maximum over its own window [first, last]."""
+    if rows.shape[0] <= 64:  # few long rows: slices (no (D, n) temporary)
+        return np.array([float(np.max(r[a:b + 1])) for r, a, b in zip(rows, first, last)])
+    bins = np.arange(rows.shape[1])[None, :]
+    inside = (bins >= first[:, None]) & (bins <= last[:, None])
+    return np.max(np.where(inside, rows, -np.inf), axis=1)
+
+
+def _box(grid: Grid):
+    origin, step, shape = np.array(grid.origin), np.array(grid.step), np.array(grid.shape)
+    return origin, origin + step * (shape - 1)
+
+
+def _distance_to_box(points: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    return np.linalg.norm(points - np.clip(points, lo, hi), axis=1)
