@@ -149,6 +149,16 @@ def _check_map_path(args) -> None:
     from ..io.safe_write import require_writable
     require_writable(args.map, keep_unless=is_map, force=args.force, what="--map",
                      kind="a map nlos-cl locate wrote")
+    if args.region is not None and args.step is not None:  # the map's size is known now
+        import math
+
+        from ..core.limits import require_memory
+        cells = math.prod(math.floor(abs(hi - lo) / args.step) + 1
+                          for lo, hi in zip(args.region[::2], args.region[1::2]))
+        # scored on the device (4 B a cell), read back as float64 (8 B) and compressed
+        require_memory("--region", 12.0 * cells, f"--map of {cells:.3g} cells", "a smaller "
+                       "--region or a larger --step (or leave --map out: the search alone "
+                       "need not score every cell)")
 
 
 NO_TARGET_STATUS = 3  # `nlos-cl locate`: no laser point held target signal

@@ -40,6 +40,28 @@ def joint_map(tracker):
     return scores.max(axis=0)
 
 
+MAX_PIXELS = 1200  # a 6 x 5 inch figure at 100 dpi shows ~500 map pixels a side
+
+
+def pooled_shape(shape) -> tuple:
+    """(rows, columns) of a map of `shape` after `pooled`."""
+    return tuple(-(-n // -(-n // MAX_PIXELS)) for n in shape)
+
+
+def pooled(scores):
+    """The (ny, nx) map reduced by block maxima to at most MAX_PIXELS a side (peaks kept):
+    the figure cannot show more, and matplotlib's resampling of a huge image copies it several
+    times (3 GB for a 2000 x 1000 x 1000 grid)."""
+    import numpy as np
+    fy, fx = (-(-n // MAX_PIXELS) for n in scores.shape)
+    if fy == fx == 1:
+        return scores
+    ny, nx = (-(-n // f) * f for n, f in zip(scores.shape, (fy, fx)))
+    padded = np.full((ny, nx), -np.inf)
+    padded[:scores.shape[0], :scores.shape[1]] = scores
+    return padded.reshape(ny // fy, fy, nx // fx, fx).max(axis=(1, 3))
+
+
 def _display(scores, log_mode: bool, n_detectors: int):
     """A joint map for the eye, in [0, 1]: the geometric mean over detectors of the normalised
     likelihood, over its frame's peak (product ** (1/N), or exp(log sum / N) in log mode; the
@@ -66,8 +88,14 @@ class Video:
     FPS, DPI = 10, 100
 
     def __init__(self, path: str, tmp: str, tracker):
+        from ..core.limits import require_memory
         from .plotting import pyplot
         self.tracker, self.grid, self.log_mode = tracker, tracker.grid, tracker.locator.log_mode
+        # a frame's map: the device's scores, read back (float32, then float64), its z-maximum
+        # and the picture (pooled, but first a few float64 planes of the whole grid)
+        nx, ny, _ = self.grid.shape
+        require_memory("--region", 16.0 * self.grid.n_cells + 24.0 * nx * ny, f"the video's map "
+                       f"of {self.grid.n_cells:.3g} cells", "a smaller --region or a larger --step")
         self.n_detectors = tracker.layout.n_detectors
         self.tmp, self.named = tmp, (f"{tmp}.mp4" if path.endswith(".mp4") else None)
         self.plt = pyplot()
@@ -118,7 +146,8 @@ class Video:
         from matplotlib import patheffects
         from matplotlib.lines import Line2D
         (x, y, _), (sx, sy, _) = self.grid.axes(), self.grid.step
-        image = self.ax.imshow(np.zeros(self.grid.shape[1::-1]), origin="lower", cmap="magma",
+        image = self.ax.imshow(np.zeros(pooled_shape(self.grid.shape[1::-1])), origin="lower",
+                               cmap="magma",
                                vmin=0.0, vmax=1.0, aspect="equal",  # (fine grids: smoothed)
                                extent=(x[0] - sx / 2, x[-1] + sx / 2, y[0] - sy / 2,
                                        y[-1] + sy / 2))
@@ -140,8 +169,10 @@ class Video:
     def draw(self, frame, tracks, measurements, scores) -> None:
         """Redraw the figure for one frame; scores: joint_map's (ny, nx) map or None."""
         import numpy as np
-        shown = _display(scores, self.log_mode, self.n_detectors)
-        self.image.set_data(np.zeros(self.grid.shape[1::-1]) if shown is None else shown)
+        shown = _display(None if scores is None else pooled(scores), self.log_mode,
+                         self.n_detectors)
+        self.image.set_data(np.zeros(pooled_shape(self.grid.shape[1::-1])) if shown is None
+                            else shown)
         for artist in self.overlay:
             artist.remove()
         ax, drawn, (truth, meas, track) = self.ax, [], self.style.values()

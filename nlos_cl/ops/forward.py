@@ -15,7 +15,6 @@ kernel's -D PAIRED=1 reads lasers[d]).
 """
 from __future__ import annotations
 
-import functools
 import math
 
 import numpy as np
@@ -24,11 +23,11 @@ from ..core.histograms import laser_spots_of
 from .base import Example, Operation, relative_error
 from .ellipse_score import paired
 
-REACH_SIGMAS = 6.0  # a facet's pulse is cut off 6 sigma from its centre: 2e-9 of its energy
+from .pulse import (REACH_SIGMAS, SUB_BINS_PER_SIGMA, binning, deposit_plan,  # noqa: F401
+                    deposit_sizes, deposit_taps, pulse_bins)
+
 FACET_CHUNK = 64  # facets per culling chunk in the kernel
 BLOCK = 15  # bins per work item in pulse_bins (BLOCK in forward.cl)
-_PAIRS_PER_BLOCK = 1 << 22  # the twin works on blocks of this many (facet, bin) pairs
-SUB_BINS_PER_SIGMA = 24  # deposit: sub-bins of at most sigma / 24 (linear deposit error ~1e-4)
 
 
 # ---------------------------------------------------------------------------- twin
@@ -64,30 +63,6 @@ def _direction_factor(reflectance, normals, to_laser, to_detector):
                            for d in range(len(to_detector))])
 
 
-def pulse_bins(path, weight, edge0, dpath, sigma_path, n_bins):
-    """hist[d, k] = sum_f w[d, f] (erf(z_{k+1}) - erf(z_k)); each facet touches only the bins
-    within REACH_SIGMAS of its path (work = facets x a fixed window, via np.bincount)."""
-    from scipy.special import erf
-    hist = np.zeros((path.shape[0], n_bins))
-    reach = REACH_SIGMAS * sigma_path
-    inv = 1.0 / (math.sqrt(2.0) * sigma_path)
-    for d in range(path.shape[0]):
-        lit = weight[d] > 0
-        s, w = path[d, lit], weight[d, lit]
-        window = int(math.ceil(2 * reach / dpath[d])) + 2
-        first = np.floor((s - reach - edge0[d]) / dpath[d]).astype(np.int64)
-        block = max(1, _PAIRS_PER_BLOCK // window)
-        for lo in range(0, s.size, block):  # bounds memory, not a per-facet loop
-            sl = slice(lo, lo + block)
-            bins = first[sl, None] + np.arange(window)
-            low_edge = edge0[d] + bins * dpath[d] - s[sl, None]
-            e = erf(np.concatenate([low_edge, low_edge[:, -1:] + dpath[d]], axis=1) * inv)
-            contrib = w[sl, None] * np.diff(e, axis=1)
-            ok = (bins >= 0) & (bins < n_bins)
-            hist[d] += np.bincount(bins[ok], contrib[ok], minlength=n_bins)
-    return hist
-
-
 def path_range(path, weight):
     """(D, 2) min and max hidden path over the facets that contribute (inf, -inf if none)."""
     lit = weight > 0
@@ -108,7 +83,8 @@ def numpy(facets, spots, laser, edge0, dpath, sigma_path, n_bins, reflectance=No
 
 def opencl(rt, facets, spots, laser, edge0, dpath, sigma_path, n_bins, reflectance=None,
            method="deposit", visible=None, out=None):
-    """method: "deposit" (deposit + convolve, the default) or "erf" (every bin's erf);
+    """method: "deposit" (deposit + convolve, the default; erf where the pulse is too short or
+    too long for it: ops/pulse.py) or "erf" (every bin's erf);
     visible: None, or a (detectors, facets) bool mask (occlusion: nlos_cl/visibility.py)."""
     from ..device.runtime import float4, float4_rows
     n_det, n_facets = len(spots), facets.count
@@ -126,8 +102,9 @@ def opencl(rt, facets, spots, laser, edge0, dpath, sigma_path, n_bins, reflectan
                              **(dict(PAIRED=1) if is_paired else {}))
     lasers = rt.constant(float4_rows(laser_spots_of(laser, n_det))) if is_paired else float4(laser)
     hist = out if out is not None else rt.empty((n_det, n_bins))
+    method, passes = _plan_passes(rt, n_det, n_pad, n_bins, sigma_path, dpath, method)
     spans = []
-    for d0, d1 in rt.groups(n_det, 4 * n_pad, "facet paths of one detector"):
+    for d0, d1 in passes:
         path, weight = rt.empty((d1 - d0, n_pad)), rt.empty((d1 - d0, n_pad))
         ranges = rt.empty((d1 - d0, n_chunks, 4))
         rt.run(paths_kernel, (n_chunks, d1 - d0), centres, normals, np.int32(n_facets),
@@ -145,6 +122,27 @@ def opencl(rt, facets, spots, laser, edge0, dpath, sigma_path, n_bins, reflectan
     return hist, np.concatenate(spans)
 
 
+def _plan_passes(rt, n_det, n_pad, n_bins, sigma_path, dpath, method):
+    """(method, detector groups): the deposit only where its sub-bins fit one device buffer,
+    else erf; a pass's path and weight rows under the device's largest allocation (max_alloc
+    _bytes), and its buffers together (with the deposit's sub-bins) under the memory budget
+    (core.limits: on a CPU device they are host memory)."""
+    from ..core.limits import memory_limit, require_memory
+    method, total_row = binning(method, float(np.max(dpath)), sigma_path), 8 * n_pad
+    if method == "deposit":
+        os_, half = deposit_sizes(float(np.max(dpath)), sigma_path)
+        padded = n_bins + 2 * half + 32  # the most the deposit window can need
+        if 4 * os_ * padded > rt.device.max_mem_alloc_size:
+            method = "erf"
+        else:
+            total_row += 12 * os_ * padded
+    require_memory("facet_size_m", total_row, f"the forward model of {n_pad} facets for one "
+                   "detector", "use larger facets (facet_size_m) or fewer bins")
+    per = max(1, memory_limit() // total_row)
+    return method, [(a, min(a + per, d1)) for d0, d1 in rt.groups(
+        n_det, 4 * n_pad, "facet paths of one detector") for a in range(d0, d1, per)]
+
+
 def _erf_bins(rt, defines, group, edge0, dpath, sigma_path, n_bins, hist):
     path, weight, ranges, n_chunks, d0, d1 = group
     axis = rt.constant(np.stack([edge0, dpath], axis=1))
@@ -152,42 +150,6 @@ def _erf_bins(rt, defines, group, edge0, dpath, sigma_path, n_bins, hist):
            weight, ranges, np.int32(n_chunks), axis,
            np.float32(1.0 / (math.sqrt(2.0) * sigma_path)), np.float32(REACH_SIGMAS * sigma_path),
            np.int32(n_bins), np.int32(d0), hist)
-
-
-def deposit_plan(span, total, edge0, dpath, sigma_path, n_bins):
-    """Per detector: sub-bins per bin (OS), taps per phase (SPAN = 2 T + 1), the window of
-    bins that can receive light [first, first + count) (first on a multiple of 16), the
-    deposit's base path (T bins before the window), and the fixed-point scale (2^40 / the
-    detector's weight sum: no sum can overflow 64 bits, each facet keeps ~1e-12 of it)."""
-    step = float(np.max(dpath))
-    os_ = max(1, int(math.ceil(step * SUB_BINS_PER_SIGMA / sigma_path)))
-    reach = REACH_SIGMAS * sigma_path
-    half = int(math.ceil(reach / step)) + 1
-    lit = np.isfinite(span[:, 0])
-    lo = np.where(lit, np.floor((span[:, 0] - reach - edge0) / dpath) - 1, 0)
-    hi = np.where(lit, np.ceil((span[:, 1] + reach - edge0) / dpath) + 2, 0)
-    first = (np.clip(lo, 0, n_bins) // 16 * 16).astype(np.int64)
-    count = np.maximum(np.clip(hi, 0, n_bins) - first, 0).astype(np.int64)
-    base = edge0 + (first - half) * dpath
-    scale = np.where(total > 0, 2.0 ** 40 / np.where(total > 0, total, 1.0), 1.0)
-    return os_, half, first, count, base, scale
-
-
-@functools.lru_cache(maxsize=64)
-def deposit_taps(os_, half, dpath, sigma_path) -> np.ndarray:
-    """(OS, 2 T + 1): taps[p][t], twice the pulse energy that a unit weight at the centre of
-    sub-bin phase p, t bins into the deposit window, puts into the bin (float64 erf).
-    A few hundred values, cached (a model fit asks for the same table ~100 times) and
-    computed with nlos_cl.core.erf: SciPy's import (~0.1 s) would dominate a one-shot `locate`."""
-    from ..core.erf import erf
-    dsub = dpath / os_
-    p = np.arange(os_)[:, None]
-    t = np.arange(2 * half + 1)[None, :]
-    edge = lambda k: ((half - t + k) * os_ - p - 0.5) * dsub  # noqa: E731
-    inv = 1.0 / (math.sqrt(2.0) * sigma_path)
-    taps = erf(edge(1) * inv) - erf(edge(0) * inv)
-    taps.flags.writeable = False
-    return taps
 
 
 def _deposit_bins(rt, defines, group, span, total, edge0, dpath, sigma_path, n_bins, hist):

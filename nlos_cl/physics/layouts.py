@@ -14,6 +14,7 @@ import numpy as np
 
 from ..core.errors import require
 from ..core.geometry import as_point
+from ..core.limits import MAX_WALL_SPOTS, require_count
 
 
 def _on_wall(centre, field) -> np.ndarray:
@@ -24,9 +25,11 @@ def _on_wall(centre, field) -> np.ndarray:
 
 
 def _count(n, field, minimum=1) -> int:
+    """A spot count: an integer from `minimum` to MAX_WALL_SPOTS (checked before any array)."""
     require(isinstance(n, (int, np.integer)) and not isinstance(n, bool) and n >= minimum,
             field, f"must be an integer >= {minimum}, got {n!r}", f"pass e.g. {max(minimum, 3)}")
-    return int(n)
+    return require_count(field, n, MAX_WALL_SPOTS, "wall spots", "pass fewer spots (a 1024 x "
+                         "1024 SPAD array is the most)")
 
 
 def _length(v, field) -> float:
@@ -60,6 +63,7 @@ def spad_patch(centre, counts=(32, 32), pitch_m=(0.0375, 0.0375)) -> np.ndarray:
     counts = np.broadcast_to(np.asarray(counts), (2,))
     pitch = np.broadcast_to(np.asarray(pitch_m, dtype=np.float64), (2,))
     nx, nz = (_count(int(v), "spad_patch.counts") for v in counts)
+    _count(nx * nz, "spad_patch.counts")  # the patch as a whole
     px, pz = (_length(float(v), "spad_patch.pitch_m") for v in pitch)
     x = (np.arange(nx) - (nx - 1) / 2) * px
     z = (np.arange(nz) - (nz - 1) / 2) * pz

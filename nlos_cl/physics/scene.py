@@ -13,6 +13,7 @@ import trimesh
 
 from ..core.constants import FWHM_PER_SIGMA
 from ..core.errors import require
+from ..core.limits import MAX_SCENE_TARGETS, require_count
 from ..core.geometry import (Facets, as_point, coincident_pair,  # noqa: F401  (Facets: re-exported)
                              morton_order)
 from ..core.tuning import FACET_M
@@ -269,6 +270,8 @@ class Scene:
         require(isinstance(self.target, Target), "scene.target", "expected a nlos_cl.Target",
                 "wrap your mesh: nlos_cl.Target(mesh)")
         more = tuple(self.more_targets)
+        require_count("scene.more_targets", 1 + len(more), MAX_SCENE_TARGETS, "targets", "join "
+                      "small objects into one mesh target (trimesh.util.concatenate)")
         for i, t in enumerate(more):
             require(isinstance(t, Target), f"scene.more_targets[{i}]", "expected a "
                     f"nlos_cl.Target, got {type(t).__name__}", "wrap each mesh in nlos_cl.Target")
@@ -309,13 +312,12 @@ class Scene:
         tested from their centres."""
         if not self.occlusion:
             return None
-        cache = self.__dict__.setdefault("_visibility", {})
-        if which not in cache:
-            from .visibility import visibility
-            cache[which] = visibility(self.facets(which), self.setup.laser_spot,
-                                      self.setup.detector_spots,
-                                      [t.mesh for t in self.targets], which)
-        return cache[which]
+        if "_visibility" not in self.__dict__:  # every target's at once (visibility.py)
+            from .visibility import scene_visibility
+            self.__dict__["_visibility"] = scene_visibility(
+                [self.facets(i) for i in range(len(self.targets))], self.setup.laser_spot,
+                self.setup.detector_spots, [t.mesh for t in self.targets])
+        return self.__dict__["_visibility"][which]
 
 
 def paper_setup(**overrides) -> Setup:

@@ -35,6 +35,11 @@ def simulate(scene, time_axis: TimeAxis | None = None, *, backend=None) -> Signa
     require_memory("time_axis", 12.0 * setup.n_detectors * axis.n_bins,  # float32 + float64
                    f"{setup.n_detectors} x {axis.n_bins} bins of {axis.dt_s:.3g} s",
                    "use wider bins (dt_s) or a shorter window (n_bins)")
+    window_s = axis.n_bins * axis.dt_s  # a longer pulse: every bin sees a flat part of it
+    require(setup.pulse.fwhm_s <= window_s, "setup.pulse.fwhm_s", f"a {setup.pulse.fwhm_s:.3g} "
+            f"s pulse is longer than the whole {window_s:.3g} s time axis, so no echo in it "
+            "can be timed", "use a pulse shorter than the window (the paper's is 70e-12 s) or "
+            "a longer time axis (n_bins)")
     backend = resolve_backend(backend)
     layout = Layout(axis, setup.detector_spots, setup.laser_spot,
                     PathCalibration.for_setup(setup), scene.truth, scene.truths)

@@ -16,6 +16,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..core.errors import require
+from ..core.limits import MAX_FRAMES, require_count
 from ..core.tuning import FRAME_FACET_M
 from ..physics.trajectory import MovingTarget
 
@@ -60,9 +61,11 @@ def simulate_sequence(setup, moving, *, n_frames: int, fps: float, static=(), ti
     require(isinstance(n_frames, (int, np.integer)) and not isinstance(n_frames, bool)
             and n_frames >= 1, "n_frames", f"must be a positive integer, got {n_frames!r}",
             "pass e.g. 50")
+    require_count("n_frames", n_frames, MAX_FRAMES, "frames", "simulate fewer frames (each is "
+                  "one forward model), or several shorter sequences")
     require(isinstance(fps, (int, float)) and not isinstance(fps, bool) and math.isfinite(fps)
-            and fps > 0, "fps", f"must be a positive frame rate in Hz, got {fps!r}",
-            "pass e.g. 10")
+            and fps > 0 and math.isfinite(n_frames / fps), "fps", f"must be a positive frame "
+            f"rate in Hz (frame k at k / fps), got {fps!r}", "pass e.g. 10")
     require(noise is None or hasattr(noise, "apply"), "noise", f"expected a noise model "
             f"(nl.AWGN, nl.PhotonCounter) or None, got {type(noise).__name__}",
             "pass nl.AWGN(10)")
