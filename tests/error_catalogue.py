@@ -13,6 +13,7 @@ import trimesh
 
 import nlos_cl as nl
 from nlos_cl.io.ytal.reading import read_sequence
+from nlos_cl.io.scenefile import load_scene
 import nlos_cl.io.ytal.capture  # noqa: F401  (nl.capture)
 from nlos_cl.core import limits  # noqa: F401
 from nlos_cl.io import calibration, safe_write
@@ -210,6 +211,31 @@ def runner_study(runner, axes=({"name": "command", "values": ["echo owned"]},)):
 def study_file():
     return write_file("study.yaml", "runner: \"os:system\"\naxes:\n"
                       "  - {name: command, values: [\"echo owned\"]}\n")
+
+
+def alias_bomb(levels=9, width=9):
+    lines = [f"a0: &a0 [{', '.join(['x'] * width)}]"]
+    lines += [f"a{i}: &a{i} [{', '.join([f'*a{i - 1}'] * width)}]" for i in range(1, levels)]
+    return "\n".join(lines) + f"\ndescription: *a{levels - 1}\ntargets: [{{shape: sphere}}]\n"
+
+
+def load_study_dict(axis):
+    from nlos_cl.sweep import load_study
+    return load_study({"scene": {"targets": [{"shape": "sphere"}]}, "axes": [axis]})
+
+
+def ms_sequence(times=(0.0, 100.0, 200.0), truths=3):
+    """A 3-frame sequence, its frame_t_s and frame_truths then replaced."""
+    import tempfile
+
+    import h5py
+    from nlos_cl.tracking import write_sequence
+    path = write_sequence(Path(tempfile.mkdtemp()) / "seq.h5",
+                          [(k * 0.1, histograms(), [[4.0, 2.0, 0.0]]) for k in range(3)])
+    with h5py.File(path, "a") as f:
+        replace_field("frame_t_s", np.asarray(times))(f)
+        replace_field("frame_truths", np.zeros((truths, 1, 3)))(f)
+    return path
 
 
 class CommandLineError(Exception):
@@ -454,6 +480,40 @@ CASES = [
      lambda: cli("reproduce", "fig5", "--quick", "--out", existing_file("fig5.csv").parent)),
     ("nlos-cl bench --out over the user's performance.md", "--out",
      lambda: cli("bench", "--smoke", "--out", existing_file("performance.md").parent)),
+    ("a scene file with an alias bomb (9 levels x 9)", "aliases expand to more than",
+     lambda: load_scene(write_file("bomb.yaml", alias_bomb()))),
+    ("a scene file with `targets:` twice", "the key 'targets' appears twice",
+     lambda: load_scene(write_file("twice.yaml", "targets: [{shape: sphere}]\n"
+                                      "targets: [{shape: box}]\n"))),
+    ("a scene file saved as UTF-16", "is UTF-16 text",
+     lambda: load_scene(existing_file("u16.yaml", "targets: [{shape: sphere}]\n"
+                                         .encode("utf-16")))),
+    ("a scene file with device_distance_m: 1e39", "setup.device_distance_m",
+     lambda: load_scene({"setup": {"device_distance_m": 1e39},
+                            "targets": [{"shape": "sphere"}]})),
+    ("a scene file with spad_patch counts [2.7, 2.7]", "spad_patch.counts[0]",
+     lambda: load_scene({"setup": {"detector_spots": {"spad_patch": {
+         "centre": [-1, 0, 0], "counts": [2.7, 2.7]}}}, "targets": [{"shape": "sphere"}]})),
+    ("a scene file with a position in millimetres", "looks like millimetres",
+     lambda: load_scene({"targets": [{"shape": "sphere", "position": [4000, 2000, 0]}]})),
+    ("a study whose range stops at .inf", "axes[0].range.stop",
+     lambda: load_study_dict({"path": "noise.snr_db", "range": {"start": 0, "stop": np.inf,
+                                                                 "step": 1}})),
+    ("a study axis named like a result column (error_m)", "reserved",
+     lambda: load_study_dict({"path": "noise.snr_db", "name": "error_m", "values": [0]})),
+    ("a capture whose boolean is the text 'maybe'", "t_accounts_first_and_last_bounces",
+     lambda: nl.read_capture(capture_file(replace_field("t_accounts_first_and_last_bounces",
+                                                        "maybe")))),
+    ("a capture whose sensor grid is in millimetres", "sensor_grid_xyz: its points span",
+     lambda: nl.read_capture(capture_file(lambda f: f["sensor_grid_xyz"].__setitem__(
+         slice(None), f["sensor_grid_xyz"][()] * 1000)))),
+    ("a MATLAB v7.3 .mat passed as a capture", "is a MATLAB .mat file",
+     lambda: nl.read_capture(existing_file("scan.mat", b"MATLAB 7.3 MAT-file".ljust(512)
+                                           + capture_file().read_bytes()))),
+    ("a sequence whose frame_t_s are milliseconds", "looks like milliseconds",
+     lambda: read_sequence(ms_sequence())),
+    ("a sequence whose frame_truths miss a frame", "frame_truths",
+     lambda: read_sequence(ms_sequence(times=(0.0, 0.1, 0.2), truths=2))),
     ("no OpenCL device on the machine", "No OpenCL device found", no_device),
     ("a device choice that matches no device", "matches no OpenCL device",
      lambda: devices.choose_device("no-such-device-xyz")),

@@ -74,6 +74,22 @@ def require_regular(path, where: str) -> None:
                 "not even --force)")
 
 
+def require_file(path, where: str, fix: str) -> None:
+    """For readers: `path` exists and is a regular file (links followed: reading through one
+    harms nothing). A folder or FIFO is named as such, never called missing; opening a FIFO
+    would block, a device would be read without end."""
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        raise InputError(f"{where}: does not exist. Fix: {fix}") from None
+    except OSError as exc:
+        raise InputError(f"{where}: cannot be read ({exc.strerror}). Fix: {fix}") from None
+    for test, problem, _ in _KINDS:
+        problem = "is a folder, not a regular file" if test is stat.S_ISDIR else \
+            f"{problem} (reading it could block or never end)"
+        require(not test(mode), where, problem, fix)
+
+
 def written_by_nlos_cl(path, keep_unless=None) -> bool:
     """Whether the regular file `path` is one nlos_cl wrote: its content says so
     (keep_unless(path)), or the folder's MANIFEST lists it with this very content."""

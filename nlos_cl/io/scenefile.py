@@ -36,6 +36,7 @@ import numpy as np
 
 from ..core.errors import InputError, require
 from ..core.tuning import FACET_M
+from .yamlfile import is_number, whole_number
 
 SETUP_KEYS = {"laser_spot", "detector_spots", "device_distance_m", "laser_spot_diameter_m",
               "detected_spot_diameter_m", "aperture_area_m2", "wall_brdf", "pulse", "finite_spots"}
@@ -43,6 +44,28 @@ SHAPES = {"rectangle": {"size_m", "normal"}, "box": {"size_m"}, "sphere": {"radi
           "mesh": {"file"}}
 COMMON = {"shape", "position", "trajectory", "rotation_deg", "scale", "brdf", "reflectance"}
 TOP = {"setup", "targets", "facet_size_m", "time_axis", "noise", "description", "occlusion"}
+# Plausible bounds (SI units): beyond them a value is a unit slip (millimetres for metres,
+# picoseconds written as seconds) or a typo, and the physics would under- or overflow quietly
+# (a device 1e39 m away returns no light; a pulse 1e30 s wide is no pulse) instead of saying so.
+MAX_SCENE_M = 100.0  # wall spots and hidden targets lie within 100 m of the origin
+MAX_SPOTS = 1 << 16  # detector spots a generator may make (a 256 x 256 SPAD array)
+RANGES = {  # field: (low, high, example); low is exclusive unless it is 0 for a rate or jitter
+    "setup.device_distance_m": (0, 1e4, 20), "setup.laser_spot_diameter_m": (0, 10, 0.07),
+    "setup.detected_spot_diameter_m": (0, 10, 0.1), "setup.aperture_area_m2": (0, 100, 5e-4),
+    "setup.wall_brdf": (0, 1 / math.pi, 0.2579),  # Lambertian: albedo / pi <= 1 / pi
+    "setup.pulse.fwhm_s": (0, 1e-7, 70e-12), "setup.pulse.energy_j": (0, 1.0, 9.375e-9),
+    "setup.pulse.power_w": (0, 1e4, 0.75), "setup.pulse.rep_rate_hz": (0, 1e10, 80e6),
+    "noise.snr_db": (-100, 200, 10), "noise.photons.n_pulses": (0, 1e15, 80e6),
+    "noise.photons.efficiency": (0, 1, 0.8), "noise.photons.dark_count_rate_hz": (0, 1e9, 100),
+    "noise.photons.ambient_rate_hz": (0, 1e12, 1e4), "noise.photons.jitter_s": (0, 1e-7, 30e-12),
+    "noise.photons.tdc_bin_s": (0, 1e-7, 50e-12), "noise.photons.wavelength_m": (0, 1e-4, 1.53e-6),
+    "time_axis.dt_s": (0, 1e-7, 10e-12), "time_axis.t0_s": (-1e-3, 1e-3, 1.3e-7),
+    "time_axis.max_hidden_path_m": (0, 1e3, 18), "facet_size_m": (0, 1, 0.01),
+    "radius_m": (0, MAX_SCENE_M, 0.2), "scale": (0, 1e3, 1), "circle.radius_m": (0, 10, 0.5),
+    "spad_patch.pitch_m": (0, 10, 0.0375), "start_deg": (-3600, 3600, 0),
+}
+CLOSED_LOW = {"noise.snr_db", "time_axis.t0_s", "start_deg", "noise.photons.dark_count_rate_hz",
+              "noise.photons.ambient_rate_hz", "noise.photons.jitter_s"}
 
 
 @dataclass(frozen=True)
@@ -69,8 +92,14 @@ def _trajectory(where: str, spec):
     require("position" not in spec, f"{where}.trajectory", "given together with position",
             "give one: position (a static target) or trajectory (a moving one)")
     raw = _keys(f"{where}.trajectory", spec["trajectory"], {"t_s", "positions"})
+    t_s, positions = raw.get("t_s"), raw.get("positions")
+    require(isinstance(t_s, list) and all(is_number(t) for t in t_s), f"{where}.trajectory.t_s",
+            f"expected a list of times in seconds, got {t_s!r}", "write e.g. t_s: [0, 5]")
+    require(isinstance(positions, list), f"{where}.trajectory.positions", f"expected a list "
+            f"of [x, y, z], got {positions!r}", "write e.g. positions: [[2, 4, 0], [5, 1, 0]]")
+    positions = [_point(f"{where}.trajectory.positions[{i}]", p) for i, p in enumerate(positions)]
     try:
-        return Trajectory(raw.get("t_s"), raw.get("positions"))
+        return Trajectory(t_s, positions)
     except InputError as exc:
         raise InputError(f"{where}: {exc}") from None
 
@@ -85,20 +114,37 @@ def _keys(where: str, mapping, allowed: set) -> dict:
 
 
 def _vector(where: str, value, n=3) -> np.ndarray:
-    try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        arr = np.zeros(0)
-    require(arr.shape == (n,) and bool(np.all(np.isfinite(arr))), where,
-            f"expected {n} finite numbers, got {value!r}", f"write e.g. {[0.0] * n}")
-    return arr
+    ok = isinstance(value, (list, tuple, np.ndarray)) and len(value) == n and \
+        all(is_number(v) for v in value)
+    require(ok, where, f"expected {n} finite numbers, got {value!r}", f"write e.g. {[0.0] * n}")
+    return np.asarray(value, dtype=np.float64)
 
 
-def _number(where: str, value, *, positive=True) -> float:
-    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-    require(ok and (value > 0 or not positive), where, f"expected a "
-            f"{'positive ' if positive else ''}number, got {value!r}", "write e.g. 0.01")
+def _point(where: str, value) -> np.ndarray:
+    """A position (m): within MAX_SCENE_M of the origin, or it is likely millimetres."""
+    p = _vector(where, value)
+    far = float(np.abs(p).max())
+    require(far <= MAX_SCENE_M, where, f"{value!r} lies {far:.4g} m from the origin, beyond the "
+            f"{MAX_SCENE_M:g} m a scene spans: that looks like millimetres",
+            f"write metres ({[round(float(v) / 1000, 6) for v in p]} if it was mm)")
+    return p
+
+
+def _number(where: str, value, field: str | None = None) -> float:
+    """A number in RANGES[field] (default: the last part of `where`)."""
+    key = field or next(k for k in (where, where.rsplit(".", 1)[-1]) if k in RANGES)
+    low, high, example = RANGES[key]
+    closed = key in CLOSED_LOW
+    ok = is_number(value) and (value >= low if closed else value > low) and value <= high
+    unit = next((u for end, u in UNITS if key.endswith(end)), "")
+    require(ok, where, f"expected a number{unit} in {'[' if closed else '('}{low:g}, {high:g}], "
+            f"got {value!r}", f"write e.g. {example:g}")
     return float(value)
+
+
+UNITS = (("_m2", " (square metres)"), ("_m", " (metres)"), ("_s", " (seconds)"),
+         ("_j", " (joules)"), ("_w", " (watts)"), ("_hz", " (hertz)"), ("_db", " (decibels)"),
+         ("_deg", " (degrees)"))
 
 
 def _spots(value):
@@ -109,12 +155,41 @@ def _spots(value):
                 f"got {sorted(value)}", "write e.g. {circle: {centre: [-1, 0, 0], radius_m: 0.5,"
                 " count: 8}}")
         (kind, params), = value.items()
-        params = _keys(f"setup.detector_spots.{kind}", params,
-                       {"line": {"start", "stop", "count"},
-                        "circle": {"centre", "radius_m", "count", "start_deg"},
-                        "spad_patch": {"centre", "counts", "pitch_m"}}[kind])
-        return getattr(layouts, kind)(**params)
-    return value
+        where = f"setup.detector_spots.{kind}"
+        params = dict(_keys(where, params, {"line": {"start", "stop", "count"},
+                                            "circle": {"centre", "radius_m", "count", "start_deg"},
+                                            "spad_patch": {"centre", "counts", "pitch_m"}}[kind]))
+        return getattr(layouts, kind)(**_generator(where, kind, params))
+    require(isinstance(value, list) and len(value) >= 1, "setup.detector_spots", f"expected a "
+            f"list of [x, y, z] spots or a generator, got {value!r}", "write e.g. [[-0.5, 0, 0]]")
+    return [_point(f"setup.detector_spots[{i}]", p) for i, p in enumerate(value)]
+
+
+def _generator(where: str, kind: str, params: dict) -> dict:
+    """A spot generator's parameters, checked: points on the scene's scale, whole counts."""
+    for key in ("start", "stop", "centre"):
+        if key in params:
+            params[key] = _point(f"{where}.{key}", params[key])
+    for key in ("radius_m", "start_deg"):
+        if key in params:
+            params[key] = _number(f"{where}.{key}", params[key], f"{kind}.{key}"
+                                  if key == "radius_m" else key)
+    if "count" in params:
+        params["count"] = whole_number(f"{where}.count", params["count"], 1, MAX_SPOTS)
+    if "counts" in params:
+        counts = params["counts"]
+        ok = isinstance(counts, list) and len(counts) == 2
+        require(ok, f"{where}.counts", f"expected [along x, along z], got {counts!r}",
+                "write e.g. counts: [32, 32]")
+        params["counts"] = [whole_number(f"{where}.counts[{i}]", c, 1, MAX_SPOTS)
+                            for i, c in enumerate(counts)]
+        require(math.prod(params["counts"]) <= MAX_SPOTS, f"{where}.counts", f"makes "
+                f"{math.prod(params['counts'])} spots, more than {MAX_SPOTS}", "use fewer spots")
+    if "pitch_m" in params:
+        pitch = params["pitch_m"]
+        pitch = pitch if isinstance(pitch, list) else [pitch]
+        params["pitch_m"] = [_number(f"{where}.pitch_m", v, "spad_patch.pitch_m") for v in pitch]
+    return params
 
 
 def _setup(raw: dict):
@@ -122,9 +197,15 @@ def _setup(raw: dict):
     raw = dict(_keys("setup", raw or {}, SETUP_KEYS))
     if "detector_spots" in raw:
         raw["detector_spots"] = _spots(raw["detector_spots"])
+    if "laser_spot" in raw:
+        raw["laser_spot"] = _point("setup.laser_spot", raw["laser_spot"])
+    for key in sorted(SETUP_KEYS & {k[6:] for k in RANGES if k.count(".") == 1}):
+        if key in raw:
+            raw[key] = _number(f"setup.{key}", raw[key])
     if "pulse" in raw:
-        pulse = _keys("setup.pulse", raw["pulse"], {"fwhm_s", "energy_j", "power_w",
-                                                    "rep_rate_hz"})
+        pulse = dict(_keys("setup.pulse", raw["pulse"], {"fwhm_s", "energy_j", "power_w",
+                                                         "rep_rate_hz"}))
+        pulse = {k: _number(f"setup.pulse.{k}", v) for k, v in pulse.items()}
         if "power_w" in pulse or "rep_rate_hz" in pulse:
             raw["pulse"] = Pulse.from_laser(pulse.get("power_w", 0.75),
                                             pulse.get("rep_rate_hz", 80e6),
@@ -174,11 +255,15 @@ def _target(i: int, spec, base: Path, cell: float):
     mesh = _mesh(where, spec, base, cell)
     centre = mesh.bounds.mean(axis=0)
     vertices = (mesh.vertices - centre) * _number(f"{where}.scale", spec.get("scale", 1.0))
+    span = float(np.ptp(vertices, axis=0).max())
+    require(span <= MAX_SCENE_M, f"{where}", f"spans {span:.4g} m, more than the "
+            f"{MAX_SCENE_M:g} m a scene spans: that looks like a mesh in millimetres",
+            "add scale: 0.001 (millimetres to metres)")
     if "rotation_deg" in spec:
         vertices = vertices @ _rotation(f"{where}.rotation_deg", spec["rotation_deg"]).T
     path = _trajectory(where, spec)
     start = path.at(0.0) if path is not None else spec.get("position", [4, 2, 0])
-    mesh.vertices = vertices + _vector(f"{where}.position", start)
+    mesh.vertices = vertices + _point(f"{where}.position", start)
     try:
         brdf = spec.get("brdf", 0.1284)
         if "reflectance" in spec:  # {model: ggx, specular: .., roughness: .., diffuse: ..}
@@ -198,7 +283,8 @@ def _time_axis(raw, setup):
     if "t0_s" in raw or "n_bins" in raw:
         require("t0_s" in raw and "n_bins" in raw, "time_axis", "t0_s and n_bins go together",
                 "give both, or neither (then the window is derived)")
-        return TimeAxis(raw["t0_s"], dt, raw["n_bins"])
+        return TimeAxis(_number("time_axis.t0_s", raw["t0_s"]), dt,
+                        whole_number("time_axis.n_bins", raw["n_bins"], 2, 1 << 31, 2048))
     return default_time_axis(setup, dt, _number("time_axis.max_hidden_path_m",
                                                 raw.get("max_hidden_path_m", 18.0)))
 
@@ -214,9 +300,10 @@ def _noise(raw):
             "pick one noise model")
     if "photons" in raw:
         params = _keys("noise.photons", raw["photons"] or {}, set(PhotonCounter.__dataclass_fields__))
-        return PhotonCounter(**params), seed
+        return PhotonCounter(**{k: _number(f"noise.photons.{k}", v)
+                                for k, v in params.items()}), seed
     if "snr_db" in raw:
-        return AWGN(raw["snr_db"]), seed
+        return AWGN(_number("noise.snr_db", raw["snr_db"])), seed
     return None, seed
 
 
@@ -240,36 +327,21 @@ def load_scene(source) -> SceneSpec:
             "write occlusion: true (the default) or false")
     scene = Scene(setup, placed[0], cell, more_targets=tuple(placed[1:]), occlusion=occlusion)
     noise, seed = _noise(raw.get("noise"))
+    text = raw.get("description", "")
+    require(isinstance(text, (str, int, float)), "description", f"expected text, got "
+            f"{type(text).__name__}", "write description: a line of text (quote it if it has ':')")
     return SceneSpec(scene, _time_axis(raw.get("time_axis"), setup), noise, seed,
-                     str(raw.get("description", "")), tuple(paths))
+                     str(text), tuple(paths))
 
 
 def yaml_loader():
-    """PyYAML's SafeLoader, but `1e-11` is a number (YAML 1.2) rather than the text '1e-11'
-    (YAML 1.1 wants a dot in the mantissa: `10e-12` would silently be a string)."""
-    import re
-
-    import yaml
-
-    class Loader(yaml.SafeLoader):
-        pass
-    Loader.add_implicit_resolver("tag:yaml.org,2002:float", re.compile(
-        r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"), list("-+0123456789."))
-    return Loader
+    """The YAML loader for users' files (nlos_cl.io.yamlfile: YAML 1.2 floats, bounded
+    aliases and nesting, no duplicate keys)."""
+    from .yamlfile import yaml_loader as loader
+    return loader()
 
 
 def read_yaml(path: Path, what: str = "scene file") -> dict:
-    """A short YAML file (scene, study) as a mapping, with clear errors."""
-    import yaml
-    path = Path(path)
-    require(path.is_file(), f"{what} {path}", "does not exist", "pass a .yaml file")
-    require(path.stat().st_size < 1 << 20, f"{what} {path}", "is larger than 1 MiB",
-            "it is a short description; meshes go in their own files")
-    try:
-        raw = yaml.load(path.read_text(encoding="utf-8"), Loader=yaml_loader())
-    except (yaml.YAMLError, UnicodeDecodeError) as exc:
-        raise InputError(f"{what} {path}: is not valid YAML ({str(exc).splitlines()[0]}). "
-                         "Fix: check the indentation and brackets near that line") from None
-    require(isinstance(raw, dict), f"{what} {path}", "is not a mapping of keys",
-            "write `key: value` lines (docs/scene-files.md, docs/sweeps.md)")
-    return raw
+    """A short YAML file (scene, study) as a mapping, with clear errors (nlos_cl.io.yamlfile)."""
+    from .yamlfile import read_yaml as read
+    return read(path, what)

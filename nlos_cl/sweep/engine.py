@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..core.errors import InputError, require
+from ..core.limits import MAX_STUDY_RUNS, require_count
 from . import results
 from .load import load_study
 from .runner import RunnerStudy
@@ -58,6 +59,8 @@ def sweep(study, out, *, workers: int | None = None, scheduler: str | None = Non
     (runner.resolve). `force`: replace files in OUT that no sweep wrote (summary.csv...)."""
     log = log or _to_stderr
     study = load_study(study, allow_runner=allow_runner)
+    require_count("study", study.n_runs, MAX_STUDY_RUNS, "runs (the axes' values, estimators "
+                  "and seeds crossed)", "split the study, or take fewer values on an axis")
     out = Path(out)
     done = _prepare(out, study, resume, force)
     if not isinstance(study, RunnerStudy):  # a runner was checked when the study was loaded
@@ -100,20 +103,36 @@ def _prepare(out: Path, study: Study, resume: bool, force: bool = False) -> set:
             "pass a folder (it is created if missing)")
     out.mkdir(parents=True, exist_ok=True)
     record = out / STUDY_FILE
-    done = results.done_ids(out)
-    if done or record.exists():
+    if results.part_files(out) or record.exists():
         require(resume, f"--out {out}", "already holds a study's results",
                 "pass --resume (resume=True) to finish it, or pick another folder")
-        if record.exists():
-            old = json.loads(record.read_text(encoding="utf-8")).get("fingerprint")
-            require(old == study.fingerprint(), f"--out {out}", "holds a different study "
-                    "(its axes, scene or settings differ)", "resume with the same study file, "
-                    "or pick another folder")
+        require(record.is_file(), f"--out {out}", f"holds runs ({results.TABLE}) but no "
+                f"{STUDY_FILE}, so which study they belong to is unknown", f"put {STUDY_FILE} "
+                "back, or pick another folder (resuming would mix studies)")
+        require(_fingerprint(record) == study.fingerprint(), f"--out {out}", "holds a "
+                "different study (its axes, scene or settings differ)", "resume with the same "
+                "study file, or pick another folder")
+        results.check_parts(out, study)
+    done = results.done_ids(out)
     results.check_outputs(out, force)
     text = json.dumps({"fingerprint": study.fingerprint(), "n_runs": study.n_runs,
                        "study": study.as_dict()}, indent=1, default=str)
     results.write_output(out, STUDY_FILE, lambda tmp: Path(tmp).write_text(text, "utf-8"), force)
     return done
+
+
+def _fingerprint(record: Path) -> str:
+    """The fingerprint study.json records; a file that is not one is named, not read past."""
+    try:
+        old = json.loads(record.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise InputError(f"--out {record.parent}: {STUDY_FILE} is not readable JSON "
+                         f"({type(exc).__name__}: {exc}), so its runs cannot be matched to a "
+                         "study. Fix: restore the file, or pick another folder") from None
+    require(isinstance(old, dict) and isinstance(old.get("fingerprint"), str),
+            f"--out {record.parent}: {STUDY_FILE}", "holds no study fingerprint",
+            "restore the file written by the sweep, or pick another folder")
+    return old["fingerprint"]
 
 
 def make_batches(study: Study, pending, batch_size: int | None, n_workers: int) -> list:
@@ -192,9 +211,7 @@ def open_client(workers: int | None, scheduler: str | None, log=_to_stderr):
     if scheduler:
         require(workers is None, "--workers", "does not go with --scheduler",
                 "size the cluster where it is started")
-        client = (Client(scheduler_file=scheduler) if Path(scheduler).is_file()
-                  else Client(scheduler, timeout="30s"))
-        client.wait_for_workers(1, timeout=120)
+        client = _connect(Client, scheduler)
     else:
         cluster = local_cluster(workers)
         client = Client(cluster)
@@ -210,6 +227,70 @@ def open_client(workers: int | None, scheduler: str | None, log=_to_stderr):
         client.close()
         if cluster is not None:
             cluster.close()
+
+
+CONNECT_S, WORKERS_S = 5, 20  # a scheduler answers in well under a second on a network
+
+
+def _connect(Client, scheduler: str):
+    """A Client of the cluster at `scheduler` that has a worker; a server that is not a Dask
+    scheduler (or none) is one line within CONNECT_S, a cluster without workers within
+    WORKERS_S (distributed's own defaults wait 30 s and forever)."""
+    file = Path(scheduler).is_file()
+    _probe(_file_address(scheduler) if file else scheduler)
+    try:
+        client = (Client(scheduler_file=scheduler, timeout=f"{CONNECT_S}s") if file
+                  else Client(scheduler, timeout=f"{CONNECT_S}s"))
+    except (OSError, TimeoutError, ValueError, TypeError) as exc:
+        raise InputError(f"--scheduler: no Dask scheduler answered at {scheduler} within "
+                         f"{CONNECT_S} s ({type(exc).__name__}: {str(exc)[:160]}). Fix: pass "
+                         "the address `dask scheduler` prints (tcp://HOST:8786) or its "
+                         "--scheduler-file, or leave --scheduler out to run here") from None
+    try:
+        client.wait_for_workers(1, timeout=WORKERS_S)
+    except (OSError, TimeoutError) as exc:
+        client.close()
+        raise InputError(f"--scheduler: the cluster at {scheduler} has no worker (none joined "
+                         f"in {WORKERS_S} s: {type(exc).__name__}). Fix: start one with `dask "
+                         f"worker {scheduler}`, or leave --scheduler out") from None
+    return client
+
+
+def _file_address(path: str) -> str:
+    """The address in a scheduler file (JSON written by `dask scheduler --scheduler-file`)."""
+    try:
+        address = json.loads(Path(path).read_text(encoding="utf-8"))["address"]
+    except (OSError, ValueError, KeyError, TypeError):
+        raise InputError(f"--scheduler: {path} is not a Dask scheduler file (JSON with an "
+                         "`address`). Fix: pass the file `dask scheduler --scheduler-file` "
+                         "wrote, or the scheduler's tcp://HOST:PORT") from None
+    return str(address)
+
+
+def _probe(address: str) -> None:
+    """A tcp:// (or bare HOST:PORT) address must answer as a Dask scheduler does: it sends its
+    handshake (msgpack naming the pickle protocol) as soon as a connection opens. distributed
+    itself waits without a limit on a server that accepts and says nothing (120 s and more)."""
+    import socket
+    rest = address[len("tcp://"):] if address.startswith("tcp://") else address
+    if "://" in rest or ":" not in rest:
+        return  # tls://, ucx://, inproc://: distributed's own connect and timeout
+    host, _, port = rest.rpartition(":")
+    fix = ("Fix: pass the address `dask scheduler` prints (tcp://HOST:8786) or its "
+           "--scheduler-file, or leave --scheduler out to run here")
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=CONNECT_S) as sock:
+            sock.settimeout(CONNECT_S)
+            try:
+                hello = sock.recv(4096)
+            except TimeoutError:
+                hello = b""  # it accepted and said nothing: no Dask scheduler
+    except (OSError, ValueError) as exc:
+        raise InputError(f"--scheduler: could not reach {address} within {CONNECT_S} s "
+                         f"({type(exc).__name__}: {exc}). {fix}") from None
+    if b"pickle-protocol" not in hello:
+        raise InputError(f"--scheduler: {address} is not a Dask scheduler (it sent no Dask "
+                         f"handshake within {CONNECT_S} s). {fix}")
 
 
 def local_cluster(workers: int | None):

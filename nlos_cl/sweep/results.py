@@ -8,10 +8,13 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import uuid
 from pathlib import Path
 
 import pyarrow as pa
+
+from ..core.errors import InputError, require
 
 from .runner import COLUMNS as RUNNER_COLUMNS, RunnerStudy
 from .runs import record_columns
@@ -109,6 +112,50 @@ def write_part(out, table: pa.Table) -> Path:
         os.fsync(f.fileno())
     os.replace(hidden, final)
     return final
+
+
+PART = re.compile(r"part-\d{9}-[0-9a-f]{8}\.parquet")  # write_part's names
+
+
+def part_files(out) -> list[Path]:
+    """What the table folder holds, but the hidden names (parts being written, as pyarrow's
+    reader skips them too)."""
+    folder = table_dir(out)
+    if not folder.is_dir():
+        return [folder] if folder.exists() else []
+    return sorted(p for p in folder.iterdir() if not p.name.startswith((".", "_")))
+
+
+def check_parts(out, study: Study) -> None:
+    """Before --resume counts what is done: every file in OUT/runs.parquet/ is a whole part of
+    this very study (its name, its columns, its runs' axis values), so a truncated part, a
+    stray file or another study's part is named, not read as results or mixed in."""
+    import pyarrow.parquet as pq
+    where, expected, runs = f"--out {out}", schema(study), None
+    for path in part_files(out):
+        name = f"{TABLE}/{path.name}"
+        require(path.is_file() and bool(PART.fullmatch(path.name)), where, f"{name} is not a "
+                "part nlos_cl wrote (it would be read as results)", "move it out of the folder")
+        try:
+            part = pq.read_table(path)
+        except (pa.ArrowException, OSError, ValueError) as exc:
+            raise InputError(f"{where}: {name} is truncated or corrupted ({type(exc).__name__}: "
+                             f"{' '.join(str(exc).split())[:200]}). Fix: delete that part; "
+                             "--resume runs its runs again") from None
+        require(part.schema.remove_metadata().equals(expected), where, f"{name} has other "
+                "columns than this study's table (it belongs to another study)",
+                "resume with the study that wrote it, or move the part out")
+        runs = dict(study.runs()) if runs is None else runs
+        ids = part.column("run_id").to_pylist()
+        bad = next((i for i in ids if i not in runs), None)
+        require(bad is None, where, f"{name} holds run {bad}, but this study has "
+                f"{study.n_runs} runs (it belongs to another study)", "move the part out")
+        axis_rows = to_table(study, [{**dict.fromkeys(expected.names), "run_id": i}
+                                     for i in ids], runs.__getitem__)
+        names = [a.name for a in study.axes]
+        require(axis_rows.select(names).equals(part.select(names)), where, f"{name} holds "
+                "runs whose axis values differ from this study's", "move the part out (it "
+                "belongs to another study)")
 
 
 def read_table(out, columns=None) -> pa.Table:

@@ -17,19 +17,12 @@ from dataclasses import replace
 
 import numpy as np
 
-from .study import SPECIAL, assignments, scene_of
+from .study import RECORD_COLUMNS, SPECIAL, assignments, scene_of
 
 _SCENES: OrderedDict = OrderedDict()  # scene key -> (spec, clean Signals, signal photons)
 _GRIDS: dict = {}
 KEEP_SCENES = 3
 
-RECORD_COLUMNS = {
-    "position": ("x_m", "y_m", "z_m", "truth_x_m", "truth_y_m", "truth_z_m"),
-    "error": ("error_m",),
-    "covariance": ("cov_xx_m2", "cov_xy_m2", "cov_xz_m2", "cov_yy_m2", "cov_yz_m2", "cov_zz_m2"),
-    "timings": ("t_simulate_s", "t_noise_s", "t_filter_s", "t_locate_s", "t_run_s", "t_cpu_s"),
-    "photons": ("photons", "signal_photons"),
-}
 TIMING_COLUMNS = RECORD_COLUMNS["timings"]
 
 

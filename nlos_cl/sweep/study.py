@@ -38,6 +38,8 @@ from pathlib import Path
 
 from ..core.errors import InputError, require
 from ..io.scenefile import read_yaml
+from ..io.yamlfile import is_number, whole_number
+from .values import MAX_AXIS_VALUES, axis_values, check_scale, scaled, seed_values  # noqa: F401
 
 TOP = {"description", "scene", "axes", "estimators", "seeds", "h_s", "filter", "grid", "record",
        "batch_size"}
@@ -45,6 +47,17 @@ SPECIAL = {"estimator", "seed", "h_s", "filter"}  # not scene keys: the run's ow
 RECORDS = ("position", "error", "covariance", "timings", "photons")
 FILTERS = ("gauss", "gauss_fit", "none")
 ESTIMATORS = ("paper", "model")
+RECORD_COLUMNS = {  # what each `record` entry adds to the table (runs.py fills them)
+    "position": ("x_m", "y_m", "z_m", "truth_x_m", "truth_y_m", "truth_z_m"),
+    "error": ("error_m",),
+    "covariance": ("cov_xx_m2", "cov_xy_m2", "cov_xz_m2", "cov_yy_m2", "cov_yz_m2", "cov_zz_m2"),
+    "timings": ("t_simulate_s", "t_noise_s", "t_filter_s", "t_locate_s", "t_run_s", "t_cpu_s"),
+    "photons": ("photons", "signal_photons"),
+}
+SUMMARY_COLUMNS = ("error_mean_m", "error_std_m", "error_max_m", "runs", "t_run_mean_s")
+# an axis is a column of the table and of summary.csv: it must not take a result's name
+RESERVED = {"run_id", "failure", *SUMMARY_COLUMNS, *(c for cs in RECORD_COLUMNS.values()
+                                                      for c in cs)}
 _STEP = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)|\[(\d+)\]|\.")
 
 
@@ -152,30 +165,6 @@ def _where(steps) -> str:
                    for i, s in enumerate(steps))
 
 
-def axis_values(where: str, spec: dict) -> tuple:
-    require(("values" in spec) != ("range" in spec), where, "needs exactly one of values, range",
-            "write values: [...] or range: {start, stop, step} / {start, stop, num}")
-    if "values" in spec:
-        values = spec["values"]
-        require(isinstance(values, list) and values, f"{where}.values",
-                f"expected a non-empty list, got {values!r}", "write e.g. values: [0, 5, 10]")
-        return tuple(values)
-    r = spec["range"]
-    require(isinstance(r, dict) and set(r) in ({"start", "stop", "step"}, {"start", "stop", "num"}),
-            f"{where}.range", f"expected {{start, stop, step}} or {{start, stop, num}}, got {r!r}",
-            "write e.g. range: {start: 1, stop: 5, step: 1}")
-    start, stop = float(r["start"]), float(r["stop"])
-    if "num" in r:
-        n = int(r["num"])
-        require(n >= 1, f"{where}.range.num", f"must be >= 1, got {n}", "pass a count")
-        return tuple(start if n == 1 else start + (stop - start) * k / (n - 1) for k in range(n))
-    step = float(r["step"])
-    require(step > 0 and stop >= start, f"{where}.range", "needs step > 0 and stop >= start",
-            "write e.g. {start: 1, stop: 5, step: 1}")
-    n = int(math.floor((stop - start) / step + 1e-9)) + 1
-    return tuple(round(start + k * step, 12) for k in range(n))
-
-
 def _axis(where: str, spec) -> Axis:
     require(isinstance(spec, dict) and "path" in spec, where, f"expected {{path, values}} or "
             f"{{path, range}}, got {spec!r}", "write e.g. {path: noise.snr_db, values: [0, 10]}")
@@ -192,28 +181,13 @@ def _axis(where: str, spec) -> Axis:
     scale = spec.get("scale")
     if scale is not None:
         check_scale(where, path, values, scale)
-    return Axis(str(spec.get("name", path)), path, values, scale)
-
-
-def check_scale(where: str, path: str, values, scale) -> None:
-    def number(v):
-        return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-
-    def ok(node):
-        return number(node) or (isinstance(node, list) and node and all(ok(n) for n in node))
-    require(path not in ("estimator", "seed", "filter"), f"{where}.scale", f"cannot scale the "
-            f"{path} axis", "leave scale out (it is for numeric values: units, spacings)")
-    require(all(number(v) for v in values), f"{where}.scale", "needs numeric values",
-            "write the axis's values as numbers, or leave scale out")
-    require(bool(ok(scale)), f"{where}.scale", "expected a number or (nested) lists of "
-            f"numbers, got {scale!r}", "write e.g. scale: 1.0e-9, or [[-1, 0, 0], [-2, 0, 0]]")
-
-
-def scaled(value, scale):
-    """What an axis value sets: value x scale, element-wise through nested lists."""
-    if scale is None:
-        return value
-    return [scaled(value, s) for s in scale] if isinstance(scale, list) else value * scale
+    name = spec.get("name", path)
+    require(isinstance(name, str) and name.strip() != "", f"{where}.name", f"expected a "
+            f"column name, got {name!r}", "write e.g. name: snr_db")
+    require(name not in RESERVED, f"{where}.name", f"{name!r} is a column of the results "
+            f"table, reserved: {sorted(RESERVED)}", "give the axis another name: (e.g. "
+            f"name: {name}_axis)")
+    return Axis(name, path, values, scale)
 
 
 def assignments(plan: dict, values: dict) -> dict:
@@ -234,21 +208,6 @@ def axis_group(i: int, spec, axis=_axis) -> tuple:  # axis: runner studies parse
     return (axis(f"axes[{i}]", spec),)
 
 
-def seed_values(value) -> tuple:
-    if isinstance(value, int) and not isinstance(value, bool):
-        require(value >= 1, "seeds", f"must be >= 1, got {value}", "pass a count, e.g. 10")
-        return tuple(range(value))
-    if isinstance(value, dict):
-        require(set(value) == {"start", "count"}, "seeds", f"expected {{start, count}}, got "
-                f"{value!r}", "write e.g. seeds: {start: 100, count: 10}")
-        return tuple(range(int(value["start"]), int(value["start"]) + int(value["count"])))
-    ok = isinstance(value, list) and value and all(
-        isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in value)
-    require(ok, "seeds", f"expected a count, a list of non-negative integers or {{start, count}},"
-            f" got {value!r}", "write e.g. seeds: 10")
-    return tuple(value)
-
-
 def _grid(value):
     if value is None:
         return None
@@ -265,8 +224,8 @@ def _settings(raw: dict) -> dict:
     require(isinstance(record, list) and set(record) <= set(RECORDS), "record",
             f"expected a list from {list(RECORDS)}, got {record!r}", f"write e.g. {list(RECORDS)}")
     h_s = raw.get("h_s", 0.65e-9)
-    require(isinstance(h_s, (int, float)) and h_s > 0, "h_s", f"must be a positive time in "
-            f"seconds, got {h_s!r}", "write e.g. 0.65e-9")
+    require(is_number(h_s) and 0 < h_s <= 1e-3, "h_s", f"must be a positive time in "
+            f"seconds (at most 1 ms), got {h_s!r}", "write e.g. 0.65e-9")
     filt = raw.get("filter", "gauss")
     require(filt in FILTERS, "filter", f"unknown filter {filt!r}", f"use one of {list(FILTERS)}")
     return {"h_s": float(h_s), "filter": filt, "grid": _grid(raw.get("grid")),
@@ -306,7 +265,10 @@ def load_scene_study(raw, base_dir: Path) -> Study:
     axes = raw.get("axes") or []
     require(isinstance(axes, list), "axes", "expected a list", "write axes: [{path, values}]")
     groups = [axis_group(i, spec) for i, spec in enumerate(axes)]
-    groups.append((Axis("estimator", "estimator", tuple(raw.get("estimators", ["paper"]))),))
+    estimators = raw.get("estimators", ["paper"])
+    require(isinstance(estimators, list) and estimators, "estimators", f"expected a list, got "
+            f"{estimators!r}", f"write e.g. estimators: [paper] (of {list(ESTIMATORS)})")
+    groups.append((Axis("estimator", "estimator", tuple(estimators)),))
     _axis("estimators", {"path": "estimator", "values": list(groups[-1][0].values)})
     groups.append((Axis("seed", "seed", seed_values(raw.get("seeds", 1))),))
     names = [a.name for g in groups for a in g]
@@ -314,8 +276,8 @@ def load_scene_study(raw, base_dir: Path) -> Study:
     require(not dup, f"axes: name {dup[0] if dup else ''!r}", "is used twice",
             "give one of them another `name:` (estimator and seed are taken)")
     batch = raw.get("batch_size")
-    require(batch is None or (isinstance(batch, int) and batch >= 1), "batch_size",
-            f"must be a positive integer, got {batch!r}", "write e.g. batch_size: 16")
+    if batch is not None:
+        batch = whole_number("batch_size", batch, 1, MAX_AXIS_VALUES, 16)
     return Study(str(raw.get("description", "")), _scene(raw["scene"], base_dir), tuple(groups),
                  _settings(raw), batch)
 

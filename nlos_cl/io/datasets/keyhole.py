@@ -94,19 +94,29 @@ def _h5(path, name) -> np.ndarray:
     """A MATLAB v7.3 variable as float64 (h5py: MATLAB's axes reversed), its declared size
     checked against memory first."""
     import h5py
-    require(path.is_file(), f"{path}", "does not exist", "pass the dataset's own folder")
+
+    from ..safe_write import require_file
+    from ..ytal.checks import unreadable
+    from ..ytal.fields import check_storage
+    require_file(path, f"{path}", "pass the dataset's own folder")
     try:
         f = h5py.File(path, "r")
+    except BlockingIOError as exc:
+        raise unreadable(exc, path, what="MATLAB file") from None
     except OSError as exc:
         require(False, f"{path}", f"is not a MATLAB v7.3 (HDF5) file ({exc})", "download it "
                 "again")
     with f:
-        require(name in f, f"{path}: {name}", f"is missing (it holds {sorted(f)})",
-                "pass the dataset's own, unmodified file")
+        check_storage(f, path, "MATLAB file")  # links would read other files
+        require(name in f and isinstance(f[name], h5py.Dataset), f"{path}: {name}",
+                f"is missing (it holds {sorted(f)})", "pass the dataset's own, unmodified file")
         d = f[name]
         require_memory(f"{path}: {name}", 16.0 * float(np.prod(d.shape, dtype=np.float64)),
                        f"reading {name} {d.shape}", "read it on a machine with more memory")
-        value = np.asarray(d[()], dtype=np.float64)
+        try:
+            value = np.asarray(d[()], dtype=np.float64)
+        except (OSError, RuntimeError, ValueError, TypeError) as exc:
+            raise unreadable(exc, path, name, "MATLAB file") from None
     require(bool(np.all(np.isfinite(value))), f"{path}: {name}", "contains NaN or inf",
             "pass the dataset's own, unmodified file")
     return value

@@ -20,6 +20,7 @@ from ...core.histograms import HistogramSet
 from .fields import (GRID_FORMATS, H_FORMATS, REQUIRED,  # noqa: F401  (the format enums, for users)
                      check_complete, check_memory, check_regular, check_storage, dataset,
                      is_capture, to_histograms, write_fields)
+from .checks import unreadable
 from .frames import YTAL, CaptureFrame, check_wall_spots, from_ytal, to_ytal  # noqa: F401
 
 
@@ -84,6 +85,8 @@ def read_capture_with_frame(path, *, max_bytes: int | None = None, joint: bool =
             missing = [k for k in REQUIRED if k not in f]
             require(not missing, where, f"missing field(s) {missing}",
                     "write every field of y-tal's NLOSCaptureData (see nlos_cl.io.ytal.capture)")
+            require(isinstance(f["H"], h5py.Dataset), f"{where}: H", "is a group, not a "
+                    "dataset", "store H as one array (time first), as y-tal writes it")
             check_memory(f, path, max_bytes)
             fields = {k: dataset(f, k, path) for k in f.keys() if k != "H"}
             sets = to_histograms(fields, f["H"], path, joint=joint)
@@ -91,6 +94,5 @@ def read_capture_with_frame(path, *, max_bytes: int | None = None, joint: bool =
         raise
     except (OSError, RuntimeError, LookupError, ValueError, TypeError, AttributeError,
             OverflowError) as exc:  # h5py on corrupted bytes raises all of these
-        raise InputError(f"{where}: incomplete or corrupted file ({type(exc).__name__}: "
-                         f"{exc}). Fix: copy or write the capture again")
+        raise unreadable(exc, path) from None
     return sets, YTAL

@@ -13,6 +13,7 @@ import numpy as np
 from ...core.constants import SPEED_OF_LIGHT
 from ...core.errors import InputError, require
 from ...core.histograms import HistogramSet, PathCalibration, TimeAxis
+from .checks import check_bin, check_wall_scale, flag, our_metadata, unreadable
 from .frames import YTAL, check_wall_spots, from_ytal, to_ytal
 from .pairing import check_h_format, plan, read_block
 
@@ -92,6 +93,10 @@ def check_complete(path: Path) -> None:
     where, size = f"capture {path}", path.stat().st_size
     with open(path, "rb") as fh:
         head = fh.read(4096)
+    version = head[:19].decode("ascii", "replace") + (": HDF5 inside" * (b"7.3" in head[:20]))
+    require(not head.startswith(b"MATLAB"), where, f"is a MATLAB .mat file ({version}), not a "
+            "y-tal capture", "convert it first: nlos-cl convert FILE.mat --out F.h5 "
+            "(nl.read_dataset reads the formats it knows: lct, ccsocr, keyhole)")
     base = next((b for b in (0, 512, 1024, 2048) if head[b:b + 8] == HDF5_SIGNATURE), None)
     require(base is not None or (size >= 8 and not HDF5_SIGNATURE.startswith(head[:8])), where,
             f"incomplete or corrupted file: {size} bytes, shorter than an HDF5 header",
@@ -103,31 +108,23 @@ def check_complete(path: Path) -> None:
     o = padded[base + 13] if version in (0, 1) else padded[base + 9] if version in (2, 3) else 0
     start = base + {0: 24, 1: 28, 2: 12, 3: 12}.get(version, 0)
     end = [int.from_bytes(head[start + i * o:start + (i + 1) * o], "little") for i in (0, 2)]
-    require(o in (2, 4, 8) and len(head) >= start + 3 * o and size >= sum(end), where,
-            f"incomplete or corrupted file: its HDF5 header declares {sum(end) if o else '?'} "
+    # the end of file address counts from the file's first byte, a user block included (HDF5
+    # library files, MATLAB v7.3's 512-byte header): base + EOF would count the block twice
+    require(o in (2, 4, 8) and len(head) >= start + 3 * o and size >= end[1], where,
+            f"incomplete or corrupted file: its HDF5 header declares {end[1] if o else '?'} "
             f"bytes but the file has {size} (cut off by an interrupted copy, download or write)",
             "copy or write the capture again")
 
 
-def check_regular(path: Path) -> None:
+def check_regular(path: Path, what: str = "capture") -> None:
     """A capture is a regular file: a FIFO would block the read (forever, if nobody writes),
     a device would be read without end, a folder is no capture."""
-    where = f"capture {path}"
-    try:
-        mode = os.stat(path).st_mode
-    except FileNotFoundError:
-        mode = None
-    except OSError as exc:
-        raise InputError(f"{where}: cannot be read ({exc.strerror}). Fix: pass the path of a "
-                         "readable .h5 file") from None
-    require(mode is not None, where, "does not exist", "pass the path of an .h5 file")
-    kind = ("a folder" if stat.S_ISDIR(mode) else "a FIFO (named pipe)" if stat.S_ISFIFO(mode)
-            else "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) else "a socket")
-    require(stat.S_ISREG(mode), where, f"is {kind}, not a regular file (reading it could block "
-            "or never end)", "pass the path of an .h5 file (copy a stream to a file first)")
+    from ..safe_write import require_file
+    require_file(path, f"{what} {path}", "pass the path of an .h5 file (copy a stream to a "
+                 "file first)")
 
 
-def check_storage(f, path) -> None:
+def check_storage(f, path, what: str = "capture") -> None:
     """Every field's data is inside the file, checked before any is opened or read: an HDF5
     external link or soft link resolves to another file or object, external raw storage
     (dataset.external) reads the bytes of any file named in the capture (a crafted capture
@@ -138,7 +135,7 @@ def check_storage(f, path) -> None:
         link = f.get(key, getlink=True)
         kind = ("an external link (to another file)" if isinstance(link, h5py.ExternalLink)
                 else "a soft link" if isinstance(link, h5py.SoftLink) else None)
-        require(kind is None, f"capture {path}: {key}", f"is {kind}, not data stored in the "
+        require(kind is None, f"{what} {path}: {key}", f"is {kind}, not data stored in the "
                 "capture", "write the field's data into the capture itself (h5py: copy it)")
         obj = f[key]
         if not isinstance(obj, h5py.Dataset):
@@ -148,7 +145,7 @@ def check_storage(f, path) -> None:
         virtual = plist.get_layout() == h5py.h5d.VIRTUAL
         kind = ("external raw storage (its bytes are read from other files)" if external
                 else "a virtual dataset (mapped from other files)" if virtual else None)
-        require(kind is None, f"capture {path}: {key}", f"uses {kind}; nlos_cl reads only data "
+        require(kind is None, f"{what} {path}: {key}", f"uses {kind}; nlos_cl reads only data "
                 "stored in the capture itself", "write the data into the capture (h5py: "
                 "f.create_dataset(name, data=...)), or convert it with y-tal")
 
@@ -177,7 +174,10 @@ def dataset(f, key, path):
                          "it as y-tal does")
     if obj.shape is None:  # h5py.Empty: y-tal's None
         return None
-    value, members = obj[()], h5py.check_enum_dtype(obj.dtype)
+    try:
+        value, members = obj[()], h5py.check_enum_dtype(obj.dtype)
+    except (OSError, RuntimeError, ValueError, TypeError) as exc:
+        raise unreadable(exc, path, key, dataset=obj) from None
     if members is not None:  # the stored number: y-tal's names changed (T_Si_Li -> T_Li_Si)
         return int(np.ravel(value)[0])
     return value
@@ -228,6 +228,8 @@ def to_histograms(fields, H, path, joint=False) -> list[HistogramSet]:
             "store H as float32")
     sensors = float_array(fields["sensor_grid_xyz"], "sensor_grid_xyz", path)
     lasers = float_array(fields["laser_grid_xyz"], "laser_grid_xyz", path)
+    check_wall_scale(sensors, "sensor_grid_xyz", path)
+    check_wall_scale(lasers, "laser_grid_xyz", path)
     formats = tuple(fields.get(k) for k in ("sensor_grid_format", "laser_grid_format"))
     blocks = plan(h_format, H.shape, sensors, lasers, formats, path, joint)
     axis = time_axis(fields, H.shape[0], path)
@@ -237,17 +239,21 @@ def to_histograms(fields, H, path, joint=False) -> list[HistogramSet]:
     check_wall_spots(laser_points, spots, YTAL, paired=paired, laser_field="laser_grid_xyz",
                      spots_field="sensor_grid_xyz", prefix=f"{where}: ")
     legs = first_and_last_legs(fields, sensors, lasers, path)
-    ours = our_metadata(fields.get("scene_info")) if len(blocks) == 1 else None
+    ours = our_metadata(fields.get("scene_info"), path) if len(blocks) == 1 else None
     sets = []
     for i, block in enumerate(blocks):
-        data = read_block(H, block)
+        try:
+            data = read_block(H, block)
+        except (OSError, RuntimeError) as exc:  # a lock, a missing filter, cut-off chunks
+            raise unreadable(exc, path, "H", dataset=H) from None
         bad = int(data.size - np.count_nonzero(np.isfinite(data)))
         require(bad == 0, f"{where}: H", f"{bad} values are NaN or inf"
                 + (f" (laser point {i})" if len(blocks) > 1 else ""),
                 "replace missing bins by 0 before writing")
         calibration = PathCalibration(SPEED_OF_LIGHT, -(legs[0][block.sensors]
                                                         + legs[1][block.lasers]))
-        exact = restore(ours, axis, calibration) if ours else (axis, calibration, None, True)
+        exact = restore(ours, axis, calibration, path) if ours else (axis, calibration, None,
+                                                                     True)
         laser = laser_points[block.lasers] if block.paired else laser_points[block.lasers[0]]
         sets.append(HistogramSet(data, exact[0], spots[block.sensors], laser, exact[1],
                                  truth=exact[2], allow_negative=exact[3]))
@@ -266,6 +272,7 @@ def time_axis(fields, n_t, path) -> TimeAxis:
             " m)", "multiply delta_t and t_start by c")
     require(abs(t_start) < 1e5, f"{where}: t_start", f"is {t_start:.3g} m",
             "store t_start in metres of optical path")
+    check_bin(delta_t, path)
     return TimeAxis((t_start - 0.5 * delta_t) / SPEED_OF_LIGHT, delta_t / SPEED_OF_LIGHT,
                     n_t)
 
@@ -276,14 +283,19 @@ def first_and_last_legs(fields, sensors, lasers, path):
     stored empty (h5py.Empty, y-tal's None, or a 0-size array) are unknown, not an error,
     unless these legs need them."""
     legs = np.zeros(len(sensors)), np.zeros(len(lasers))
-    if not bool(np.ravel(np.asarray(fields["t_accounts_first_and_last_bounces"]))[0]):
+    if not flag(fields["t_accounts_first_and_last_bounces"], "t_accounts_first_and_last_bounces",
+                path):
         return legs
     lxyz, sxyz = (origin(fields.get(k)) for k in ("laser_xyz", "sensor_xyz"))
     require(lxyz is not None and sxyz is not None, f"capture {path}: laser_xyz",
             "t_accounts_first_and_last_bounces is set but the device positions are missing",
             "store laser_xyz and sensor_xyz")
-    lxyz = float_array(lxyz, "laser_xyz", path).reshape(3)
-    sxyz = float_array(sxyz, "sensor_xyz", path).reshape(3)
+    lxyz, sxyz = (float_array(v, k, path) for v, k in ((lxyz, "laser_xyz"),
+                                                        (sxyz, "sensor_xyz")))
+    for value, key in ((lxyz, "laser_xyz"), (sxyz, "sensor_xyz")):
+        require(value.size == 3, f"capture {path}: {key}", f"has shape {value.shape}, expected "
+                "one (x, y, z) point: the device's position", f"store {key} as 3 numbers")
+    lxyz, sxyz = lxyz.reshape(3), sxyz.reshape(3)
     return np.linalg.norm(sensors - sxyz, axis=1), np.linalg.norm(lasers - lxyz, axis=1)
 
 
@@ -292,16 +304,7 @@ def origin(value):
     return None if value is None or np.size(value) == 0 else value
 
 
-def our_metadata(info):
-    import yaml
-    try:
-        info = yaml.safe_load(info) if isinstance(info, (bytes, str)) else None
-    except yaml.YAMLError:  # another tool's scene_info: ours is simply not there
-        return None
-    return info.get("nlos_cl") if isinstance(info, dict) else None
-
-
-def restore(ours, axis, calibration):
+def restore(ours, axis, calibration, path=""):
     """Our exact axis and calibration, if they describe the same mapping as the y-tal fields."""
     try:
         t = ours["time_axis"]
@@ -315,4 +318,10 @@ def restore(ours, axis, calibration):
     file_path = calibration.a_m_per_s * axis.centres()[ends] + calibration.b_m[0]  # ~1e-6 rel
     if exact.n_bins != axis.n_bins or not np.allclose(ours_path, file_path, rtol=0, atol=1e-4):
         return axis, calibration, None, True
-    return exact, exact_cal, ours.get("truth"), bool(ours.get("allow_negative", True))
+    truth = ours.get("truth")
+    ok = truth is None or (isinstance(truth, list) and len(truth) == 3 and all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) for v in truth))
+    require(ok, f"capture {path}: scene_info nlos_cl.truth", f"expected [x, y, z] or null, "
+            f"got {truth!r}", "write the capture again with nl.write_capture")
+    return exact, exact_cal, truth, flag(ours.get("allow_negative", True),
+                                         "scene_info nlos_cl.allow_negative", path)

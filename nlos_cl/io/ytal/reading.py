@@ -11,7 +11,8 @@ from pathlib import Path
 import numpy as np
 
 from ...core.errors import InputError, require
-from .sequence import SequenceFrame
+from .checks import unreadable
+from .sequence import SequenceFrame, check_frame_times
 
 
 class _FrameView:
@@ -26,13 +27,61 @@ class _FrameView:
         return self._d[(self._k,) + index]
 
 
-def _sequence_info(scene_info) -> dict:
+def _sequence_info(scene_info, path) -> dict:
     from .fields import our_metadata
-    ours = our_metadata(scene_info) or {}
+    ours = our_metadata(scene_info, path) or {}
     meta = ours.get("metadata") if isinstance(ours, dict) else None
     info = meta.get("sequence") if isinstance(meta, dict) else None
     return {"metadata": meta if isinstance(meta, dict) else {},
             "sequence": info if isinstance(info, dict) else {}}
+
+
+def _frame_times(f, where, n_frames) -> np.ndarray:
+    """frame_t_s: (F,) finite seconds, strictly increasing, spaced like a frame rate."""
+    import h5py
+    d = f["frame_t_s"]
+    ok = isinstance(d, h5py.Dataset) and d.shape is not None and np.issubdtype(d.dtype, np.number)
+    require(ok, f"{where}: frame_t_s", f"is {getattr(d, 'dtype', 'a group')}, not numbers",
+            "store the frames' times as float64 seconds (write_sequence does)")
+    t = np.asarray(d[()], dtype=np.float64).reshape(-1)
+    require(t.size == n_frames and n_frames >= 1, f"{where}: frame_t_s", f"has {t.size} "
+            f"entries for {n_frames} frames", "store one time per frame of H")
+    check_frame_times(t, f"{where}: frame_t_s")
+    return t
+
+
+def _frame_truths(f, where, n_frames) -> None:
+    """frame_truths, when present: (F, K, 3) numbers (NaN where unknown)."""
+    import h5py
+    if "frame_truths" not in f:
+        return
+    d = f["frame_truths"]
+    shape = getattr(d, "shape", None)
+    ok = isinstance(d, h5py.Dataset) and shape is not None and np.issubdtype(d.dtype, np.number)
+    require(ok and len(shape) == 3 and shape[0] == n_frames and shape[2] == 3,
+            f"{where}: frame_truths", f"is {getattr(d, 'dtype', 'a group')} "
+            f"{shape if ok else ''}, expected numbers of shape ({n_frames}, K, 3): K targets' "
+            "(x, y, z) per frame", "store it as write_sequence does (NaN where unknown)")
+    return int(shape[1])
+
+
+def _single_frame(seq: dict, where) -> tuple:
+    """A one-frame sequence's time and truths, from scene_info's nlos_cl.metadata.sequence."""
+    t_s, truths = seq.get("t_s") or [0.0], (seq.get("truths") or [None])[0]
+    ok = isinstance(t_s, list) and len(t_s) >= 1 and isinstance(t_s[0], (int, float)) and \
+        not isinstance(t_s[0], bool) and np.isfinite(t_s[0])
+    require(ok, f"{where}: scene_info sequence.t_s", f"expected [time in seconds], got {t_s!r}",
+            "write the frame again with nl.tracking.write_sequence")
+    if truths is None:
+        return np.array(t_s[:1], dtype=np.float64), None
+    try:
+        truths = np.asarray(truths, dtype=np.float64)
+    except (TypeError, ValueError):
+        truths = np.zeros(0)
+    require(truths.ndim == 2 and truths.shape[1] == 3, f"{where}: scene_info sequence.truths",
+            "expected [[x, y, z], ...] per target", "write the frame again with "
+            "nl.tracking.write_sequence")
+    return np.array(t_s[:1], dtype=np.float64), truths
 
 
 class Sequence:
@@ -44,17 +93,21 @@ class Sequence:
         import h5py
 
         from .capture import read_capture_with_frame
-        from .fields import check_complete, check_storage
+        from .fields import check_complete, check_regular, check_storage, dataset
         self.path = Path(path)
         where = f"sequence {self.path}"
-        require(self.path.is_file(), where, "does not exist", "pass the path of an .h5 file")
+        check_regular(self.path, "sequence")
         check_complete(self.path)
-        with h5py.File(self.path, "r") as f:
-            check_storage(f, self.path)  # links and external storage: refused before any field
-            require("H" in f, where, "has no field H",
-                    "write it with nlos_cl.tracking.write_sequence")
-            stacked = "frame_t_s" in f
-            info = _sequence_info(f["scene_info"][()] if "scene_info" in f else None)
+        try:
+            with h5py.File(self.path, "r") as f:
+                check_storage(f, self.path)  # links, external storage: refused before any field
+                require("H" in f, where, "has no field H",
+                        "write it with nlos_cl.tracking.write_sequence")
+                stacked = "frame_t_s" in f
+                info = _sequence_info(dataset(f, "scene_info", self.path) if "scene_info" in f
+                                      else None, self.path)
+        except (OSError, RuntimeError) as exc:  # a lock, a file HDF5 cannot open
+            raise unreadable(exc, self.path, what="sequence") from None
         self.metadata = {k: v for k, v in info["metadata"].items() if k != "sequence"}
         self.fps = info["sequence"].get("fps")
         if not stacked:  # a plain capture: one frame
@@ -62,10 +115,7 @@ class Sequence:
             require(len(sets) == 1, where, f"has {len(sets)} laser points", "track captures "
                     "with one laser point (split the others into their own files)")
             self._single = sets[0]
-            seq = info["sequence"]
-            self.t_s = np.array(seq.get("t_s") or [0.0], dtype=np.float64)[:1]
-            truths = (seq.get("truths") or [None])[0]
-            self._single_truths = None if truths is None else np.asarray(truths, float)
+            self.t_s, self._single_truths = _single_frame(info["sequence"], where)
             if self._single_truths is None and sets[0].truth is not None:
                 self._single_truths = np.asarray(sets[0].truth, float).reshape(1, 3)
             self.layout = sets[0].layout
@@ -98,11 +148,9 @@ class Sequence:
                 for k in ("laser_xyz", "sensor_xyz", "sensor_grid_format", "laser_grid_format"):
                     if k in f:
                         fields[k] = dataset(f, k, self.path)
-                self.t_s = np.asarray(f["frame_t_s"][()], dtype=np.float64).reshape(-1)
                 self.n_frames = int(H.shape[0])
-                require(self.t_s.size == self.n_frames and self.n_frames >= 1, where,
-                        f"frame_t_s has {self.t_s.size} entries for {self.n_frames} frames",
-                        "write it again")
+                self.t_s = _frame_times(f, where, self.n_frames)
+                _frame_truths(f, where, self.n_frames)
                 sets = to_histograms(fields, _FrameView(H, 0), self.path)
                 require(len(sets) == 1, where, f"has {len(sets)} laser points per frame",
                         "write one laser point (or one per histogram: paired) per sequence")
@@ -112,8 +160,7 @@ class Sequence:
         except InputError:
             raise
         except (OSError, RuntimeError, LookupError, ValueError, TypeError) as exc:
-            raise InputError(f"{where}: incomplete or corrupted file ({type(exc).__name__}: "
-                             f"{exc}). Fix: copy or write the sequence again")
+            raise unreadable(exc, self.path, what="sequence") from None
         self._first, self.frame = sets[0], YTAL
         self.layout = sets[0].layout
 
@@ -151,8 +198,12 @@ class Sequence:
             R = f["frame_truths"] if "frame_truths" in f else None
             n_t = H.shape[1]
             for k in range(max(int(start), 0), stop):
-                data = np.asarray(H[k], dtype=np.float64).reshape(n_t, -1).T
-                yield self._make(k, data, None if R is None else np.asarray(R[k], float))
+                try:
+                    data = np.asarray(H[k], dtype=np.float64).reshape(n_t, -1).T
+                    truths = None if R is None else np.asarray(R[k], float)
+                except (OSError, RuntimeError) as exc:  # a missing filter, a cut-off chunk
+                    raise unreadable(exc, self.path, f"H[{k}]", "sequence", H) from None
+                yield self._make(k, data, truths)
 
     def __iter__(self):
         return self.frames()

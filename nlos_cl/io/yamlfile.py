@@ -1,0 +1,184 @@
+"""The one YAML reader for what users give nlos_cl (scene files, study files, a capture's
+scene_info): PyYAML's SafeLoader with YAML 1.2 floats, and bounds on what a short description
+can make, checked while it is composed so a hostile file fails fast in one line:
+
+- aliases (`*name`) may repeat a block, not multiply it: all of them together may add at most
+  ALIAS_NODES nodes (a 9-level "billion laughs" of 9 aliases each would make 9^9 = 387 M);
+  an alias inside its own anchor (a structure containing itself) is refused;
+- nesting deeper than MAX_DEPTH is refused (PyYAML's composer recurses, so 20,000 nested
+  brackets end in RecursionError);
+- a key written twice in one mapping is refused (PyYAML keeps the last one silently: a second
+  `targets:` would replace the first);
+- the text must be UTF-8 (a UTF-8 BOM is fine); UTF-16/32 files are named as such.
+"""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+from ..core.errors import InputError, require
+
+ALIAS_NODES = 10_000  # nodes all aliases together may add (a scene or study needs a few dozen)
+MAX_DEPTH = 64  # nested lists/mappings (a scene file needs about 6)
+MAX_BYTES = 1 << 20  # a description, not data (meshes live in their own files)
+_FLOAT_1_2 = re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$")
+
+
+class YamlLimit(Exception):
+    """A bound of this module broken: problem and fix, for InputError's one line."""
+
+    def __init__(self, problem: str, fix: str):
+        super().__init__(f"{problem}. Fix: {fix}")
+        self.problem, self.fix = problem, fix
+
+
+def yaml_loader():
+    """PyYAML's SafeLoader, with `1e-11` a number (YAML 1.2; YAML 1.1 wants a dot in the
+    mantissa, so `10e-12` would silently be text) and the bounds of the module docstring."""
+    import yaml
+    from yaml.events import AliasEvent, CollectionStartEvent
+
+    class Loader(yaml.SafeLoader):
+        def __init__(self, stream):
+            super().__init__(stream)
+            self._depth, self._added, self._open, self._sizes = 0, 0, set(), {}
+
+        def compose_node(self, parent, index):
+            event = self.peek_event()
+            line = event.start_mark.line + 1
+            if isinstance(event, AliasEvent):
+                self._alias(event.anchor, line)
+                return super().compose_node(parent, index)
+            self._depth += 1
+            if self._depth > MAX_DEPTH:
+                raise YamlLimit(f"nests lists or mappings more than {MAX_DEPTH} deep (line "
+                                f"{line})", "flatten the structure (a scene file needs ~6 levels)")
+            anchor = event.anchor if isinstance(event, CollectionStartEvent) else None
+            self._open.add(anchor)
+            try:
+                return super().compose_node(parent, index)
+            finally:
+                self._depth -= 1
+                self._open.discard(anchor)
+
+        def _alias(self, anchor, line):
+            if anchor in self._open:
+                raise YamlLimit(f"the alias *{anchor} (line {line}) is inside its own anchor "
+                                f"&{anchor}, a structure that contains itself",
+                                "write the values out instead of the alias")
+            if anchor in self.anchors:
+                self._added += _size(self.anchors[anchor], self._sizes)
+            if self._added > ALIAS_NODES:
+                raise YamlLimit(f"its aliases expand to more than {ALIAS_NODES} values (line "
+                                f"{line}, *{anchor}): an alias may repeat a block, not multiply "
+                                "it", "write the values out, or use fewer nested aliases")
+
+        def construct_mapping(self, node, deep=False):
+            _no_duplicate_keys(self, node)
+            return super().construct_mapping(node, deep=deep)
+
+    Loader.add_implicit_resolver("tag:yaml.org,2002:float", _FLOAT_1_2, list("-+0123456789."))
+    return Loader
+
+
+def _size(node, sizes: dict) -> int:
+    """How many nodes `node` stands for once its aliases are expanded (memoised per node, so
+    this stays linear in the file however the aliases nest)."""
+    import yaml
+    if id(node) not in sizes:
+        if isinstance(node, yaml.SequenceNode):
+            sizes[id(node)] = 1 + sum(_size(n, sizes) for n in node.value)
+        elif isinstance(node, yaml.MappingNode):
+            sizes[id(node)] = 1 + sum(_size(k, sizes) + _size(v, sizes) for k, v in node.value)
+        else:
+            sizes[id(node)] = 1
+    return sizes[id(node)]
+
+
+def _no_duplicate_keys(loader, node) -> None:
+    import yaml
+    seen = {}
+    for key_node, _ in node.value:
+        if not isinstance(key_node, yaml.ScalarNode) or key_node.tag.endswith(":merge"):
+            continue  # `<<:` merges are meant to be overridden; complex keys PyYAML refuses
+        key, line = loader.construct_object(key_node), key_node.start_mark.line + 1
+        try:
+            again = key in seen
+        except TypeError:  # an unhashable key: PyYAML's own error follows
+            continue
+        if again:
+            raise YamlLimit(f"the key {key!r} appears twice in one mapping (lines {seen[key]} "
+                            f"and {line}); YAML would silently keep only the last",
+                            "keep one of them (merge the two entries)")
+        seen[key] = line
+
+
+def decode(data: bytes, where: str) -> str:
+    """UTF-8 text (a BOM is dropped); UTF-16/32 and other encodings are named in the error."""
+    boms = ((b"\xff\xfe\x00\x00", "UTF-32"), (b"\x00\x00\xfe\xff", "UTF-32"),
+            (b"\xff\xfe", "UTF-16"), (b"\xfe\xff", "UTF-16"))
+    kind = next((name for bom, name in boms if data.startswith(bom)), None)
+    if kind is None and len(data) >= 4 and data[:4].count(0) in (2, 3):
+        kind = "UTF-16 or UTF-32"  # no BOM, but ASCII text with a zero byte beside each letter
+    require(kind is None, where, f"is {kind} text, but nlos_cl reads YAML as UTF-8",
+            "save it as UTF-8 (an editor's 'Save as... UTF-8', or iconv -f UTF-16 -t UTF-8)")
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data[:exc.start].count(b"\n") + 1
+        raise InputError(f"{where}: is not UTF-8 text (byte 0x{data[exc.start]:02x} on line "
+                         f"{line}; Latin-1 or Windows-1252, perhaps). Fix: save it as UTF-8"
+                         ) from None
+
+
+def load_text(text, where: str):
+    """Parse YAML text (or UTF-8 bytes) with yaml_loader; every error is one InputError line."""
+    import yaml
+    if isinstance(text, (bytes, bytearray)):
+        text = decode(bytes(text), where)
+    try:
+        return yaml.load(text, Loader=yaml_loader())  # noqa: S506 - a SafeLoader subclass
+    except YamlLimit as exc:
+        raise InputError(f"{where}: {exc.problem}. Fix: {exc.fix}") from None
+    except yaml.YAMLError as exc:
+        raise InputError(f"{where}: is not valid YAML ({' '.join(str(exc).split())[:300]}). "
+                         "Fix: check the indentation and brackets near that line") from None
+
+
+def read_yaml(path, what: str = "scene file") -> dict:
+    """A short YAML file (scene, study) as a mapping; at most MAX_BYTES are read."""
+    from .safe_write import require_file
+    path = Path(path)
+    where = f"{what} {path}"
+    require_file(path, where, "pass a .yaml file")
+    with open(path, "rb") as fh:
+        data = fh.read(MAX_BYTES + 1)
+    require(len(data) <= MAX_BYTES, where, f"is larger than {MAX_BYTES >> 20} MiB",
+            "it is a short description; meshes go in their own files")
+    require(b"\x00" not in data or data[:2] in (b"\xff\xfe", b"\xfe\xff") or
+            data[:4].count(0) in (2, 3), where, "is not a text file (it holds zero bytes)",
+            "pass the YAML file itself")
+    raw = load_text(decode(data, where), where)
+    require(isinstance(raw, dict), where, "is not a mapping of keys",
+            "write `key: value` lines (docs/scene-files.md, docs/sweeps.md)")
+    return raw
+
+
+# ---------------------------------------------------------------- values as YAML gives them
+
+def is_number(value) -> bool:
+    """A finite number: not text, and not a bool (YAML's `true` is an int in Python)."""
+    import math
+
+    import numpy as np
+    return isinstance(value, (int, float, np.integer, np.floating)) and \
+        not isinstance(value, (bool, np.bool_)) and math.isfinite(value)
+
+
+def whole_number(where: str, value, low=1, high=1 << 16, example=8) -> int:
+    """An integer in low..high, written as one (2.7 is refused, not truncated to 2)."""
+    import numpy as np
+    ok = isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
+    require(ok and low <= value <= high, where, f"expected a whole number in {low}..{high}, got "
+            f"{value!r}", f"write e.g. {example}")
+    return int(value)
