@@ -1,6 +1,7 @@
 """`nlos-cl reproduce` on the command line. `reproduce all` (the paper's experiments) writes
 paper-results.md; `reproduce beyond` writes beyond-the-paper.md (OUT/ unless --doc);
-`reproduce tracking --doc docs/tracking.md` fills that page's tables."""
+`reproduce tracking --doc docs/tracking.md` fills that page's tables; `reproduce real --doc
+docs/real-data.md` writes that page (figures in docs/real/; OUT/real-data.md always)."""
 from __future__ import annotations
 
 import json
@@ -24,6 +25,8 @@ def _doc_path(args) -> Path | None:
     """The page this run writes (tracking's is spliced by its own writer between markers)."""
     if args.name == "beyond":
         return Path(args.doc) if args.doc else Path(args.out) / "beyond-the-paper.md"
+    if args.name == "real":
+        return Path(args.doc) if args.doc else None  # OUT/real-data.md is always written
     if args.name != "tracking" and (args.name == "all" or args.doc):
         return Path(args.doc) if args.doc else Path(args.out) / "paper-results.md"
     return None
@@ -65,10 +68,16 @@ def _record_outputs(out: Path, names) -> None:
 
 
 def _write_doc(rp, args, settings, results, wall) -> None:
-    if args.name == "tracking":  # its sections go between docs/tracking.md's markers
+    if args.name in ("tracking", "draws"):  # own writers (tracking: between the page's markers)
         if args.doc:
-            from .reproduce.tracking import write_doc
-            write_doc(results[0], Path(args.doc))
+            from importlib import import_module
+            writer = import_module(f".reproduce.{args.name}", __package__).write_doc
+            writer(results[0], Path(args.doc))
+        return
+    if args.name == "real":
+        if args.doc:
+            from .reproduce.real import write_doc
+            write_doc(results[0], Path(args.doc), Path(args.out), args.force)
         return
     if args.name == "beyond":
         from .reproduce.beyond_report import write_beyond_report
@@ -88,6 +97,10 @@ def main(args) -> int:
         options["only"] = args.only
     if args.cold:
         options["cold"] = True
+    if getattr(args, "draws", None):  # draws: scenes per family
+        options["draws"] = args.draws
+    if getattr(args, "data", None):  # real: the measured datasets' folder
+        options["data"] = args.data
     results = rp.run(args.name, settings, Path(args.out), **options)
     _record_outputs(Path(args.out), names)
     wall = time.perf_counter() - start

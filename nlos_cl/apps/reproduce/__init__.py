@@ -23,7 +23,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 from ...core.errors import require
-from . import beyond, fig5, fig6, fig8, fig10, sweeps, tracking
+from . import beyond, draws, fig5, fig6, fig8, fig10, real, sweeps, tracking
 from .common import (PAPER, Result, Settings, fwhm_ns, paper_target, run_trials, stats,
                      write_csv)
 from .report import summary_json, write_report
@@ -34,6 +34,8 @@ EXPERIMENTS = {"fig5": fig5.fig5, "fig6": fig6.fig6, "fig7a": sweeps.fig7a, "fig
 PAPER_EXPERIMENTS = tuple(EXPERIMENTS)  # what 'all' runs: the paper's experiments
 EXPERIMENTS["beyond"] = beyond.beyond  # its own report (docs/beyond-the-paper.md); not in 'all'
 EXPERIMENTS["tracking"] = tracking.tracking  # docs/tracking.md's tables; not in 'all'
+EXPERIMENTS["real"] = real.real  # the measured datasets (docs/real-data.md); not in 'all'
+EXPERIMENTS["draws"] = draws.draws  # random draws (docs/draws.md); not in 'all'
 
 
 def run(name: str, s: Settings, out: Path, **options) -> list[Result]:
@@ -44,7 +46,8 @@ def run(name: str, s: Settings, out: Path, **options) -> list[Result]:
         taken = inspect.signature(EXPERIMENTS[n]).parameters
         for option in options:
             require(option in taken, f"--{option}", f"is not an option of {n}",
-                    "leave it out (beyond takes --only; tracking --only and --cold)")
+                    "leave it out (beyond takes --only; tracking --only and --cold; draws "
+                    "--only and --draws; real --data)")
     out.mkdir(parents=True, exist_ok=True)
     results = []
     for n in tqdm(names, desc="reproduce", disable=len(names) == 1):
