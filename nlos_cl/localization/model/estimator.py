@@ -12,6 +12,7 @@ import numpy as np
 from ...core.constants import FWHM_PER_SIGMA, PAPER_H_S
 from ...core.errors import require
 from ...core.geometry import farthest_points
+from ...core.limits import require_targets
 from ...core.tuning import SEARCH_DETECTORS
 from ..estimate import Capabilities, Estimate, LocatedTarget, Prior
 from ..fit_result import ModelFit, Parameter, WarmStart
@@ -19,6 +20,7 @@ from ..paper import PaperArgmax
 from . import data, plate
 from .fit import centre_covariance, covariance
 from .likelihood import Problem
+from .sanity import checked, unfittable_line
 from .shape import MODELS, name_of
 
 HEIGHT_WARNING = ("height (z) is unobservable with collinear wall spots (rotating the target "
@@ -47,7 +49,9 @@ class ModelEstimator:
     (default: the scored frame's backend). model_on: 'device' (the forward op on `backend`),
     'host' (plates evaluated in float64 NumPy, many per call: model.batch) or 'auto'
     (host for up to HOST_DETECTORS detectors; closed shapes always on the device). warm_nfev:
-    the evaluation budget of a warm-started fit (`estimate(scored, start=...)`)."""
+    the evaluation budget of a warm-started fit (`estimate(scored, start=...)`). sanity: check
+    each fit's size, misfit and place against the paper's argmax and, for one target, report
+    the argmax instead of a fit that fails (model.sanity; False: report every fit as is)."""
 
     name = "model"
     # The scored frame is used only for the paper's estimate (the starts' second candidate, the
@@ -56,7 +60,7 @@ class ModelEstimator:
 
     def __init__(self, targets=1, *, likelihood="auto", h_s=PAPER_H_S, pulse_fwhm_s=70e-12,
                  jitter_s=30e-12, lattice=None, max_targets=3, backend=None, final_nfev=30,
-                 closed="auto", warm_nfev=WARM_NFEV, model_on="auto"):
+                 closed="auto", warm_nfev=WARM_NFEV, model_on="auto", sanity=True):
         require(targets == "auto" or (isinstance(targets, int) and targets >= 1), "targets",
                 f"must be a positive integer or 'auto', got {targets!r}", "pass e.g. 1 or 'auto'")
         require(likelihood in ("auto", "gauss", "poisson"), "likelihood",
@@ -72,6 +76,7 @@ class ModelEstimator:
         self.jitter_s, self.lattice = float(jitter_s), lattice
         self.max_targets, self.backend, self.final_nfev = int(max_targets), backend, final_nfev
         self.warm_nfev = int(warm_nfev)
+        self.sanity = bool(sanity)
         self.timings: dict = {}
 
     def observation(self, scored):
@@ -94,14 +99,19 @@ class ModelEstimator:
             paper = PaperArgmax().estimate(scored)  # also rejects frames with no signal
         clock["argmax"] = time.perf_counter()
         obs = self.observation(scored)
+        if isinstance(self.targets, int):  # before any fit: K the histograms can determine
+            require_targets("targets", self.targets, len(obs.spots))
         clock["data"] = time.perf_counter()
         observable = plate.height_observable(obs.spots, obs.laser)
+        if not observable and (why := unfittable_line(obs.spots, obs.laser)):
+            warnings.warn(why, stacklevel=3)  # the fit holds z: it cannot hold another axis
+            return Estimate(list(paper.targets), paper.cell_position, paper.score)
         z0 = float(scored.grid.origin[2] + 0.5 * (scored.grid.shape[2] - 1) * scored.grid.step[2])
         free = np.array([True, True, observable, True, True, True])
         fitted, warm_info = None, None
         if start is not None:
             from .warm import warm_fit
-            fitted, warm_info = warm_fit(self, obs, self._start_rows(start), free, z0,
+            fitted, warm_info = warm_fit(self, obs, start_rows(self, start), free, z0,
                                           scored.backend)
             clock["warm_fit"] = time.perf_counter()
         if fitted is None:
@@ -116,6 +126,8 @@ class ModelEstimator:
         located = [self._target(result, cov_all, k, info, notes, obs, history, observable,
                                 chosen.shape)
                    for k in _order(result)]
+        if self.sanity:
+            located = checked(located, paper.targets[0].position, obs.spots, obs.laser)
         return Estimate(located, paper.cell_position, paper.score)
 
     def _cold(self, scored, obs, paper, free, z0, clock):
@@ -149,20 +161,6 @@ class ModelEstimator:
     def lattice_for(self, obs):
         return self.lattice or (GAUSS_LATTICE if obs.mode == "gauss" else POISSON_LATTICE)
 
-    def _start_rows(self, start) -> np.ndarray:
-        rows = np.array(start, dtype=np.float64)
-        rows = rows.reshape(1, -1) if rows.ndim == 1 else rows
-        require(rows.ndim == 2 and rows.shape[1] == plate.N_PARAMS and bool(np.all(
-                np.isfinite(rows))), "start", f"must be finite plate rows (K, "
-                f"{plate.N_PARAMS}): x, y, z, width, height, yaw; got shape {rows.shape}",
-                "pass the previous fit's details['params'] values, one row per target")
-        require(self.targets == len(rows), "start", f"has {len(rows)} rows for targets="
-                f"{self.targets!r}", "pass one row per target (warm starts need an integer "
-                "number of targets)")
-        require(self.closed is not True, "start", "warm starts fit plates; closed=True always "
-                "fits the closed shapes", "use closed='auto' or False, or start=None")
-        return rows
-
     def _fit(self, problem, argmax_position, free, z0):
         """fit_targets, on a spread subset of the detectors when there are many, then the
         final fit on all of them (its answer and covariance use every detector)."""
@@ -187,6 +185,22 @@ class ModelEstimator:
                          self.timings)
         return LocatedTarget(p[:3].copy(), centre_covariance(cov_all, k, shape),
                              shape.extent(p), fit=fit)
+
+
+def start_rows(est, start) -> np.ndarray:
+    """A warm start's plate rows (K, 6), checked against the estimator's settings."""
+    rows = np.array(start, dtype=np.float64)
+    rows = rows.reshape(1, -1) if rows.ndim == 1 else rows
+    require(rows.ndim == 2 and rows.shape[1] == plate.N_PARAMS and bool(np.all(
+            np.isfinite(rows))), "start", f"must be finite plate rows (K, "
+            f"{plate.N_PARAMS}): x, y, z, width, height, yaw; got shape {rows.shape}",
+            "pass the previous fit's details['params'] values, one row per target")
+    require(est.targets == len(rows), "start", f"has {len(rows)} rows for targets="
+            f"{est.targets!r}", "pass one row per target (warm starts need an integer "
+            "number of targets)")
+    require(est.closed is not True, "start", "warm starts fit plates; closed=True always "
+            "fits the closed shapes", "use closed='auto' or False, or start=None")
+    return rows
 
 
 def _model_fit(shape, p, result, cov_all, k, info, notes, obs, history, observable, timings):

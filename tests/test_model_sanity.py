@@ -1,0 +1,76 @@
+"""The model fit's self-checks (nlos_cl/localization/model/sanity.py): a fit that claims a
+target too large, or whose paths contradict the paper's argmax, is replaced by the argmax with
+a warning (one target) or warned about (several); collinear spots off the x axis, which the
+fit cannot hold, get the argmax and a warning."""
+import warnings
+
+import numpy as np
+import pytest
+
+import nlos_cl as nl
+from nlos_cl.core.tuning import MAX_EXTENT_M
+from nlos_cl.localization.estimate import LocatedTarget
+from nlos_cl.localization.fit_result import ModelFit, Parameter
+from nlos_cl.localization.model.sanity import checked, doubt, unfittable_line
+
+SPOTS = np.array([[-0.5, 0.0, 0.0], [-1.0, 0.0, 0.0], [-1.5, 0.0, 0.0]])
+LASER = np.zeros(3)
+
+
+def target(position, extent, birge=1.0):
+    fit = ModelFit("box", "upright box", (Parameter("x", position[0]),), 1.0, np.array([1.0, 0, 0]),
+                   "gauss", 1.0, 100, birge, False)
+    return LocatedTarget(np.asarray(position, float), np.eye(3) * 1e-4, np.asarray(extent, float),
+                         fit=fit)
+
+
+def test_a_fit_that_agrees_with_the_argmax_is_kept():
+    t = target((4.0, 2.0, 0.0), (0.3, 1.6, 0.0))
+    assert doubt(t, np.array([3.98, 1.99, 0.0]), SPOTS, LASER) is None
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert checked([t], np.array([3.98, 1.99, 0.0]), SPOTS, LASER) == [t]
+
+
+def test_a_target_larger_than_any_expected_falls_back_to_the_argmax():
+    t = target((4.0, 2.0, 0.0), (2.1, MAX_EXTENT_M + 0.5, 0.3))
+    argmax = np.array([3.7, 1.6, 0.0])
+    with pytest.warns(UserWarning, match="model fit rejected: the fitted box is 2.10 x 3.00"):
+        out = checked([t], argmax, SPOTS, LASER)
+    assert np.array_equal(out[0].position, argmax) and out[0].covariance is None
+    assert out[0].details["rejected_fit"]["model"] == "upright box"
+
+
+def test_paths_that_contradict_the_argmax_fall_back_but_a_slide_along_its_ridge_does_not():
+    argmax = np.array([4.0, 2.0, 0.0])
+    far = target((2.5, 4.5, 0.0), (0.3, 0.3, 0.0))  # another basin: paths ~1 m apart
+    with pytest.warns(UserWarning, match="ellipse paths differ"):
+        assert np.array_equal(checked([far], argmax, SPOTS, LASER)[0].position, argmax)
+    # turned 0.5 rad about the spots' line: the same path to every spot, ~1 m away
+    ridge = target((4.0, 2.0 * np.cos(0.5), 2.0 * np.sin(0.5)), (0.3, 0.3, 0.0))
+    assert np.linalg.norm(ridge.position - argmax) > 0.9
+    assert doubt(ridge, argmax, SPOTS, LASER) is None
+
+
+def test_several_targets_are_warned_about_not_replaced():
+    big = target((4.0, 2.0, 0.0), (3.0, 1.0, 0.0))
+    ok = target((2.0, 4.0, 0.0), (0.3, 0.3, 0.0), birge=500.0)
+    with pytest.warns(UserWarning) as record:
+        out = checked([big, ok], np.array([4.0, 2.0, 0.0]), SPOTS, LASER)
+    assert out == [big, ok]
+    text = " ".join(str(r.message) for r in record)
+    assert "target 1 of 2" in text and "target 2 of 2: the fit does not explain" in text
+
+
+def test_a_vertical_line_of_spots_gets_the_argmax_and_says_why():
+    vertical = np.array([[0.0, 0.0, 0.4], [0.0, 0.0, 0.8], [0.0, 0.0, 1.2]])
+    assert unfittable_line(vertical, LASER) and unfittable_line(SPOTS, LASER) is None
+    scene = nl.Scene(nl.paper_setup(detector_spots=vertical),
+                     nl.Target(nl.rectangle(0.4, 0.4, centre=(0.0, 2.5, 0.5),
+                                                   normal=(0.0, -1.0, 0.0))),
+                     truth=(0.0, 2.5, 0.5))
+    h = nl.add_noise(nl.simulate(scene), 10, seed=0).histograms()
+    point = nl.locate_capture(h).points[0]  # warnings are collected, not raised
+    assert any("not along x" in w for w in point.warnings)
+    paper = nl.locate_capture(h, estimator="paper").points[0]
+    assert np.allclose(point.location.position, paper.location.position)
