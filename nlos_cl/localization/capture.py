@@ -65,12 +65,12 @@ def covariance_json(cov, frame: CaptureFrame = INTERNAL):
 
 def search_region(histograms: HistogramSet, frame: CaptureFrame = INTERNAL, region=None,
                   step_m: float | None = None, h_s: float = PAPER_H_S, *,
-                  names=REGION_NAMES) -> tuple[Grid, bool]:
-    """(grid in our frame, was it derived): `region` None derives it from the capture
-    (default_region); three (low, high) ranges are along `frame`'s axes, at `step_m` (default:
-    region_step); a Grid is ours, used as given. `names`: how errors name region and step_m."""
+                  names=REGION_NAMES, reach_from=None) -> tuple[Grid, bool]:
+    """(grid in our frame, was it derived): `region` None derives it (default_region, as far as
+    the signal of `reach_from`, default the histograms, reaches); three (low, high) ranges are
+    along `frame`'s axes, at `step_m` (default: region_step); a Grid is ours, used as given."""
     if region is None:
-        return default_region(histograms, h_s), True
+        return default_region(histograms, h_s, reach_from=reach_from), True
     if isinstance(region, Grid):
         return region, False
     try:

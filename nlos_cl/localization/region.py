@@ -3,7 +3,9 @@
 `default_region(histograms, h_s)`, in our internal frame (nlos_cl.io.ytal.frames):
 
 - extent: a cell is scored by every detector only if its hidden path |c - O| + |c - D_i| fits
-  the time window, i.e. is at most L_i = a t_end + b_i (the calibration at the window's end).
+  the time window, i.e. is at most L_i = a t_end + b_i (the calibration at the window's end),
+  and no target is farther than its histograms' signal reaches (signal_reach: the last bin
+  above the noise floor + 0.5 m; a row without one does not bound).
   That is an ellipsoid with foci O, D_i and major axis L_i; the region is the intersection of
   their axis-aligned bounding boxes, cut to the hidden half-space y >= step.
 - height: when the laser spot and all detector spots lie on one line, every ellipsoid is
@@ -29,6 +31,11 @@ from ..core.histograms import HistogramSet
 from ..io.ytal.frames import require_locatable
 
 MAX_CELLS = 4_000_000
+# signal_reach: a bin is signal above the row's median + this many robust sigma (a false bin
+# among 60,000 of white noise: ~6e-5), and the region reaches this much hidden path beyond the
+# last one (the filtered pulse's tail and a target's far edge beyond its last bright bin).
+SIGNAL_SIGMAS = 6.0
+REACH_MARGIN_M = 0.5
 
 
 def _line_direction(points) -> np.ndarray | None:
@@ -56,10 +63,29 @@ def region_step(histograms: HistogramSet, h_s: float = PAPER_H_S) -> float:
     return _nice_step(a * max(h_s / 3.0, histograms.time_axis.dt_s) / 4.0)
 
 
-def visible_box(histograms: HistogramSet) -> tuple[np.ndarray, np.ndarray]:
-    """(low, high) corners of the box around every point all detectors' windows reach."""
+def signal_reach(sets) -> np.ndarray | None:
+    """(D,) the hidden path each row's signal reaches, over `sets` (HistogramSets of one
+    layout): the end of its last bin above the row's floor + SIGNAL_SIGMAS robust sigma (any
+    bin above the floor where most bins equal it: processed or noise-free data), plus
+    REACH_MARGIN_M; +inf for a row with no such bin. None when no row has one."""
+    reach = None
+    for h in sets:
+        data = np.asarray(h.data, dtype=np.float64)
+        floor = np.median(data, axis=1, keepdims=True)
+        sigma = 1.4826 * np.median(np.abs(data - floor), axis=1, keepdims=True)
+        above = data > floor + SIGNAL_SIGMAS * sigma
+        last = np.where(above.any(axis=1), data.shape[1] - np.argmax(above[:, ::-1], axis=1), -1)
+        axis = h.path_axis()
+        path = np.where(last >= 0, axis.start_m + last * axis.step_m + REACH_MARGIN_M, np.inf)
+        reach = path if reach is None else np.maximum(reach, path)
+    return None if reach is None or not np.isfinite(reach).any() else reach
+
+
+def visible_box(histograms: HistogramSet, reach=None) -> tuple[np.ndarray, np.ndarray]:
+    """(low, high) corners of the box around every point all detectors' windows reach (and,
+    with `reach` (D,), only as far as each row's signal does: signal_reach)."""
     h = histograms
-    reach = h.path_axis().stop_m  # the hidden path at the end of the last bin
+    reach = h.path_axis().stop_m if reach is None else np.minimum(h.path_axis().stop_m, reach)
     lasers = h.laser_spots  # each histogram's (paired and confocal captures: its own)
     baseline = np.linalg.norm(h.detector_spots - lasers, axis=1)
     i = int(np.argmin(reach - baseline))
@@ -76,12 +102,14 @@ def visible_box(histograms: HistogramSet) -> tuple[np.ndarray, np.ndarray]:
 
 
 def default_region(histograms: HistogramSet, h_s: float = PAPER_H_S, *,
-                   max_cells: int = MAX_CELLS) -> Grid:
-    """The search grid (internal frame) a capture can see; the rules are in the module doc."""
+                   max_cells: int = MAX_CELLS, reach_from=None) -> Grid:
+    """The search grid (internal frame) a capture can see; the rules are in the module doc.
+    reach_from: HistogramSets of this layout whose signal bounds the region (signal_reach;
+    default: `histograms` itself; () for the whole window)."""
     h = histograms
     require_locatable(h)
     step = region_step(h, h_s)
-    lo, hi = visible_box(h)
+    lo, hi = visible_box(h, signal_reach([h] if reach_from is None else reach_from))
     lo[1] = max(lo[1], 0.0)
     spots = np.vstack([h.laser_spots, h.detector_spots])
     line = _line_direction(spots)
