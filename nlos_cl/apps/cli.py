@@ -7,51 +7,12 @@ command runs, so `nlos-cl --help` and `nlos-cl locate` pay for no import they do
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 
-
-class _Parser(argparse.ArgumentParser):
-    """argparse, but a bad argument is one line on stderr (field, problem, fix) and exit 2."""
-
-    def error(self, message):
-        self.exit(2, f"{self.prog}: {message}\n")
-
-
-class _Defaults(argparse.HelpFormatter):
-    """--help says each option's default, where it has one and its help does not say it."""
-
-    def _get_help_string(self, action):
-        text = action.help or ""
-        default = action.default
-        if (default in (None, False, "", argparse.SUPPRESS) or "default" in text
-                or not action.option_strings):
-            return text
-        return f"{text} (default: {default})" if text else f"default: {default}"
-
-
-def _number(field: str, fix: str, *, positive=False, minimum=None, integer=False):
-    """An argparse type: a finite number (int if `integer`), checked as the API checks it."""
-    def parse(text):
-        try:
-            value = int(text) if integer else float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{field}: {text!r} is not "
-                                             f"{'an integer' if integer else 'a number'}. "
-                                             f"Fix: {fix}") from None
-        bad = (not math.isfinite(value) or (positive and value <= 0)
-               or (minimum is not None and value < minimum))
-        if bad:
-            need = ("positive" if positive else f">= {minimum}" if minimum is not None
-                    else "finite")
-            raise argparse.ArgumentTypeError(f"{field}: must be {need}, got {text}. Fix: {fix}")
-        return value
-    return parse
-
-
-COORD = _number("position", "pass finite coordinates in metres")
-SEED = _number("seed", "pass e.g. 0", minimum=0, integer=True)
-H_NS = _number("h_s", "pass the window in ns, e.g. 0.65", positive=True)
+from ..core.limits import MAX_FRAMES, MAX_TARGETS
+from . import terminal
+from .cli_types import (COORD, H_NS, MAX_ACCEL, MAX_FPS, MIN_FPS, SEED, Defaults as _Defaults,
+                        Parser as _Parser, number as _number)
 
 
 def _parents():
@@ -122,10 +83,16 @@ def _reproduce_args(p):
     p.add_argument("--force", action="store_true",
                    help="replace files in --out and --doc that nlos_cl did not write")
     p.add_argument("--only", nargs="+", default=None, metavar="SECTION",
-                   help="beyond, tracking: only these parts (tracking: speed memory lines "
-                   "synthetic box crossing)")
+                   help="beyond, tracking, draws: only these parts (tracking: speed memory "
+                   "lines synthetic box crossing; draws: one multi closed mismatch)")
     p.add_argument("--cold", action="store_true",
                    help="tracking: trackers with warm_start=False (for comparison; not with --doc)")
+    p.add_argument("--draws", type=_number("draws", "pass a count, e.g. 200", minimum=1,
+                                           integer=True), default=None,
+                   help="draws: scenes per family (default 200; 1 with --quick)")
+    p.add_argument("--data", default=None, metavar="DIR",
+                   help="real: the measured datasets' folder (default $NLOS_CL_REALDATA, else "
+                   "../shared/realdata beside the repository)")
 
 
 def _simulate_args(p):
@@ -153,10 +120,10 @@ def _simulate_args(p):
                    help="TDC bin (ps)")
     p.add_argument("--seed", type=SEED, default=None, help="noise seed (default 0)")
     p.add_argument("--frames", type=_number("frames", "pass a count, e.g. 50", minimum=1,
-                                            integer=True), default=None,
+                                            integer=True, maximum=MAX_FRAMES), default=None,
                    help="write a sequence of N frames (scene file with trajectories)")
     p.add_argument("--fps", type=_number("fps", "pass a frame rate in Hz, e.g. 10",
-                                         positive=True), default=10.0,
+                                         minimum=MIN_FPS, maximum=MAX_FPS), default=10.0,
                    help="frame rate of --frames (frame k at t = k / fps)")
 
 
@@ -187,7 +154,7 @@ def _convert_args(p):
                                                minimum=0, integer=True), default=None,
                    help="lct: zero the first N bins (the direct return; upstream zeroes 600)")
     p.add_argument("--fps", type=_number("fps", "pass frames per second, e.g. 14",
-                                         positive=True), default=None,
+                                         minimum=MIN_FPS, maximum=MAX_FPS), default=None,
                    help="sequences: frame rate, frame k at k / fps (consumer-nlos default 14)")
 
 
@@ -218,7 +185,8 @@ def _locate_args(p):
 def _targets(text):
     if text == "auto":
         return text
-    return _number("targets", "pass a count, e.g. 1, or 'auto'", minimum=1, integer=True)(text)
+    return _number("targets", "pass a count, e.g. 1, or 'auto'", minimum=1, integer=True,
+                   maximum=MAX_TARGETS)(text)
 
 
 def _estimator_args(p):
@@ -233,10 +201,13 @@ def _estimator_args(p):
 def _track_args(p):
     p.add_argument("file", help="a sequence (or capture) .h5 file: docs/tracking.md")
     p.add_argument("--video", default=None, help="write an animation (.gif, or .mp4 with ffmpeg)")
-    p.add_argument("--estimator", choices=["paper", "model"], default="paper",
-                   help="per-frame estimator (paper: fast; model: centre and covariance)")
+    p.add_argument("--estimator", choices=["paper", "model"], default=None,
+                   help="per-frame estimator (model: centre and covariance, warm-started from "
+                   "the tracks; paper: the argmax, faster; default: model, paper for paired "
+                   "and confocal captures)")
     p.add_argument("--targets", type=_number("targets", "pass a count, e.g. 1", minimum=1,
-                                             integer=True), default=1, help="targets to follow")
+                                             integer=True, maximum=MAX_TARGETS),
+                   default=1, help="targets to follow")
     p.add_argument("--region", type=_number("region", "pass finite ranges in metres"), nargs=6,
                    default=None, metavar=("A0", "A1", "B0", "B1", "C0", "C1"),
                    help="search ranges along the file's axes (default: what the capture sees)")
@@ -247,7 +218,8 @@ def _track_args(p):
     p.add_argument("--running-mean", type=_number("running_mean", "pass a weight in (0, 1], "
                                                   "e.g. 0.05", positive=True), default=None,
                    metavar="ALPHA", help="subtract a running mean of past frames (weight ALPHA)")
-    p.add_argument("--accel", type=_number("accel", "pass m/s^2, e.g. 0.5", positive=True),
+    p.add_argument("--accel", type=_number("accel", "pass m/s^2, e.g. 0.5", positive=True,
+                                           maximum=MAX_ACCEL),
                    default=0.5, help="motion noise of the constant-velocity model (m/s^2)")
     p.add_argument("--max-frames", type=_number("max_frames", "pass a count", minimum=1,
                                                 integer=True), default=None,
@@ -299,16 +271,19 @@ COMMANDS = {
 
 def parser() -> argparse.ArgumentParser:
     device, as_json = _parents()
-    top = _Parser(prog="nlos-cl", description=__doc__.split("\n\n")[0])
+    top = _Parser(prog="nlos-cl", description=__doc__.split("\n\n")[0],
+                  parents=[terminal.verbose_flag()])
     sub = top.add_subparsers(dest="command", required=True)
     for name, (help_text, add_args, takes_device, takes_json, _) in COMMANDS.items():
         parents = [p for p, on in ((device, takes_device), (as_json, takes_json)) if on]
+        parents.append(terminal.verbose_flag())
         p = sub.add_parser(name, help=help_text, parents=parents, formatter_class=_Defaults)
         if add_args:
             add_args(p)
     return top
 
 
+@terminal.one_run  # warnings as one line each; --verbose
 def main(argv=None) -> int:
     args = parser().parse_args(argv)
     import importlib

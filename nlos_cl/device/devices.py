@@ -7,29 +7,56 @@ from __future__ import annotations
 
 import os
 import re
+import stat
 import tempfile
+import warnings
 from dataclasses import dataclass
 
 
-def _ensure_pocl_cache() -> None:
-    """PoCL silently lists zero devices when it cannot create its cache folder (by default
-    under ~/.cache). If neither POCL_CACHE_DIR nor XDG_CACHE_HOME is set and ~/.cache is not
-    writable, point PoCL at a temporary folder. Must run before pyopencl loads the ICDs."""
-    if os.environ.get("POCL_CACHE_DIR") or os.environ.get("XDG_CACHE_HOME"):
-        return
-    cache = os.path.join(os.path.expanduser("~"), ".cache")
+def _writable(folder: str) -> bool:
+    """Whether files can be created in `folder` (made if missing). Tried, not os.access: a
+    read-only mount or a HOME that is a file answer only to a real attempt."""
     try:
-        os.makedirs(cache, exist_ok=True)
-        if os.access(cache, os.W_OK):
-            return
+        os.makedirs(folder, exist_ok=True)
+        with tempfile.TemporaryFile(dir=folder):
+            return True
+    except OSError:
+        return False
+
+
+def _private_temp_cache() -> str:
+    """A cache folder under the temporary directory that only this user can write: the same one
+    run after run (kernels stay cached), unless someone else made that name first."""
+    folder = os.path.join(tempfile.gettempdir(), f"nlos_cl-cache-{os.getuid()}")
+    try:
+        os.makedirs(folder, mode=0o700, exist_ok=True)
+        st = os.lstat(folder)
+        if stat.S_ISDIR(st.st_mode) and st.st_uid == os.getuid() and not st.st_mode & 0o077:
+            return folder
     except OSError:
         pass
-    os.environ["POCL_CACHE_DIR"] = os.path.join(tempfile.gettempdir(), "nlos_cl-pocl-cache")
+    return tempfile.mkdtemp(prefix="nlos_cl-cache-")
 
 
-_ensure_pocl_cache()
+def _ensure_writable_cache() -> None:
+    """PoCL (kernel binaries), pyopencl and pytools (its program cache) keep caches under
+    XDG_CACHE_HOME, by default ~/.cache. If that folder cannot be written (HOME on a read-only
+    mount, or no HOME), PoCL silently lists zero devices and pytools fails with an
+    AttributeError; point XDG_CACHE_HOME at a private temporary folder instead and say so
+    once. Must run before pyopencl loads the ICDs."""
+    cache = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    if _writable(cache):
+        return
+    fallback = _private_temp_cache()
+    os.environ["XDG_CACHE_HOME"] = fallback
+    warnings.warn(f"cache folder {cache} is not writable: OpenCL kernels are cached in "
+                  f"{fallback} instead. Fix: set XDG_CACHE_HOME to a writable folder",
+                  RuntimeWarning, stacklevel=2)
 
-import pyopencl as cl  # noqa: E402  (after the cache fix above)
+
+_ensure_writable_cache()
+
+import pyopencl as cl  # noqa: E402  (after the cache folder is known to be writable)
 
 from ..core.errors import DeviceError  # noqa: E402
 
@@ -57,8 +84,40 @@ class DeviceEntry:
                 f"({self.platform.name.strip()}, {self.platform.version.strip()})")
 
 
+# Address space an OpenCL runtime and its first kernel builds take beyond what the process has
+# already mapped. Measured with a cold kernel cache (PoCL 3.1, LLVM 15, 2 cores) by the highest
+# `ulimit -v` that fails and the lowest that works: `nlos-cl locate` needs 498-537 MiB more,
+# `nlos-cl simulate` 472-521 MiB; 600 MiB leaves ~10 % margin (PoCL's worker threads, hence
+# this number, grow with the core count). Below it PoCL aborts inside LLVM (an assertion),
+# raises std::bad_alloc mid-build or deadlocks: none of them catchable, so refuse up front.
+RUNTIME_ADDRESS_SPACE_MIB = 600
+
+
+def check_address_space(need_mib: int = RUNTIME_ADDRESS_SPACE_MIB) -> None:
+    """Refuse, in one line, to start an OpenCL runtime under an address-space limit (ulimit -v,
+    RLIMIT_AS) too small for it; no limit, or no way to read one (not Linux), passes."""
+    try:
+        import resource
+        limit = resource.getrlimit(resource.RLIMIT_AS)[0]
+        if limit == resource.RLIM_INFINITY:
+            return
+        with open("/proc/self/status") as status:
+            mapped_kib = next(int(ln.split()[1]) for ln in status if ln.startswith("VmSize:"))
+    except (ImportError, OSError, StopIteration, ValueError):
+        return
+    mib = 1 << 20
+    if limit - mapped_kib * 1024 < need_mib * mib:
+        want = mapped_kib // 1024 + need_mib
+        raise DeviceError(f"ulimit -v: the address-space limit is {limit // mib} MiB, of which "
+                          f"{mapped_kib // 1024} MiB are already mapped; an OpenCL runtime and "
+                          f"its kernel builds need ~{need_mib} MiB more (PoCL would abort or "
+                          f"hang). Fix: raise the limit to at least {want} MiB "
+                          f"(ulimit -v {want * 1024}) or lift it (ulimit -v unlimited)")
+
+
 def list_devices() -> list[DeviceEntry]:
     """Every (platform, device) pair that answers; platforms that fail to list are skipped."""
+    check_address_space()  # before PoCL loads LLVM: under a tight ulimit -v it aborts inside
     try:
         platforms = cl.get_platforms()
     except cl.Error:  # no ICD at all, or the loader found no platform

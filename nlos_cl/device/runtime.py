@@ -6,8 +6,12 @@ come from a memory pool, so a stream of frames reuses device memory instead of a
 """
 from __future__ import annotations
 
+import os
 import random
 import re
+import sys
+import tempfile
+import threading
 import warnings
 from importlib import resources
 from pathlib import Path
@@ -39,16 +43,74 @@ def kernel_source(name: str) -> str:
                   _kernel_file(f"{name}.cl"), flags=re.M)
 
 
-def _build_quietly(program, options, device):
-    """Build; pass on compiler messages except PoCL's note that float16 arguments change the
-    ABI without AVX-512 (harmless: nothing in a kernel crosses an ABI boundary)."""
-    with warnings.catch_warnings():
+def verbose() -> bool:
+    """NLOS_CL_VERBOSE=1 (the CLI's --verbose sets it): show what the OpenCL compiler said."""
+    return os.environ.get("NLOS_CL_VERBOSE", "").strip().lower() not in ("", "0", "false", "no")
+
+
+class _Captured:
+    """What C code wrote to file descriptor 2 inside the `with`: PoCL's clang prints its
+    summary ('13 warnings generated.') there directly, below Python's sys.stderr and below
+    pyopencl's CompilerWarning, so only a descriptor-level redirect keeps it off the terminal.
+    The redirect is process-wide, hence the lock (two threads building at once); if descriptor 2
+    cannot be redirected (closed, no temporary file) nothing is captured and nothing fails.
+    When verbose() nothing is redirected: the compiler then writes straight to the terminal, so
+    even an abort inside LLVM (whose message a redirect would swallow) is seen."""
+    _lock = threading.Lock()
+
+    def __enter__(self):
+        self.text, self._saved, self._file = "", None, None
+        self._lock.acquire()
+        if verbose():
+            return self
+        try:
+            sys.stderr.flush()
+            self._file = tempfile.TemporaryFile()
+            self._saved = os.dup(2)
+            os.dup2(self._file.fileno(), 2)
+        except (OSError, ValueError):
+            self._restore()
+        return self
+
+    def _restore(self):
+        if self._saved is not None:
+            os.dup2(self._saved, 2)
+            os.close(self._saved)
+            self._saved = None
+
+    def __exit__(self, *exc):
+        try:
+            self._restore()
+            if self._file is not None:
+                self._file.seek(0)
+                self.text = self._file.read().decode("utf-8", "replace").strip()
+                self._file.close()
+        finally:
+            self._lock.release()
+        return False
+
+
+def build_program(program, options, device, where: str):
+    """Build `program`, keeping the compiler's output off the terminal: it is shown (on stderr)
+    only when verbose() and, when the build fails, inside the DeviceError it raises. pyopencl's
+    CompilerWarning (the same log, or 'Non-empty compiler output') is silenced for the same
+    reason; the library's own warnings are untouched."""
+    failure = None
+    with _Captured() as said, warnings.catch_warnings():
         warnings.simplefilter("ignore", cl.CompilerWarning)
-        program.build(options=options)
-    log = program.get_build_info(device, cl.program_build_info.LOG) or ""
-    notes = [ln for ln in log.splitlines() if "warning" in ln or "error" in ln]
-    if any("changes the ABI" not in ln for ln in notes):
-        warnings.warn(f"OpenCL compiler said:\n{log}", cl.CompilerWarning, stacklevel=3)
+        try:
+            program.build(options=options)
+        except cl.RuntimeError as exc:
+            failure = exc
+    if failure is not None:
+        raise DeviceError(f"{where} failed to build with {list(options)}:\n{failure}"
+                          + (f"\n{said.text}" if said.text else "")) from failure
+    log = (program.get_build_info(device, cl.program_build_info.LOG) or "").strip()
+    output = "\n".join(t for t in (log, said.text) if t)
+    if output and verbose():
+        print(f"nlos_cl: OpenCL compiler output for {where} {list(options)}:\n{output}",
+              file=sys.stderr, flush=True)
+    return output
 
 
 def float4(point) -> np.ndarray:
@@ -101,11 +163,8 @@ class Runtime:
             program = self._programs.get((source, options))
             if program is None:
                 program = cl.Program(self.context, kernel_source(source))
-                try:
-                    _build_quietly(program, list(options), self.device)
-                except cl.RuntimeError as exc:
-                    raise DeviceError(f"kernels/{source}.cl failed to build on {self.name} "
-                                      f"with {list(options)}:\n{exc}") from exc
+                build_program(program, list(options), self.device,
+                              f"kernels/{source}.cl on {self.name}")
                 self._programs[(source, options)] = program
             kern = self._kernels[key] = getattr(program, name)
             kern.nlos_source = (source, name)
@@ -190,9 +249,18 @@ class Runtime:
         lo, hi = int(np.iinfo(np.int32).min), int(np.iinfo(np.int32).max)
         gen.key = [draw.randrange(lo, hi + 1) for _ in range(gen.key_length - 1)]
         gen.counter = [draw.randrange(lo, hi + 1) for _ in range(4)]
-        with warnings.catch_warnings():  # pyopencl's own Random123 program: its build notes
-            warnings.simplefilter("ignore", cl.CompilerWarning)
+        if "philox built" in self._resources:
             return gen.normal(self.queue, shape, np.float32, allocator=self.allocator)
+        # the first draw builds pyopencl's own Random123 program: its compiler output too is
+        # kept off the terminal unless verbose
+        with _Captured() as said, warnings.catch_warnings():
+            warnings.simplefilter("ignore", cl.CompilerWarning)
+            draws = gen.normal(self.queue, shape, np.float32, allocator=self.allocator)
+        self._resources["philox built"] = True
+        if said.text and verbose():
+            print(f"nlos_cl: OpenCL compiler output for pyopencl's Philox generator:\n"
+                  f"{said.text}", file=sys.stderr, flush=True)
+        return draws
 
     def read_rows(self, score, iz, iy0, iy1):
         if not hasattr(score, "rows"):

@@ -1,0 +1,69 @@
+"""What `nlos-cl` prints besides its answer: Python warnings as one line each,
+`nlos-cl: warning: ...`, every distinct warning once per run and without Python's source line;
+and --verbose (the OpenCL compiler's output, which nlos_cl.device.runtime otherwise keeps off the
+terminal). Only the command line changes how warnings look: the library keeps Python's standard
+warnings, so a program that imports nlos_cl filters and formats them as it likes.
+"""
+from __future__ import annotations
+
+import argparse
+import functools
+import os
+import sys
+import warnings
+
+VERBOSE_HELP = ("show the OpenCL compiler's output (otherwise kept off the terminal unless a "
+                "build fails); the library reads NLOS_CL_VERBOSE=1")
+
+
+class _Verbose(argparse.Action):
+    """--verbose: sets NLOS_CL_VERBOSE=1 as it is parsed, for the library and any worker it
+    starts (one_run puts the variable back afterwards)."""
+
+    def __init__(self, option_strings, dest, default=None, **kw):
+        super().__init__(option_strings, dest, nargs=0, default=default, **kw)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        os.environ["NLOS_CL_VERBOSE"] = "1"
+        setattr(namespace, self.dest, True)
+
+
+def verbose_flag() -> argparse.ArgumentParser:
+    """A parent parser holding --verbose, for the top-level parser and each command alike, so
+    `nlos-cl --verbose locate F` and `nlos-cl locate F --verbose` both work."""
+    parent = argparse.ArgumentParser(add_help=False)
+    parent.add_argument("--verbose", action=_Verbose, default=argparse.SUPPRESS,
+                        help=VERBOSE_HELP)
+    return parent
+
+
+def one_line(message) -> str:
+    """A warning's text on one line: a multi-line message's lines joined by single spaces."""
+    return " ".join(str(message).split())
+
+
+def one_run(main):
+    """Wrap the CLI's main: while it runs, warnings print as `nlos-cl: warning: <text>`, each
+    distinct text once; afterwards Python's warnings and NLOS_CL_VERBOSE are as they were, so
+    calling cli.main() in-process leaves the caller untouched."""
+    @functools.wraps(main)
+    def run(*args, **kw):
+        seen: set[str] = set()
+
+        def show(message, category, filename, lineno, file=None, line=None):
+            text = one_line(message)
+            if text not in seen:
+                seen.add(text)
+                print(f"nlos-cl: warning: {text}", file=file or sys.stderr, flush=True)
+
+        shown, env_before = warnings.showwarning, os.environ.get("NLOS_CL_VERBOSE")
+        warnings.showwarning = show
+        try:
+            return main(*args, **kw)
+        finally:
+            warnings.showwarning = shown
+            if env_before is None:
+                os.environ.pop("NLOS_CL_VERBOSE", None)
+            else:
+                os.environ["NLOS_CL_VERBOSE"] = env_before
+    return run
