@@ -40,8 +40,10 @@ class AWGN:
     snr_db: float = 10.0
 
     def __post_init__(self):
-        require(isinstance(self.snr_db, (int, float)) and math.isfinite(self.snr_db), "snr_db",
-                f"must be a finite number of decibels, got {self.snr_db!r}", "pass e.g. 10")
+        require(isinstance(self.snr_db, (int, float)) and not isinstance(self.snr_db, bool)
+                and math.isfinite(self.snr_db) and -100.0 <= self.snr_db <= 200.0, "snr_db",
+                f"must be a number of decibels in [-100, 200] (a noise 10^10 times the signal "
+                f"to 10^-20 of it), got {self.snr_db!r}", "pass e.g. 10")
 
     def apply(self, signals, seed: int = 0):
         be = signals.backend

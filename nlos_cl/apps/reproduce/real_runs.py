@@ -103,18 +103,20 @@ def keyhole(cfg: dict, root: Path) -> dict:
 
 
 def walk(cfg: dict, root: Path) -> dict:
-    """The walk through `nlos-cl track`'s path (a sequence file; the Tracker on the region
-    `nlos-cl locate` derives from the first frame; every default), against the authors'
+    """The walk through `nlos-cl track`'s path (a sequence file; the Tracker the command
+    builds with every default: apps.track.make_tracker), against the authors'
     particle-filter means on the top view (their X, Z; Y is the weakly seen vertical)."""
-    from nlos_cl.localization.capture import search_region
-    from nlos_cl.tracking import Tracker, read_sequence, write_sequence
+    from nlos_cl.apps.cli import parser
+    from nlos_cl.apps.track import make_tracker
+    from nlos_cl.tracking import read_sequence, write_sequence
     (frames, meta), read_s = _timed(lambda: nl.read_dataset(root / cfg["folder"]))
     frames = frames[:cfg["frames"]] if cfg["frames"] else frames
-    with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory() as tmp, warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the default's note on paired captures
         path = write_sequence(Path(tmp) / "walk.h5", frames, fps=meta["fps"])
         seq = read_sequence(path)
-        grid, _ = search_region(seq[0].histograms, seq.frame)
-        tracker = Tracker(seq, grid, frame_interval_s=1.0 / seq.fps)
+        tracker = make_tracker(parser().parse_args(["track", str(path)]), seq, None)
+        grid = tracker.grid
         ours, ids, per_frame = np.full((len(seq), 3), np.nan), [], []
         for k, frame in enumerate(seq.frames()):
             tracks, seconds = _timed(lambda: tracker.update(frame.histograms, frame.t_s))

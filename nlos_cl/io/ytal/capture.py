@@ -10,6 +10,8 @@ geometry. Pairings follow y-tal (pairing.py): one laser point -> one set; paired
 """
 from __future__ import annotations
 
+import io
+
 import math
 from pathlib import Path
 
@@ -41,8 +43,14 @@ def write_capture(path, histograms: HistogramSet, *, device_distance_m: float = 
     check_writable(h, device_distance_m)
 
     def write(tmp):
-        with h5py.File(tmp, "w") as f:
+        # built in memory, then written as plain bytes: a full disk is then an OSError that
+        # atomic_write reports (HDF5 writing to a full disk ended in a segfault); the image is
+        # the size of the data already in memory
+        image = io.BytesIO()
+        with h5py.File(image, "w") as f:
             write_fields(f, h, device_distance_m, metadata, compression)
+        with open(tmp, "wb") as fh:
+            fh.write(image.getbuffer())
     return atomic_write(path, write, keep_unless=is_capture, force=force, record=False,
                         what="capture",
                         kind="an HDF5 capture (nlos_cl's or y-tal's)")
