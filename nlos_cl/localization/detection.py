@@ -104,10 +104,10 @@ def detect(rows: np.ndarray, window: np.ndarray | None = None,
     z = np.where(sigma > 0, (peak - centre) / np.where(sigma > 0, sigma, 1.0), 0.0)
     shrink = (z > 0) & (dof > 1)  # exp(-z_t^2 / 2) = (1 + z^2 / n)^(-(n - 1) / 2)
     z = np.where(shrink, np.sqrt(np.maximum(dof - 1, 0)
-                                 * np.log1p(np.minimum(z * z, 1e300) / np.maximum(dof, 1))), z)
+                                 * np.log1p(np.minimum(z, 1e150) ** 2 / np.maximum(dof, 1))), z)
     n_window = (last - first + 1)[:, 0]
     union = n_window * 0.5 * _erfc(z / math.sqrt(2.0))
-    rice = n_window / (2.0 * math.pi) * ratio * np.exp(-0.5 * np.minimum(z * z, 1400.0))
+    rice = n_window / (2.0 * math.pi) * ratio * np.exp(-0.5 * np.minimum(z, 40.0) ** 2)
     p = np.where(exact, 0.0, np.minimum(union, rice + union / n_window))
     p = np.clip(p, 1e-300, 1.0)[live]
     z = np.where(exact, np.inf, z)

@@ -151,16 +151,16 @@ class Tracker:
         return found
 
     def _locate(self, sig, prior):
-        """(Location or None, measurements), the fit started from `prior` where given."""
+        """(Location or None, measurements), from `prior` where given; detection while births can be."""
         try:
             self.last_filtered = self.gauss(sig)
-            location = self.locator(self.last_filtered, raw=sig, prior=prior)
+            births = sum(t.status == "confirmed" for t in self.tracks) < self.max_tracks
+            location = self.locator(self.last_filtered, raw=sig, prior=prior, detect=births)
         except InputError as exc:
             if NO_SIGNAL not in str(exc):
                 raise
             location = None
-        targets = [] if location is None else location.targets
-        return location, [self._as_measurement(tg) for tg in targets]
+        return location, [self._as_measurement(tg) for tg in getattr(location, "targets", [])]
 
     def _advance(self, measurements, t: float, predictions) -> list[Track]:
         """Apply the predictions, pair the measurements, update, count, bury and give birth."""
