@@ -295,6 +295,11 @@ def main(argv=None) -> int:
     except (InputError, DeviceError) as exc:
         print(f"nlos-cl: {exc}", file=sys.stderr)
         return 2
+    except MemoryError as exc:  # past every budget check (the address space ran out)
+        print(f"nlos-cl: {args.command}: ran out of memory ({str(exc).split(': ', 1)[-1][:80]})."
+              " Fix: a coarser facet_size_m, a smaller region or fewer spots, or raise the "
+              "limit (ulimit -v, NLOS_CL_MEMORY_LIMIT)", file=sys.stderr)
+        return 2
     except OSError as exc:  # an output path we could not write: say which and why
         print(f"nlos-cl: {exc.filename or 'output'}: {exc.strerror or exc}. Fix: pick a "
               "writable file path in an existing folder", file=sys.stderr)
