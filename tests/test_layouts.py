@@ -38,3 +38,10 @@ def test_three_non_collinear_spots_see_height():
 def test_bad_layouts_name_the_field(call, field):
     with pytest.raises(nl.InputError, match=field):
         call()
+
+
+def test_spad_patch_counts_must_be_whole_numbers():
+    from nlos_cl.physics.layouts import spad_patch
+    assert spad_patch((-1.0, 0.0, 0.0), (4.0, 2)).shape == (8, 3)
+    with pytest.raises(nl.InputError, match="spad_patch.counts"):
+        spad_patch((-1.0, 0.0, 0.0), (2.7, 2.7))

@@ -62,7 +62,9 @@ def spad_patch(centre, counts=(32, 32), pitch_m=(0.0375, 0.0375)) -> np.ndarray:
     c = _on_wall(centre, "spad_patch.centre")
     counts = np.broadcast_to(np.asarray(counts), (2,))
     pitch = np.broadcast_to(np.asarray(pitch_m, dtype=np.float64), (2,))
-    nx, nz = (_count(int(v), "spad_patch.counts") for v in counts)
+    # whole numbers only: int(2.7) would silently make a 2-spot side
+    nx, nz = (_count(int(v) if float(v).is_integer() else v, "spad_patch.counts")
+              for v in counts.tolist())
     _count(nx * nz, "spad_patch.counts")  # the patch as a whole
     px, pz = (_length(float(v), "spad_patch.pitch_m") for v in pitch)
     x = (np.arange(nx) - (nx - 1) / 2) * px
