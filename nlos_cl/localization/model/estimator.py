@@ -38,8 +38,6 @@ WARM_NFEV = 10
 # ~240 samples a detector; the host's batched float64 model gives the same fit (costs within
 # 1e-4) 3-5x faster (one-shot `nlos-cl locate`: docs/performance.md).
 HOST_DETECTORS = 64
-# The fit uses at most this many histograms, spread over the wall (_spread_out).
-FIT_DETECTORS = 64
 MODEL_ON = ("auto", "host", "device")
 
 
@@ -103,7 +101,6 @@ class ModelEstimator:
         obs = self.observation(scored)
         if isinstance(self.targets, int):  # before any fit: K the histograms can determine
             require_targets("targets", self.targets, len(obs.spots))
-        obs, spread_note = _spread_out(obs)
         clock["data"] = time.perf_counter()
         observable = plate.height_observable(obs.spots, obs.laser)
         if not observable and (why := unfittable_line(obs.spots, obs.laser)):
@@ -122,7 +119,7 @@ class ModelEstimator:
         problem, chosen, result, free, (cov_all, info), history = fitted
         if warm_info is not None:
             info = dict(info, warm_start=warm_info)
-        notes = ([] if observable else [HEIGHT_WARNING.format(z=z0)]) + spread_note
+        notes = [] if observable else [HEIGHT_WARNING.format(z=z0)]
         for note in notes:
             warnings.warn(note, stacklevel=3)
         self.timings = _stages(clock, problem)
@@ -188,21 +185,6 @@ class ModelEstimator:
                          self.timings)
         return LocatedTarget(p[:3].copy(), centre_covariance(cov_all, k, shape),
                              shape.extent(p), fit=fit)
-
-
-def _spread_out(obs):
-    """At most FIT_DETECTORS histograms, spread over the wall (farthest points), and the note
-    that says so: the fit's cost grows with the histograms (a 256-spot SPAD patch of photon
-    counts took over 300 s on all of them), while 64 spread spots already fix a target's
-    centre, size and yaw."""
-    n = len(obs.spots)
-    if n <= FIT_DETECTORS:
-        return obs, []
-    lasers = np.broadcast_to(obs.laser, obs.spots.shape)
-    rows = np.sort(farthest_points(np.hstack([obs.spots, lasers]), FIT_DETECTORS))
-    return obs.detectors(rows), [f"the model was fitted to {FIT_DETECTORS} of the {n} "
-                                 "histograms, spread over the wall (the paper's argmax used "
-                                 "them all)"]
 
 
 def start_rows(est, start) -> np.ndarray:
