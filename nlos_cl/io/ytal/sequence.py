@@ -168,10 +168,11 @@ def _stream(f, head, it, fps, h0, truths0, compression):
     R = None if not k_targets else f.create_dataset(
         "frame_truths", (0, k_targets, 3), maxshape=(None, k_targets, 3), dtype=np.float64,
         chunks=(1024, k_targets, 3))
-    n = 0
+    n, room = 0, _Room(f.filename, 4 * n_s * n_t)
     for k, item in enumerate(chain(head, it)):
         t, h, truths = _as_entry(item, k, fps)
         _same_layout(h0, h, k)
+        room.check(n)
         if n == H.shape[0]:
             for d in (H, T) + ((R,) if R is not None else ()):
                 d.resize(n + GROW, axis=0)
@@ -188,6 +189,29 @@ def _stream(f, head, it, fps, h0, truths0, compression):
     check_frame_times(T[()], "frames.t_s")
     return n
 
+
+class _Room:
+    """Free space for the next frames, checked before HDF5 writes them: HDF5 meeting a full
+    disk leaves a file it cannot close and ended in a segfault. A frame is written only while
+    the disk holds LOOKAHEAD more (uncompressed) frames and HEADROOM_BYTES for HDF5's
+    metadata; the free space is asked every LOOKAHEAD frames (one statvfs)."""
+
+    def __init__(self, path, frame_bytes: int):
+        self.folder, self.frame_bytes, self.free = Path(path).parent, frame_bytes, 0
+
+    def check(self, n: int) -> None:
+        need = (LOOKAHEAD + 1) * self.frame_bytes + HEADROOM_BYTES
+        if n % LOOKAHEAD == 0 or self.free < need:
+            import shutil
+            self.free = shutil.disk_usage(self.folder).free
+        require(self.free >= need, f"sequence {self.folder}", f"the disk has "
+                f"{self.free / 2**20:.1f} MiB free, and the next frames need "
+                f"{need / 2**20:.1f} MiB (after {n} frames written; nothing is kept)",
+                "free space there, or write the sequence to another disk")
+        self.free -= self.frame_bytes
+
+
+HEADROOM_BYTES, LOOKAHEAD = 1 << 20, 8
 
 # A sequence is for tracking motion: frames more than this apart (median) are not a frame
 # rate (a walker moves 14 m in 10 s, beyond any hidden scene the ellipse model covers), but
