@@ -15,18 +15,10 @@ LCT = Path(__file__).resolve().parents[2] / "shared" / "realdata" / "lct"
 
 
 def backprojection_peak(h, step_m=0.02, every=2):
-    """The brightest voxel of a confocal backprojection over every `every`-th scan point."""
-    axis = h.path_axis()
-    g = np.arange(-0.4, 0.4 + 1e-9, step_m)
-    cells = np.stack(np.meshgrid(g, np.arange(0.1, 1.5, step_m), g, indexing="ij"), -1)
-    cells = cells.reshape(-1, 3)
-    total = np.zeros(len(cells))
-    for d in range(0, h.n_detectors, every):
-        u = np.round((2 * np.linalg.norm(cells - h.detector_spots[d], axis=1)
-                      - axis.centre0_m[d]) / axis.step_m[d]).astype(int)
-        inside = (u >= 0) & (u < h.time_axis.n_bins)
-        total[inside] += h.data[d, u[inside]]
-    return cells[np.argmax(total)]
+    """The brightest voxel of a confocal backprojection over every `every`-th scan point
+    (reproduce real's reference, on a 0.8 m wide, 0.1-1.5 m deep volume)."""
+    from nlos_cl.apps.reproduce.real_runs import backprojection_peak as peak
+    return peak(h, step_m, every, 0.4, (0.1, 1.5))
 
 
 @pytest.mark.parametrize("name", ["data_s_u", "data_exit_sign"])

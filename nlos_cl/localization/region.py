@@ -31,6 +31,7 @@ from ..core.histograms import HistogramSet
 from ..io.ytal.frames import require_locatable
 
 MAX_CELLS = 4_000_000
+ALONG_AXIS_COS = math.cos(math.radians(1))  # a line within 1 deg of an axis is along it
 # signal_reach: a bin is signal above the row's median + this many robust sigma (a false bin
 # among 60,000 of white noise: ~6e-5), and the region reaches this much hidden path beyond the
 # last one (the filtered pulse's tail and a target's far edge beyond its last bright bin).
@@ -38,7 +39,7 @@ SIGNAL_SIGMAS = 6.0
 REACH_MARGIN_M = 0.5
 
 
-def _line_direction(points) -> np.ndarray | None:
+def line_direction(points) -> np.ndarray | None:
     """The direction of the line through all points, or None when they do not lie on one
     (perpendicular spread above 1 mm or 0.1 % of the line's length)."""
     centred = points - points.mean(axis=0)
@@ -112,11 +113,11 @@ def default_region(histograms: HistogramSet, h_s: float = PAPER_H_S, *,
     lo, hi = visible_box(h, signal_reach([h] if reach_from is None else reach_from))
     lo[1] = max(lo[1], 0.0)
     spots = np.vstack([h.laser_spots, h.detector_spots])
-    line = _line_direction(spots)
+    line = line_direction(spots)
     flat = None  # the internal axis collapsed to one plane, if height is unobservable
-    if line is not None and abs(line[0]) > math.cos(math.radians(1)):
+    if line is not None and abs(line[0]) > ALONG_AXIS_COS:
         flat = 2
-    elif line is not None and abs(line[2]) > math.cos(math.radians(1)):
+    elif line is not None and abs(line[2]) > ALONG_AXIS_COS:
         flat = 0
     if flat is not None:
         lo[flat] = hi[flat] = float(spots[:, flat].mean())

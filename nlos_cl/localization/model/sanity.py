@@ -24,8 +24,7 @@ import numpy as np
 
 from ...core.tuning import ARGMAX_MARGIN_M, MAX_EXTENT_M, MISFIT_BIRGE
 from ..estimate import LocatedTarget
-
-LINE_ALONG_X_COS = 0.9998  # cos 1 deg: the region's rule for a line along x (region.py)
+from ..region import ALONG_AXIS_COS, line_direction
 
 
 def doubt(target: LocatedTarget, paper_position, spots, lasers) -> str | None:
@@ -60,10 +59,11 @@ def misfit(target: LocatedTarget) -> str | None:
 def unfittable_line(spots, laser) -> str | None:
     """Why the fit cannot take collinear spots whose line is not along x (a vertical line: the
     unobservable axis is then x, the azimuth about the line, and the fit holds z; held-out
-    draws on vertical lines were 0.6-4.7 m off), or None."""
+    draws on vertical lines were 0.6-4.7 m off), or None. The region's own rule for a line
+    along an axis (region.line_direction, ALONG_AXIS_COS)."""
     pts = np.vstack([np.asarray(laser, float).reshape(-1, 3), np.asarray(spots, float)])
-    _, _, vt = np.linalg.svd(pts - pts.mean(axis=0), full_matrices=False)
-    if abs(vt[0][0]) >= LINE_ALONG_X_COS:
+    line = line_direction(pts)
+    if line is None or abs(line[0]) > ALONG_AXIS_COS:
         return None
     return ("the wall spots lie on a line that is not along x: the rotation about it is "
             "unobservable and the model fit (which holds the height z for spots along x) "
