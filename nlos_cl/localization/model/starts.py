@@ -58,11 +58,12 @@ def candidates(centres, laser, sizes=SIZES, yaw_offsets=YAW_OFFSETS) -> np.ndarr
 
 def best_starts(problem, rows, fixed=None, keep=3) -> list[np.ndarray]:
     """Score each candidate row (with the plates in `fixed` alongside) by its profiled cost;
-    return the `keep` best, distinct in centre or yaw."""
+    return the `keep` best, distinct in centre or yaw. (All rows in one column_batch: the
+    host model evaluates them in one call.)"""
     fixed_cols = problem.columns(fixed) if fixed is not None and len(fixed) else None
     costs = []
-    for p in rows:
-        col = problem.column(p)[None]
+    for col in problem.column_batch(np.asarray(rows, np.float64)):
+        col = col[None]
         cols = col if fixed_cols is None else np.concatenate([fixed_cols, col])
         r = problem.residual(cols, problem.linear(cols))
         costs.append(float(r @ r))
@@ -89,3 +90,59 @@ def start_centres(obs, argmax_position, free_z, z0, data=None) -> list[np.ndarra
             out.append(a)
     return out
 
+
+
+# Residual backprojection (the paper's joint likelihood on what the fitted targets leave): the
+# grid's cells, at most this many along x (y, z in proportion), and how far apart the
+# centres it proposes lie from each other and from the targets already fitted.
+RESIDUAL_CELLS_X = 48
+RESIDUAL_APART_M = 0.4
+
+
+def _reach_box(obs, z0, free_z):
+    """Axis ranges (x, y, z) that hold every point whose ellipse path to some detector lies
+    inside its sample window: half the longest path around the wall spots."""
+    top = float(np.max(obs.path0 + obs.dpath * (obs.n - 1)))
+    wall = np.vstack([obs.spots, np.reshape(obs.laser, (-1, 3))])
+    half = 0.5 * top
+    zr = (wall[:, 2].min() - half, wall[:, 2].max() + half) if free_z else (z0, z0)
+    return (wall[:, 0].min() - half, wall[:, 0].max() + half), (0.05, half), zr
+
+
+def residual_centres(obs, rest, existing, z0, free_z, count=3) -> list[np.ndarray]:
+    """Up to `count` centres where the residual `rest` (D, n) holds a target the fit has not
+    explained: on a coarse grid over the region the windows reach, each cell sums over the
+    detectors log(max(z, 1)), z the residual in noise units at the cell's ellipse path (max-
+    filtered over the path a cell spans, so the coarse grid misses no peak). The product form
+    wants every detector to see the target, which one detector's misfit of a fitted strong
+    target cannot fake. Cells within RESIDUAL_APART_M of `existing` centres are skipped.
+    With many targets, the weak one 4x farther carried 1/400 of the signal energy: the
+    centroid of the residual (start_centres) sat between the misfits, this finds it."""
+    xr, yr, zr = _reach_box(obs, z0, free_z)
+    step = (xr[1] - xr[0]) / RESIDUAL_CELLS_X
+    axes = [np.arange(lo + 0.5 * step, hi, step) if hi - lo > step else np.array([lo])
+            for lo, hi in (xr, yr, zr)]
+    cells = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    z = np.where(obs.valid, rest / obs.noise[:, None], 0.0)
+    half = max(1, int(np.ceil(step * 1.8 / float(np.min(obs.dpath)))))  # path moves <= 2 step
+    from numpy.lib.stride_tricks import sliding_window_view
+    padded = np.pad(z, ((0, 0), (half, half)), constant_values=0.0)
+    zmax = sliding_window_view(padded, 2 * half + 1, axis=1).max(axis=-1)
+    lasers = np.broadcast_to(np.reshape(obs.laser, (-1, 3)), obs.spots.shape)
+    score = np.zeros(len(cells))
+    for d in range(len(obs.spots)):
+        path = (np.linalg.norm(cells - lasers[d], axis=1)
+                + np.linalg.norm(cells - obs.spots[d], axis=1))
+        idx = np.rint((path - obs.path0[d]) / obs.dpath[d]).astype(np.int64)
+        inside = (idx >= 0) & (idx < obs.n)
+        score += np.where(inside, np.log(np.maximum(zmax[d, np.clip(idx, 0, obs.n - 1)], 1.0)),
+                          0.0)
+    chosen = [np.asarray(c, float) for c in existing]
+    out = []
+    for i in np.argsort(-score):
+        if score[i] <= 0 or len(out) == count:
+            break
+        if all(np.linalg.norm(cells[i] - c) > RESIDUAL_APART_M for c in chosen):
+            out.append(cells[i].copy())
+            chosen.append(cells[i])
+    return out
