@@ -22,7 +22,8 @@
 // order of the additions, so the result is bit-identical run after run.
 //
 // Build options: -D CHUNK=<facets per chunk> [-D REFLECTANCE_FACTOR(n, to_laser, to_detector)=...]
-// (with the GGX model also -D GGX_A2, GGX_KD, GGX_KS) [-D PAIRED=0|1]. Occlusion
+// (with the GGX model also -D GGX_A2, GGX_KD, GGX_KS; with the retroreflective one -D
+// RETRO_HALF_LAM, RETRO_KD, RETRO_KL) [-D PAIRED=0|1]. Occlusion
 // (nlos_cl/visibility.py) comes as a per-(detector, facet) mask: a facet that does not see both
 // spots sends nothing.
 // PAIRED (facet_paths only): 0 (default), one laser spot O for every detector, passed as a
@@ -63,6 +64,18 @@ inline float ggx_factor(const float3 n, const float3 l, const float3 v)
     const float ch = dot(n, normalize(l + v));
     const float den = fma(ch * ch, GGX_A2 - 1.0f, 1.0f);
     return GGX_KD + GGX_KS * GGX_A2 / (den * den) * ggx_g1(cl) * ggx_g1(cv) / (4.0f * cl * cv);
+}
+#endif
+
+#ifdef RETRO_HALF_LAM
+// Retroreflective lobe over a diffuse base (nlos_cl.physics.reflectance.Retroreflective):
+// f / scale = KD + KL exp(-(lam / 2) |l - v|^2), |l - v|^2 = 2 (1 - l.v) taken from the
+// difference (no cancellation near the retro direction); called only where both cosines are
+// positive.
+inline float retro_factor(const float3 l, const float3 v)
+{
+    const float3 gap = l - v;
+    return RETRO_KD + RETRO_KL * exp(-RETRO_HALF_LAM * dot(gap, gap));
 }
 #endif
 

@@ -266,17 +266,20 @@ def examples(size):
 
 
 def _occlusion_examples(args, hist_err):
-    """A visibility mask (every third (detector, facet) pair hidden) with both methods, and a
-    glossy (GGX) target: the kernel's occlusion and reflectance branches."""
-    from ..physics.reflectance import GGX
+    """A visibility mask (every third (detector, facet) pair hidden) with both methods, a
+    glossy (GGX) and a retroreflective target (a lobe wide enough to vary across the paper's
+    laser-detector angles): the kernel's occlusion and reflectance branches."""
+    from ..physics.reflectance import GGX, Retroreflective
     facets, n_det = args[0], len(args[1])
     mask = (np.arange(n_det * facets.count).reshape(n_det, -1) % 3) != 0
     glossy = args[:7] + (GGX(specular=0.6, roughness=0.3, diffuse=0.2),)
+    retro = args[:7] + (Retroreflective(retro=0.7, width_rad=0.05, diffuse=0.2),)
     return [Example("occlusion mask, deposit", lambda be: args + ("deposit", mask), 1e-3,
                     hist_err),
             Example("occlusion mask, erf", lambda be: args + ("erf", mask), 1e-3, hist_err),
             Example("glossy GGX target, deposit", lambda be: glossy, 1e-3, hist_err),
-            Example("glossy GGX target, erf", lambda be: glossy + ("erf",), 1e-3, hist_err)]
+            Example("glossy GGX target, erf", lambda be: glossy + ("erf",), 1e-3, hist_err),
+            Example("retroreflective target, deposit", lambda be: retro, 1e-3, hist_err)]
 
 
 def _paired_examples(scene, size, hist_err, n_pad):

@@ -5,7 +5,8 @@ A reflectance model splits the target's BRDF f(n, to_laser, to_detector) into a 
 dimensionless, direction-dependent `factor` that the forward kernel evaluates per (facet,
 detector). The kernel gets the factor as the macro REFLECTANCE_FACTOR(n, to_laser, to_detector)
 through `kernel_defines()`; `factor()` is its float64 twin. Lambertian reflection (the paper's)
-has factor 1. A glossy model adds its own macro and twin here and nowhere else.
+has factor 1; GGX (glossy) and Retroreflective (retroreflective sheeting) add their own macro
+and twin here and, for the macro's function, in forward.cl.
 """
 from __future__ import annotations
 
@@ -101,9 +102,81 @@ class GGX:
         return np.where(ok, kd + ks * spec, 0.0)
 
 
+@dataclass(frozen=True)
+class Retroreflective:
+    """Retroreflective sheeting or tape (glass beads, prisms): a diffuse base plus a lobe
+    around the retro direction, f = diffuse / pi + retro exp(-|l - v|^2 / (2 w^2)) / A(w),
+    A(w) = 2 pi (lam - 1 + e^-lam) / lam^2, lam = 1 / w^2. l, v: unit directions from the
+    surface to the light and to the detector; |l - v|^2 = 2 (1 - l.v), so near the retro
+    direction the lobe is a Gaussian of the angle psi between them, sd w = `width_rad`.
+    It is Lafortune's retro-reflective lobe (l.v)^n (Lafortune et al. 1997, C = (1, 1, 1)) in
+    its spherical-Gaussian form exp(n (l.v - 1)), n = 1 / w^2, which unlike (l.v)^n becomes
+    constant as w grows: the model then is Lambertian, brdf (diffuse + retro) / pi.
+    A(w) is the lobe's albedo at normal incidence, so `retro` is the fraction of normally
+    incident light the lobe sends back; at any other incidence it sends less (a lobe centred
+    on l sees smaller cosines; spherical rearrangement, checked by quadrature in the tests),
+    so the albedo never exceeds diffuse + retro <= 1. Reciprocal: |l - v| = |v - l|.
+    Default width 0.005 rad (0.3 deg): Greg Ward's glass-bead fit (Radiance lib/retrorefl.cal)
+    falls to 1/4 of its peak at a 0.5 deg observation angle. scale = (diffuse + retro) / pi."""
+
+    retro: float = 0.7
+    width_rad: float = 0.005
+    diffuse: float = 0.2
+
+    def __post_init__(self):
+        fix = "pass e.g. Retroreflective(retro=0.7, width_rad=0.005, diffuse=0.2)"
+        _number("reflectance.retro", self.retro, 0.0, 1.0, fix)
+        _number("reflectance.diffuse", self.diffuse, 0.0, 1.0, fix)
+        _number("reflectance.width_rad", self.width_rad, 1e-3, 1e3, fix)
+        require(self.retro + self.diffuse > 0, "reflectance", "retro + diffuse is 0: the "
+                "target reflects nothing", fix)
+        require(self.retro + self.diffuse <= 1.0, "reflectance", "retro + diffuse exceeds 1: "
+                "the surface would reflect more light than it receives", fix)
+
+    @property
+    def scale(self) -> float:
+        return (self.retro + self.diffuse) / math.pi
+
+    def _weights(self):
+        """(lam / 2, diffuse part, lobe peak), the last two over `scale`."""
+        lam = 1.0 / self.width_rad ** 2
+        # lam - 1 + e^-lam without cancellation as lam -> 0 (wide lobes): its series there
+        if lam > 1e-3:
+            tail = lam + math.expm1(-lam)
+        else:
+            tail = lam * lam * (0.5 - lam / 6 + lam * lam / 24)
+        albedo_normal = 2.0 * math.pi * tail / (lam * lam)  # A(w); pi as w -> infinity
+        total = self.retro + self.diffuse
+        return 0.5 * lam, self.diffuse / total, self.retro * math.pi / (albedo_normal * total)
+
+    def kernel_defines(self) -> dict:
+        half_lam, kd, kl = self._weights()
+        return {"RETRO_HALF_LAM": f"{half_lam:.9e}f", "RETRO_KD": f"{kd:.9e}f",
+                "RETRO_KL": f"{kl:.9e}f", "REFLECTANCE_FACTOR(n,l,v)": "retro_factor(l,v)"}
+
+    def factor_of_cosine(self, cos_lv) -> np.ndarray:
+        """f / scale from l.v alone, where both directions are above the surface (the model
+        depends on nothing else): for float64 hosts that have l.v without (D, F, 3)
+        temporaries (localization/model/batch.py). 1 - l.v keeps ~1e-16 / (1 - l.v) relative
+        precision in float64, ample for lobes of width >= 1e-3 rad."""
+        half_lam, kd, kl = self._weights()
+        return kd + kl * np.exp(-2.0 * half_lam * (1.0 - np.asarray(cos_lv, np.float64)))
+
+    def factor(self, normals, to_laser, to_detector) -> np.ndarray:
+        """(D, F) f / scale: KD + KL exp(-(lam / 2) |l - v|^2) (|l - v|^2 from the difference,
+        not 2 (1 - l.v), which cancels near the retro direction); 0 below the surface."""
+        half_lam, kd, kl = self._weights()
+        cl = np.einsum("fk,fk->f", normals, to_laser)[None]
+        cv = np.einsum("fk,dfk->df", normals, to_detector)
+        gap = to_laser[None] - to_detector
+        lobe = np.exp(-half_lam * np.einsum("dfk,dfk->df", gap, gap))
+        return np.where((cl > 0) & (cv > 0), kd + kl * lobe, 0.0)
+
+
 def from_spec(spec) -> object:
     """A reflectance from a scene file's `reflectance:` mapping, e.g. {model: ggx,
-    specular: 0.5, roughness: 0.2, diffuse: 0.1} or {model: lambertian, brdf: 0.1284}."""
+    specular: 0.5, roughness: 0.2, diffuse: 0.1}, {model: retroreflective, retro: 0.7,
+    width_rad: 0.005, diffuse: 0.2} or {model: lambertian, brdf: 0.1284}."""
     require(isinstance(spec, dict) and spec.get("model") in MODELS, "reflectance.model",
             f"expected a mapping with model one of {sorted(MODELS)}, got {spec!r}",
             "write e.g. {model: ggx, specular: 0.5, roughness: 0.2}")
@@ -126,4 +199,4 @@ def as_reflectance(value):
     return value
 
 
-MODELS = {"lambertian": Lambertian, "ggx": GGX}
+MODELS = {"lambertian": Lambertian, "ggx": GGX, "retroreflective": Retroreflective}
