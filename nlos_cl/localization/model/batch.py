@@ -45,8 +45,12 @@ class HostProblem(Problem):
     the unmoved plate's cell statistics: d(model)/d(parameter) at frozen blur, shift and
     pull-in, half the work of a column; residuals use each plate's own."""
 
-    def __init__(self, obs, lattice=(16, 24), backend=None):
-        super().__init__(obs, backend, lattice)  # backend: for the closed shapes' Problems
+    def __init__(self, obs, lattice=(16, 24), backend=None, reflectance=None):
+        # backend: for the closed shapes' Problems. reflectance: None (Lambertian) or a model
+        # with factor_of_cosine (its factor from l.v alone: Retroreflective), applied to the
+        # points' weights; the cell statistics (pull-in, blur, shift) stay Lambertian's
+        super().__init__(obs, backend, lattice, reflectance=reflectance)
+        self._factor = None if reflectance is None else reflectance.factor_of_cosine
         floor = math.sqrt(max(obs.sigma0_m ** 2 - obs.box_excess_m2, 1e-300))
         # one sub-bin count per observation (from the narrowest pulse any plate can have):
         # a plate's histograms do not depend on which batch it is evaluated in
@@ -76,7 +80,7 @@ class HostProblem(Problem):
         _, blur2, shift = stats
         sigma = np.sqrt(obs.sigma0_m ** 2 + blur2 - obs.box_excess_m2)  # (B,)
         path, weight = _paths(points.reshape(len(rows), -1, 3), normal, area / 4.0, obs.spots,
-                              obs.laser)
+                              obs.laser, self._factor)
         hist = _deposit_bins(path, weight, obs.edge0[None] - shift, obs.dpath, sigma, obs.n,
                              self.os)
         self.calls += len(rows)
@@ -167,12 +171,13 @@ def _cell_statistics(centres, offsets, normal, area, spots, laser):
     return keep, blur2, shift
 
 
-def _paths(points, normal, area, spots, laser):
+def _paths(points, normal, area, spots, laser, factor=None):
     """Hidden path r1 + r2 and weight per (detector, plate, point) (D, B, M): the forward
     twin's (ops.forward.facet_paths: four cosines, area / (r1^2 r2^2), 0 where the point faces
     away from O or the spot) for Lambertian upright plates, one normal per plate, without the
     twin's (D, F, 3) temporaries and in place (7x faster here). points (B, M, 3), normal
-    (B, 3), area (B,)."""
+    (B, 3), area (B,). factor: None, or the reflectance's direction factor as a function of
+    l.v = -(v1 . v2) / (r1 r2) (model.estimator passes Retroreflective.factor_of_cosine)."""
     px, py, pz = np.moveaxis(points, -1, 0)
     nx, ny = normal[:, 0:1], normal[:, 1:2]  # upright: no z component
     v1x, v1y, v1z = px - laser[0], py - laser[1], pz - laser[2]
@@ -198,6 +203,9 @@ def _paths(points, normal, area, spots, laser):
     weight *= front
     weight /= r2sq
     weight /= r2sq
+    if factor is not None:
+        dot = v1x * v2x + v1y * v2y + v1z * v2z
+        weight *= factor(-dot / np.sqrt(r1sq * r2sq))
     weight[(toward_spot <= 0) | (toward_o >= 0)[None]] = 0.0
     path = np.sqrt(r2sq, out=r2sq)
     path += np.sqrt(r1sq)

@@ -51,7 +51,10 @@ class ModelEstimator:
     (host for up to HOST_DETECTORS detectors; closed shapes always on the device). warm_nfev:
     the evaluation budget of a warm-started fit (`estimate(scored, start=...)`). sanity: check
     each fit's size, misfit and place against the paper's argmax and, for one target, report
-    the argmax instead of a fit that fails (model.sanity; False: report every fit as is)."""
+    the argmax instead of a fit that fails (model.sanity; False: report every fit as is).
+    reflectance: the targets' reflectance model (nlos_cl.physics.reflectance: None or a
+    Lambertian BRDF, GGX, Retroreflective), known, not fitted; the amplitude absorbs its scale.
+    GGX is evaluated only by the forward op on the device."""
 
     name = "model"
     # The scored frame is used only for the paper's estimate (the starts' second candidate, the
@@ -60,7 +63,8 @@ class ModelEstimator:
 
     def __init__(self, targets=1, *, likelihood="auto", h_s=PAPER_H_S, pulse_fwhm_s=70e-12,
                  jitter_s=30e-12, lattice=None, max_targets=3, backend=None, final_nfev=30,
-                 closed="auto", warm_nfev=WARM_NFEV, model_on="auto", sanity=True):
+                 closed="auto", warm_nfev=WARM_NFEV, model_on="auto", sanity=True,
+                 reflectance=None):
         require(targets == "auto" or (isinstance(targets, int) and targets >= 1), "targets",
                 f"must be a positive integer or 'auto', got {targets!r}", "pass e.g. 1 or 'auto'")
         require(likelihood in ("auto", "gauss", "poisson"), "likelihood",
@@ -77,6 +81,7 @@ class ModelEstimator:
         self.max_targets, self.backend, self.final_nfev = int(max_targets), backend, final_nfev
         self.warm_nfev = int(warm_nfev)
         self.sanity = bool(sanity)
+        self.reflectance = _model_reflectance(reflectance)
         self.timings: dict = {}
 
     def observation(self, scored):
@@ -150,13 +155,14 @@ class ModelEstimator:
         """The plates' Problem: the model on the host or with the forward op on `backend`
         (model_on); a HostProblem keeps `backend` for the closed shapes."""
         lattice = self.lattice_for(obs)
-        if obs.laser.ndim == 2:  # paired: the host's batched model knows one laser spot
-            return Problem(obs, backend, lattice)
-        if self.model_on == "host" or (self.model_on == "auto"
-                                       and len(obs.spots) <= HOST_DETECTORS):
+        refl = self.reflectance
+        host_can = obs.laser.ndim == 1 and (refl is None or hasattr(refl, "factor_of_cosine"))
+        # paired: the host's batched model knows one laser spot; GGX: only the kernel has it
+        if host_can and (self.model_on == "host" or (self.model_on == "auto"
+                                                     and len(obs.spots) <= HOST_DETECTORS)):
             from .batch import HostProblem
-            return HostProblem(obs, lattice, backend=backend)
-        return Problem(obs, backend, lattice)
+            return HostProblem(obs, lattice, backend=backend, reflectance=refl)
+        return Problem(obs, backend, lattice, reflectance=refl)
 
     def lattice_for(self, obs):
         return self.lattice or (GAUSS_LATTICE if obs.mode == "gauss" else POISSON_LATTICE)
@@ -172,7 +178,8 @@ class ModelEstimator:
         obs = problem.obs  # spread over the wall (an index stride can pick one line of a raster)
         rows = farthest_points(np.hstack([obs.spots, np.broadcast_to(obs.laser, obs.spots.shape)]),
                                SEARCH_DETECTORS)
-        search = Problem(problem.obs.detectors(rows), problem.backend, problem.lattice)
+        search = Problem(problem.obs.detectors(rows), problem.backend, problem.lattice,
+                         reflectance=problem.reflectance)
         rough, history = fit_targets(search, self, argmax_position, free, z0)
         result = fit(problem, rough.params, free, self.final_nfev)
         problem.calls += search.calls
@@ -185,6 +192,15 @@ class ModelEstimator:
                          self.timings)
         return LocatedTarget(p[:3].copy(), centre_covariance(cov_all, k, shape),
                              shape.extent(p), fit=fit)
+
+
+def _model_reflectance(value):
+    """None for Lambertian (any BRDF value: the amplitude absorbs it), else the model."""
+    if value is None:
+        return None
+    from ...physics.reflectance import Lambertian, as_reflectance
+    model = as_reflectance(value)  # validates: a number or a reflectance model
+    return None if isinstance(model, Lambertian) else model
 
 
 def start_rows(est, start) -> np.ndarray:

@@ -53,9 +53,9 @@ class Problem:
     `shape`: the target model's module (model.plate or .box): its model_facets, and
     the N_PARAMS, STEPS, X_SCALE, LOWER, UPPER the fit reads."""
 
-    def __init__(self, obs, backend, lattice=(16, 24), shape=plate):
+    def __init__(self, obs, backend, lattice=(16, 24), shape=plate, reflectance=None):
         self.obs, self.backend, self.lattice = obs, backend, tuple(lattice)
-        self.shape = shape
+        self.shape, self.reflectance = shape, reflectance  # None: Lambertian
         self.calls = 0
         self.model_s = 0.0
 
@@ -67,7 +67,7 @@ class Problem:
         facets, blur, shift = self.shape.model_facets(p, self.lattice, obs.spots, obs.laser)
         sigma = math.sqrt(obs.sigma0_m ** 2 + blur ** 2 - obs.box_excess_m2)
         hist, _ = self.backend.call("forward", facets, obs.spots, obs.laser, obs.edge0 - shift,
-                                    obs.dpath, sigma, obs.n, None)
+                                    obs.dpath, sigma, obs.n, self.reflectance)
         out = np.asarray(self.backend.to_numpy(hist), dtype=np.float64)
         self.calls += 1
         self.model_s += time.perf_counter() - t
