@@ -74,13 +74,12 @@ class ModelEstimator:
                 "False")
         require(model_on in MODEL_ON, "model_on", f"must be one of {MODEL_ON}, got "
                 f"{model_on!r}", "pass 'auto' (host for small problems), 'host' or 'device'")
-        self.closed, self.model_on = closed, model_on
+        self.closed, self.model_on, self.sanity = closed, model_on, bool(sanity)
         self.targets, self.likelihood, self.h_s = targets, likelihood, float(h_s)
         self.pulse_sigma_s = float(pulse_fwhm_s) / FWHM_PER_SIGMA
         self.jitter_s, self.lattice = float(jitter_s), lattice
         self.max_targets, self.backend, self.final_nfev = int(max_targets), backend, final_nfev
         self.warm_nfev = int(warm_nfev)
-        self.sanity = bool(sanity)
         self.reflectance = _model_reflectance(reflectance)
         self.timings: dict = {}
 
