@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from . import devices  # sets the PoCL cache folder before pyopencl loads
+from . import programs
 from ..core.tuning import CONSTANT_CACHE
 from ..core.errors import DeviceError
 
@@ -162,13 +163,22 @@ class Runtime:
         if kern is None:
             program = self._programs.get((source, options))
             if program is None:
-                program = cl.Program(self.context, kernel_source(source))
-                build_program(program, list(options), self.device,
-                              f"kernels/{source}.cl on {self.name}")
+                program = self._program(kernel_source(source), options,
+                                        f"kernels/{source}.cl on {self.name}")
                 self._programs[(source, options)] = program
             kern = self._kernels[key] = getattr(program, name)
             kern.nlos_source = (source, name)
         return kern
+
+    def _program(self, text: str, options: tuple, where: str) -> "cl.Program":
+        """Built from the binary stored by an earlier process where there is one (programs.py:
+        no compiler runs, so there is no compiler output to show), else from source, and kept."""
+        program = programs.load(self.context, self.device, text, options)
+        if program is None:
+            program = cl.Program(self.context, text)
+            build_program(program, list(options), self.device, where)
+            programs.store(program, self.device, text, options)
+        return program
 
     def run(self, kernel, global_size, *args, local_size=None):
         """Enqueue; the local size is left to the runtime (best on CPU devices) unless given."""

@@ -22,10 +22,8 @@ file.
 """
 from __future__ import annotations
 
-import hashlib
 import json
 import os
-import secrets
 import stat
 from pathlib import Path
 
@@ -152,6 +150,7 @@ def _record_locked(path: Path, digest: str | None = None) -> None:
                if name != path.name and os.path.isfile(folder / name)}
     try:
         entries[path.name] = {"size": path.stat().st_size, "sha256": digest or _sha256(path)}
+        import secrets  # here, not at the top: reading a capture (require_file) needs neither
         tmp = folder / f".{MANIFEST}.{secrets.token_hex(8)}.tmp"
         tmp.write_text(json.dumps(entries, indent=0, sort_keys=True), "utf-8")
         os.replace(tmp, folder / MANIFEST)
@@ -171,6 +170,7 @@ def _read_manifest(folder: Path) -> dict:
 
 
 def _sha256(path) -> str:
+    import hashlib  # OpenSSL's, ~2.5 ms: only writers pay it
     digest = hashlib.sha256()
     with open(path, "rb") as fh:
         for block in iter(lambda: fh.read(1 << 20), b""):
@@ -195,6 +195,7 @@ def atomic_write(path, write, *, keep_unless=None, force: bool = False, what: st
     require_writable(path, keep_unless=keep_unless, force=force, what=what, kind=kind)
     before = _identity(path)
     tmp = None
+    import secrets
     try:
         while tmp is None:  # the name is bound before the file exists (see _create)
             tmp = str(path.parent / f".{path.name}.{secrets.token_hex(8)}.tmp")
