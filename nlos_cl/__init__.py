@@ -18,7 +18,7 @@ _EXPORTS = {
     ".physics.layouts": ("height_observable",),
     ".physics.meshes": ("box", "l_block", "load_mesh", "rectangle", "sphere"),
     ".physics.noise": ("AWGN", "PhotonCounter"),
-    ".physics.reflectance": ("GGX", "Lambertian"),
+    ".physics.reflectance": ("GGX", "Lambertian", "Retroreflective"),
     ".physics.scene": ("Pulse", "Scene", "Setup", "Target", "paper_scene", "paper_setup"),
     ".ops": ("OPERATIONS",),
     ".ops.backend": ("NumpyBackend", "resolve_backend"),
