@@ -1,6 +1,9 @@
 """`nlos-cl reproduce draws`: the scene generator is a pure function of (family, index,
 master seed) whose draws keep draws.yaml's constraints, and a --quick run writes the page and
-the CSVs with the report's columns."""
+the CSVs with the report's columns. Crossings: the paths cross inside the region, timed as
+drawn; the per-draw measures (ids, swaps, merges) count what they say; a short sequence runs
+through `reproduce draws --only crossings`."""
+import copy
 import csv
 import math
 
@@ -9,7 +12,8 @@ import pytest
 
 from nlos_cl.apps import reproduce as rp
 from nlos_cl.apps.reproduce import draws_gen as g
-from nlos_cl.apps.reproduce import draws_report, draws_run
+from nlos_cl.apps.reproduce import draws, draws_cross_gen as cg, draws_cross_run, draws_report
+from nlos_cl.apps.reproduce import draws_run
 from nlos_cl.apps.reproduce.common import Settings
 from nlos_cl.core.errors import InputError
 
@@ -79,7 +83,10 @@ def _check_layout(lay, family):
     return spots
 
 
-@pytest.mark.parametrize("family", g.FAMILIES)
+LOCATED = [f for f in g.FAMILIES if f != "crossings"]  # one frame each, located
+
+
+@pytest.mark.parametrize("family", LOCATED)
 def test_draws_respect_the_constraints(family):
     kinds, shapes = set(), set()
     for i in range(N):
@@ -139,3 +146,106 @@ def test_a_quick_run_writes_the_report(tmp_path):
     assert draws_run.describe(d)["truths"] == rows[0]["truths"]
     with pytest.raises(InputError, match="--only"):
         rp.run("draws", s, tmp_path, only=["nothing"])
+
+
+FAM = CFG["families"]["crossings"]
+
+
+def test_crossing_draws_cross_inside_the_region_nearly_together():
+    reg = CFG["region"]
+    span = (FAM["frames"] - 1) / FAM["fps"]
+    kinds = set()
+    for i in range(N):
+        d = g.draw("crossings", i)
+        spots = _check_layout(d["layout"], "crossings")
+        kinds.add(d["layout"]["kind"])
+        assert len(spots) == FAM["spots"] and d["frames"]["frames"] == FAM["frames"]
+        assert _inside(d["snr_db"], CFG["snr_db"]) and len(d["targets"]) == 2
+        c, paths = d["crossing"], [np.asarray(t["path"]) for t in d["targets"]]
+        assert cg.segments_cross(*paths)
+        for t, path, f in zip(d["targets"], paths, c["fractions"]):
+            assert t["shape"] == "plate" and all(_inside(v, FAM["plate_side_m"])
+                                                 for v in t["size"])
+            assert t["centre"] == t["path"][0] and path[0, 2] == path[1, 2]  # level walks
+            for p in path:  # both ends (so all of a straight path) inside, facing every spot
+                assert _inside(p[0], reg["x"]) and _inside(p[1], reg["y"])
+                assert _inside(p[2], reg["z"])
+                assert g.facing_cos(np.asarray(t["normal"]), p, spots) >= \
+                    reg["min_facing_cos"] - 1e-6
+            assert _inside(np.linalg.norm(path[1] - path[0]), FAM["length_m"])
+            assert _inside(f, FAM["crossing_fraction"])
+            # at its fraction of the way (and of the time) each target is on the crossing
+            assert np.allclose(path[0, :2] + f * (path[1, :2] - path[0, :2]),
+                               c["crossing_xy"], atol=1e-5)
+        ways = [(p[1] - p[0])[:2] / np.linalg.norm((p[1] - p[0])[:2]) for p in paths]
+        turn = math.degrees(math.acos(np.clip(np.dot(*ways), -1, 1)))
+        assert _inside(turn, FAM["turn_deg"]) and abs(turn - abs(c["turn_deg"])) < 1e-3
+        # they pass X one just after the other: no closer than their half widths plus the gap
+        half = sum(0.5 * t["size"][0] for t in d["targets"])
+        assert _inside(c["closest_m"] - half, FAM["gap_m"])
+        assert cg.closest_approach(paths) >= c["closest_m"] - 1e-5
+        assert abs(c["fractions"][1] - c["fractions"][0]) * span == \
+            pytest.approx(abs(c["offset_s"]), abs=1e-5)
+    assert kinds == set(FAM["layouts"])
+
+
+def test_segments_cross_and_closest_approach():
+    a, b = [[0, 0], [2, 2]], [[0, 2], [2, 0]]
+    assert cg.segments_cross(a, b) and not cg.segments_cross(a, [[1, 3], [3, 1.5]])
+    assert cg.closest_approach([a, b]) == pytest.approx(0.0, abs=1e-9)
+    # the two walk at the same time: a parallel pair keeps its gap, a head-on pair meets midway
+    assert cg.closest_approach([a, [[0, 3], [2, 5]]]) == pytest.approx(3.0)
+    assert cg.closest_approach([[[0, 0], [2, 0]], [[2, 1], [0, 1]]]) == pytest.approx(1.0)
+
+
+def _frames(ids_per_frame, truths):
+    """Tracked frames: per frame {id: truth index (its position) or an (x, y, z) point}."""
+    return [{"tracks": {i: np.asarray(truths[w] if isinstance(w, int) else w, float)
+                        for i, w in ids.items()},
+             "measured": [0] * len(ids), "truths": np.asarray(truths, float)}
+            for ids in ids_per_frame]
+
+
+def test_crossing_measures_count_ids_swaps_and_merges():
+    truths = [[1.0, 2.0, 0.0], [2.0, 3.0, 0.0]]
+    kept = draws_cross_run.measure(_frames([{1: 0, 2: 1}] * 10, truths), 5, 0.15)
+    assert kept["ids_ok"] and (kept["ids_a"], kept["ids_b"]) == ("1", "2")
+    assert kept["rms_m"] == 0 and kept["swaps"] == kept["merged_frames"] == 0
+    assert kept["births"] == 2 and kept["lost"] == 0
+    swapped = draws_cross_run.measure(_frames([{1: 0, 2: 1}] * 7 + [{1: 1, 2: 0}] * 3, truths),
+                                      5, 0.15)
+    assert not swapped["ids_ok"] and swapped["ids_a"] == "1 2" and swapped["swaps"] == 2
+    merged = draws_cross_run.measure(
+        _frames([{1: 0, 2: 1}] * 7 + [{1: (1.5, 2.5, 0.0)}] * 3, truths), 5, 0.15)
+    assert not merged["ids_ok"] and merged["merged_frames"] == 3 and merged["lost"] == 1
+    assert merged["under_two_measured"] == 3 and merged["frames_beyond"] == 6
+    gone = draws_cross_run.measure(_frames([{1: 0, 2: 1}] * 9 + [{}], truths), 5, 0.15)
+    assert not gone["ids_ok"] and gone["missing_frames"] == 2 and math.isnan(gone["rms_m"])
+
+
+def test_rows_of_two_kinds_share_one_csv():
+    rows = draws.uniform([{"family": "one", "error_m": 0.1}, {"family": "crossings", "ids_ok": 1}])
+    assert [list(r) for r in rows] == [["family", "error_m", "ids_ok"]] * 2
+    assert rows[0]["ids_ok"] == "" and rows[1]["error_m"] == ""
+
+
+def test_a_short_crossing_run_writes_its_section(tmp_path, monkeypatch):
+    """One crossing draw of 8 frames (the full family's 50 take ~30 s here) through
+    `reproduce draws --quick --only crossings`."""
+    short = copy.deepcopy(CFG)
+    short["families"]["crossings"]["frames"] = 8
+    monkeypatch.setattr(g, "config", lambda: short)
+    result = rp.run("draws", Settings.make(quick=True), tmp_path, only=["crossings"])[0]
+    (row,) = result.rows
+    assert row["family"] == "crossings" and row["frames"] == 8 and not row["failed"]
+    assert len(row["live"].split()) == 8 and row["frames_per_s"] > 0
+    assert math.isfinite(row["rms_m"]) and row["births"] >= 1
+    assert {goal["goal"] for goal in result.summary["goals"]} == {
+        "crossings: one track id per target after frame 5",
+        "crossings: RMS (worse target) <= 0.05 m", "crossings: tracking frames/s (median)"}
+    page = (tmp_path / "draws.md").read_text()
+    assert "## Crossings (tracked sequences)" in page and "## By layout" not in page
+    with open(tmp_path / "draws.csv") as f:
+        (written,) = list(csv.DictReader(f))
+    assert written["ids_ok"] == str(row["ids_ok"]) and written["index"] == "0"
+    assert cg.segments_cross(*[t["path"] for t in g.draw("crossings", 0, cfg=short)["targets"]])

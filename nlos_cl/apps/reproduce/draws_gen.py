@@ -15,11 +15,13 @@ import zlib
 import numpy as np
 
 from ...core.errors import require
+from . import draws_cross_gen
 from .common import load_data
 
-FAMILIES = ("one", "multi", "closed", "mismatch")
+FAMILIES = ("one", "multi", "closed", "mismatch", "crossings")
 LASER = np.zeros(3)  # the paper's laser spot O, which every draw keeps
 TRIES = 1000  # rejection-sampling attempts before a draw gives up (a range that cannot be met)
+FACING_TRIES = 50  # yaws tried for a crossing plate before its paths are drawn again
 
 
 def config() -> dict:
@@ -230,6 +232,53 @@ def _mismatch(rng, cfg, fam, index) -> dict:
     return {**scene, "mismatch": m}
 
 
+def _facing_yaw(rng, reg, path, spots):
+    """A yaw (and normal) for an upright plate walking `path` that faces O and every spot
+    from both ends of it (and so from all of it: along a line the angle to a point turns one
+    way), or None."""
+    middle = np.mean(path, axis=0)
+    for _ in range(FACING_TRIES):
+        yaw = _u(rng, (-reg["yaw_deg"], reg["yaw_deg"]))
+        normal = _facing_normal(middle, spots, yaw)
+        if min(facing_cos(normal, p, spots) for p in path) >= reg["min_facing_cos"]:
+            return yaw, normal
+    return None
+
+
+def _crossings(rng, cfg, fam) -> dict:
+    """Two upright plates on straight paths that cross (draws_cross_gen), over fam's frames:
+    each target's `centre` is where its path starts, `path` its [start, end] in 3-D."""
+    kind = str(rng.choice(fam["layouts"]))
+    # the existing generators, held at exactly `spots` spots
+    held = {**cfg["layouts"][kind], "count": [fam["spots"], fam["spots"]]}
+    lay = layout(kind, rng, {**cfg, "layouts": {**cfg["layouts"], kind: held}})
+    reg, spots = cfg["region"], np.asarray(lay["spots"])
+    span_s = (fam["frames"] - 1) / fam["fps"]
+
+    def make():
+        sizes = [[round(_u(rng, fam["plate_side_m"]), 4) for _ in range(2)] for _ in range(2)]
+        geometry = draws_cross_gen.crossing_paths(rng, fam, reg, span_s,
+                                                  [0.5 * s[0] for s in sizes])
+        if geometry is None:
+            return None
+        targets = []
+        for size, xy in zip(sizes, geometry["paths"]):
+            z = _u(rng, reg["z"])  # each walks at its own height
+            path = np.array([[*p, z] for p in xy])
+            facing = _facing_yaw(rng, reg, path, spots)
+            if facing is None:
+                return None
+            targets.append({"shape": "plate", "centre": np.round(path[0], 6).tolist(),
+                            "size": size, "yaw_deg": round(facing[0], 3),
+                            "normal": np.round(facing[1], 6).tolist(),
+                            "path": np.round(path, 6).tolist()})
+        crossing = {k: v for k, v in geometry.items() if k != "paths"}  # the targets hold them
+        return {"layout": lay, "targets": targets, "crossing": crossing}
+    scene = _rejected(make, lambda s: s is not None, "crossing paths")
+    frames = {k: fam[k] for k in ("frames", "fps", "dt_s", "facet_m", "first_frame")}
+    return {**scene, "frames": frames}
+
+
 def draw(family: str, index: int, master_seed: int | None = None, cfg: dict | None = None
          ) -> dict:
     """The scene of draw `index` of `family` under `master_seed` (draws.yaml's by default)."""
@@ -244,6 +293,8 @@ def draw(family: str, index: int, master_seed: int | None = None, cfg: dict | No
         scene = _multi(rng, cfg, fam, index)
     elif family == "mismatch":
         scene = _mismatch(rng, cfg, fam, index)
+    elif family == "crossings":
+        scene = _crossings(rng, cfg, fam)
     else:
         scene = _one(rng, cfg, fam)
     scene.setdefault("mismatch", None)

@@ -78,7 +78,11 @@ def describe(d: dict) -> dict:
 
 
 def run(d: dict, s: Settings) -> list[dict]:
-    """Both estimators on the draw's one noisy frame: one row each."""
+    """Both estimators on the draw's one noisy frame: one row each (a crossing draw: its
+    tracked sequence, one row, draws_cross_run)."""
+    if d["family"] == "crossings":
+        from . import draws_cross_run
+        return draws_cross_run.run(d, s)
     start = time.perf_counter()
     clean, sim_notes = draws_scene.simulate(d, s)
     frame = draws_scene.noisy(clean, d)
