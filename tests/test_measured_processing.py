@@ -17,6 +17,7 @@ from nlos_cl.core.histograms import HistogramSet
 from nlos_cl.core.paths import PathCalibration, TimeAxis
 from nlos_cl.localization.measured import process_measured
 from nlos_cl.localization.measured.bins import coates
+from nlos_cl.localization.measured.lobe import lobe_centroid
 from nlos_cl.localization.measured.response import exgauss
 
 DT, N_BINS, SIGMA, TAU, SHIFT = 8e-12, 1200, 30e-12, 80e-12, 6
@@ -160,3 +161,19 @@ def test_ccsocr_is_gated_upstream():
     rep = process_measured(_real(REAL / "ccsocr-figure4" / "sparse")).report
     assert rep["time_zero"]["direct_return"].startswith("none")
     assert not rep["first_bounce_gate"]["applied"]
+
+
+def test_the_lobe_centroid_follows_an_extended_return_not_its_brightest_part():
+    """Two returns of one target (a near arm brighter than the rest, 12 bins further on)
+    inside one lobe: the peak sits on the near arm, the centroid between them; a separate
+    weaker return (below half the maximum between them) is left out; no return: the argmax."""
+    t = np.arange(200.0)
+    arm = lambda c, a: a * np.exp(-0.5 * ((t - c) / 4.0) ** 2)  # noqa: E731
+    y = arm(80, 1.0) + arm(92, 0.8)
+    assert int(np.argmax(y)) < 84
+    assert 83.0 < lobe_centroid(y) < 86.0  # between the arms (their weighted mean is 85.3)
+    assert lobe_centroid(y + arm(150, 0.3)) == pytest.approx(lobe_centroid(y), abs=1e-9)
+    assert lobe_centroid(arm(50.3, 1.0)) == pytest.approx(50.3, abs=0.03)
+    assert lobe_centroid(np.zeros(5)) == 0.0
+    with pytest.raises(InputError, match="fraction"):
+        lobe_centroid(y, fraction=1.5)

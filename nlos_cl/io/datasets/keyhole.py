@@ -14,15 +14,23 @@ Facts, from the upstream Demo.py (as summarised in ../shared/realdata/keyhole/RE
   where the object cannot be (its closest path, 2 x 0.64 m, is bin 267): the ratio is 1.00 within
   1 % on E, K and Y, so this is the demo's subtraction, and stays right for an exposure of
   another length;
-- stage geometry: lateral offset x - 0.5 m; depth: the object plane 0.64 m from the spot at its
-  closest (z_offset) over a z travel of 0.15 m (z_range); the spot 1.13 m above the floor
-  (y_offset), the object's sampling positions at that height (Demo.py's sampling_coordinates:
-  y = y_offset), so the height difference is 0 and y_offset drops out. Which end of the z
-  travel is the closest is not stated; Demo.py puts its object grid at z_offset + z_range =
-  0.79 m, and the data decide: the peak range correlates with the depth 0.79 - zpos (0.94 to
-  0.96 on E, K, Y) and not with 0.64 + zpos (-0.07 to 0.28). So the range to the object is
-  r = sqrt((xpos - 0.5)^2 + (0.79 - zpos)^2), stored per frame as truth metadata
-  (`stage_range_m`), with the stage positions.
+- time zero drifts during a scan: `direct_before.mat` (taken before it) peaks earlier than
+  `direct_after.mat` (E 5.0 bins, K 1.2, Y 2.6 bins at the half-height of their rise; the
+  no-object exposures' gate edges move alike, E 792.5 -> 798.5). Frame k of F is cropped from
+  the time zero interpolated linearly between the two (to the nearest bin; a sequence has one
+  time axis), so every frame's bin 0 is its own wall return; without direct_before, no drift;
+- the wall return's peak bin is centred on t = 0 (the time axis starts half a bin earlier),
+  nlos_cl's convention that the pulse's peak is at hidden path 0;
+- stage geometry, from Demo.py's forward model (utils.Sample_Lambertian: the range is
+  |sampling point - voxel|): the sampling point (the spot, in the object's frame) is
+  (xpos - 0.5, y_offset = 1.13, zpos), the object's voxels lie in the plane z = z_offset +
+  z_range = 0.79 m, at heights 0.5 .. 1.1 m (the default closeup grid: object_y_offset 0.5,
+  object_scale 0.6) around lateral 0. The range from the spot to the grid's centre
+  (0, 0.8, 0.79) is r = sqrt((xpos - 0.5)^2 + 0.33^2 + (0.79 - zpos)^2), stored per frame as
+  truth metadata (`stage_range_m`) with the stage positions. The data agree on the depth's
+  sign: the peak range correlates with 0.79 - zpos (0.94 to 0.96 on E, K, Y) and not with
+  0.64 + zpos (-0.07 to 0.28). Where on the grid each letter's bright part sits is not
+  documented (Demo.py reconstructs it): a few cm of it is left in any range.
 
 With one spot only the range is observable: nlos_cl's locator refuses a single detector
 (nlos_cl.io.ytal.frames.require_locatable). A range per frame (half the hidden path at the peak
@@ -46,6 +54,9 @@ N_BINS = 768  # Demo.py: n_t, the bins kept from time zero
 GATE_BINS = 260  # Demo.py: clip_until, the cropped bins zeroed (the wall's own return)
 X_CENTRE_M = 0.5  # Demo.py: x_offset = -x_range / 2, x_range = 1
 Z_FAR_M = 0.64 + 0.15  # Demo.py: z_offset + z_range, the object's depth at zpos = 0
+# Demo.py: the spot's height y_offset = 1.13 m above the floor; the object grid (closeup, the
+# default) spans object_y_offset 0.5 .. 0.5 + object_scale 0.6 m: its centre is 0.33 m lower.
+HEIGHT_BELOW_SPOT_M = 1.13 - (0.5 + 0.6 / 2)
 FPS = 1.0  # not documented upstream: frame k is at k s (pass --fps)
 
 
@@ -68,26 +79,59 @@ def read_keyhole(folder, *, dt_ps: float = BIN_PS, fps: float = FPS) -> tuple[li
     xpos, zpos = (_h5(scans[0], n).ravel() for n in ("xpos", "zpos"))
     n = data.shape[0]
     require(data.ndim == 2 and len(xpos) == n and len(zpos) == n and len(background) ==
-            data.shape[1], f"{scans[0]}", f"data {data.shape}, xpos {xpos.shape}, zpos "
-            f"{zpos.shape} and the background {background.shape} do not match",
-            "pass the dataset's own, unmodified files")
+            data.shape[1] == len(direct), f"{scans[0]}", f"data {data.shape}, xpos "
+            f"{xpos.shape}, zpos {zpos.shape}, the background {background.shape} and the "
+            f"direct return {direct.shape} do not match", "pass the dataset's own, unmodified "
+            "files")
     zero = int(np.argmax(direct))
-    require(zero + N_BINS <= data.shape[1], f"{folder / 'direct_after.mat'}", f"peaks at bin "
-            f"{zero}, too late for {N_BINS} bins after it", "pass the dataset's own files")
-    crop, bg = data[:, zero:zero + N_BINS], background[zero:zero + N_BINS]
+    drift = _time_zero_drift(folder, direct, n)
+    starts = zero + np.round(drift).astype(int)  # frame k's own wall return, to the bin
+    require(starts.min() >= 0 and starts.max() + N_BINS <= data.shape[1],
+            f"{folder / 'direct_after.mat'}", f"peaks at bin {zero} (drift {drift[0]:+.1f} "
+            f"bins), too near the record's ends for {N_BINS} bins after it",
+            "pass the dataset's own files")
+    rows = np.arange(n)[:, None]
+    crop = data[rows, starts[:, None] + np.arange(N_BINS)[None, :]]
+    bg = background[zero:zero + N_BINS]
     scale = crop[:, :GATE_BINS].sum(axis=1) / max(bg[:GATE_BINS].sum(), 1.0)
     signal = crop - scale[:, None] * bg[None, :]
     signal[:, :GATE_BINS] = 0.0
-    axis = TimeAxis(0.0, dt_ps * 1e-12, N_BINS)
+    axis = TimeAxis(-0.5 * dt_ps * 1e-12, dt_ps * 1e-12, N_BINS)  # bin 0's centre at t = 0
     spot = np.zeros((1, 3))
     frames = [(k / fps, HistogramSet(signal[k:k + 1], axis, spot, spot,
                                      PathCalibration(SPEED_OF_LIGHT, [0.0]))) for k in range(n)]
-    ranges = np.hypot(xpos - X_CENTRE_M, Z_FAR_M - zpos)
+    ranges = np.sqrt((xpos - X_CENTRE_M) ** 2 + HEIGHT_BELOW_SPOT_M ** 2 + (Z_FAR_M - zpos) ** 2)
     return frames, {"fps": float(fps), "stage_range_m": ranges.tolist(),
                     "xpos_m": xpos.tolist(), "zpos_m": zpos.tolist(), "time_zero_bin": zero,
+                    "time_zero_drift_bins": [round(float(d), 3) for d in drift],
                     "background_scale": scale.tolist(), "gate_bins": GATE_BINS,
-                    "truth": "stage_range_m = sqrt((xpos - 0.5)^2 + (0.79 - zpos)^2), from "
-                             "the stage (Demo.py's geometry)"}
+                    "truth": "stage_range_m = sqrt((xpos - 0.5)^2 + 0.33^2 + (0.79 - zpos)^2): "
+                             "the range to the centre of Demo.py's object grid"}
+
+
+def _time_zero_drift(folder: Path, after: np.ndarray, n: int) -> np.ndarray:
+    """(n,) bins by which frame k's time zero precedes direct_after's: the before and after
+    returns' difference, linear in the frame index (0 without direct_before.mat). Measured at
+    the half height of each return's rise: their peaks are clipped at 65,535 counts."""
+    path = folder / "direct_before.mat"
+    if not path.is_file():
+        return np.zeros(n)
+    before = _h5(path, "direct_before").ravel()
+    require(len(before) == len(after), f"{path}", f"holds {len(before)} bins, direct_after "
+            f"{len(after)}", "pass the dataset's own, unmodified files")
+    shift = _rise_bin(before) - _rise_bin(after)
+    return shift * (1.0 - np.arange(n) / max(n - 1, 1))
+
+
+def _rise_bin(direct: np.ndarray) -> float:
+    """Where the return first reaches half its peak (interpolated bin)."""
+    k = int(np.argmax(direct))
+    half = 0.5 * direct[k]
+    below = np.flatnonzero(direct[:k + 1] < half)
+    require(below.size > 0 and direct[k] > 0, "direct return", "has no rise before its peak",
+            "pass the dataset's own direct_before.mat / direct_after.mat")
+    j = int(below[-1])
+    return j + float((half - direct[j]) / (direct[j + 1] - direct[j]))
 
 
 def _h5(path, name) -> np.ndarray:
