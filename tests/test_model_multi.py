@@ -17,6 +17,7 @@ from nlos_cl.localization.model import ModelEstimator
 from nlos_cl.localization.model.data import signal_windows
 from nlos_cl.localization.model.likelihood import nonnegative_lstsq
 from nlos_cl.localization.model.select import separate
+from nlos_cl.localization.model.starts import MAX_AMPLITUDE_RATIO, plausible
 
 SPOTS = [[-0.880, 0.0, -0.932], [-0.343, 0.0, -0.711], [-0.266, 0.0, -0.135],
          [-0.726, 0.0, 0.219], [-1.263, 0.0, -0.002], [-1.340, 0.0, -0.577]]
@@ -90,3 +91,11 @@ def test_plates_that_touch_are_not_separate_objects():
     assert not separate([face, side])
     assert separate([face, far])
     assert not separate([face, far, side])
+
+
+def test_amplitudes_of_one_frame_stay_within_a_ratio_of_reflectances():
+    ratio = MAX_AMPLITUDE_RATIO
+    assert plausible([1.0, 0.5 * ratio], 2)
+    assert not plausible([1.0, 2.0 * ratio], 2)
+    assert plausible([0.0, 1.0, 3.0], 3)  # a zero amplitude is the fit's report, not this test
+    assert plausible([5.0, 1e9, 2.0], 1)  # one target, then the backgrounds (Poisson): no ratio

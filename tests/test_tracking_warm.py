@@ -183,3 +183,22 @@ def test_gate_fallback_sees_a_warm_fit_outside_every_gate():
         return kalman.measurement(src, 2, fallback_sigma_m=0.05, min_sigma_m=0.002)
     assert not warm.outside_gates([measured(near)], [(track, x, P)], 0.999)
     assert warm.outside_gates([measured(far)], [(track, x, P)], 0.999)
+
+
+def test_a_plate_the_data_want_none_of_has_no_information(scored, cold):
+    """A second plate held at amplitude 0 (the non-negative bound) has zero derivatives; its
+    parameters are unknown, so their variance is infinite, not the 0 a pseudo-inverse gives."""
+    from nlos_cl.localization.model.fit import FitResult, covariance
+    est = ModelEstimator()
+    obs = est.observation(scored)
+    host = HostProblem(obs, est.lattice_for(obs))
+    first = np.array(list(cold.details["params"].values()))
+    spare = np.array([-3.0, 0.5, 0.0, 0.3, 0.3, 0.0])  # beside the wall, far to the side
+    params = np.stack([first, spare])
+    cols = host.columns(params)
+    lin = np.array([host.linear(cols[:1])[0], 0.0])
+    r = host.residual(cols, lin)
+    cov, _ = covariance(host, FitResult(params, lin, float(r @ r), r.size, 0),
+                        np.array([True, True, False, True, True, True]))
+    assert np.all(np.isinf(np.diag(cov)[6:]))
+    assert np.all(np.isfinite(np.diag(cov)[[0, 1, 3, 4, 5]]))

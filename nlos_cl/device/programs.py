@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import os
 import tempfile
+import time
 from pathlib import Path
 
 from .devices import cl
@@ -28,6 +29,7 @@ FOLDER_NAME = ("nlos_cl", "programs-v1")
 # PoCL's binaries carry every kernel's compiled code: 0.1-10 MB a program (the test suite builds
 # ~100 programs, ~200 MB). Past this total, the least recently used are removed.
 MAX_FOLDER_BYTES = 512 << 20
+STALE_TMP_S = 3600.0  # a .tmp this old belongs to no living writer
 
 
 def cache_folder() -> Path:
@@ -87,6 +89,12 @@ def evict(folder: Path, max_bytes: int = MAX_FOLDER_BYTES) -> None:
     """Remove the least recently used binaries until the folder holds at most max_bytes (run
     after each store, so only processes that built something pay for the listing)."""
     entries = []
+    for path in folder.glob("*.tmp"):  # left by a writer that was killed mid-write
+        try:
+            if time.time() - path.stat().st_mtime > STALE_TMP_S:
+                path.unlink()
+        except OSError:
+            pass
     for path in folder.glob("*.bin"):
         try:
             st = path.stat()

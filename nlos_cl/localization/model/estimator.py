@@ -198,7 +198,10 @@ def _model_reflectance(value):
     if value is None:
         return None
     from ...physics.reflectance import Lambertian, as_reflectance
-    model = as_reflectance(value)  # validates: a number or a reflectance model
+    require(isinstance(value, (int, float)) or hasattr(value, "scale"), "reflectance",
+            f"must be None, a Lambertian BRDF number or a reflectance model, got {value!r}",
+            "pass e.g. nl.Retroreflective(retro=0.7, width_rad=0.005, diffuse=0.2)")
+    model = as_reflectance(value)
     return None if isinstance(model, Lambertian) else model
 
 

@@ -198,6 +198,12 @@ def covariance(problem, result: FitResult, free) -> tuple[np.ndarray, dict]:
     full = np.full((params.size, params.size), np.inf)
     mask = np.tile(np.asarray(free, bool), len(params))
     full[np.ix_(mask, mask)] = cov[:n_free, :n_free]
+    n = shape_of(problem).N_PARAMS
+    for k in np.flatnonzero(np.asarray(result.linear[:len(params)]) <= 0):
+        # amplitude 0 (held at the bound: the data want none of this target): its parameters'
+        # derivatives are 0, so pinv gave them a variance of 0, not the infinity they have
+        full[k * n:(k + 1) * n, :] = np.inf
+        full[:, k * n:(k + 1) * n] = np.inf
     return full, info
 
 

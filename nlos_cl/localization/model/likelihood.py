@@ -18,12 +18,15 @@ from . import plate
 MAX_ENUMERATED = 6  # targets; beyond, projected coordinate descent
 
 
-def nonnegative_lstsq(gram, rhs) -> np.ndarray:
-    """argmin_{a >= 0} a'Ga - 2 a'r for the normal equations (G = A'A, r = A'b). For K <=
-    MAX_ENUMERATED every support is tried (2^K - 1 solves of <= K x K; SciPy's nnls costs a
-    one-shot locate its import); larger K by coordinate descent. The unconstrained solution
-    is returned unchanged when it is already >= 0."""
+def nonnegative_lstsq(gram, rhs, free=None) -> np.ndarray:
+    """argmin_{a >= 0} a'Ga - 2 a'r for the normal equations (G = A'A, r = A'b). `free`: the
+    unconstrained solution where the caller has it from A itself (lstsq on A, not on G, whose
+    condition number is A's squared: nearly collinear plates), returned unchanged when >= 0.
+    Otherwise, for K <= MAX_ENUMERATED every support is tried (2^K - 1 solves of <= K x K;
+    SciPy's nnls costs a one-shot locate its import); larger K by coordinate descent."""
     k = len(rhs)
+    if free is not None and np.all(free >= 0):
+        return free
     scale = np.sqrt(np.maximum(np.diag(gram), 1e-300))  # equilibrated: amplitudes of any unit
     g, r = gram / np.outer(scale, scale), rhs / scale
     free = np.linalg.lstsq(g, r, rcond=None)[0]
@@ -97,7 +100,10 @@ class Problem:
         w = (1.0 / self.obs.noise)[None, :, None]
         a_mat = (cols * w).reshape(len(cols), -1)
         b = (self.obs.y * w[0]).reshape(-1)
-        return nonnegative_lstsq(a_mat @ a_mat.T, a_mat @ b)
+        free, *_ = np.linalg.lstsq(a_mat.T, b, rcond=None)
+        if np.all(free >= 0):
+            return free
+        return nonnegative_lstsq(a_mat @ a_mat.T, a_mat @ b, free)
 
     def _poisson_linear(self, cols, warm=None, iters=12):
         """Newton on (a_1..a_K, b_1..b_D) of the Poisson log-likelihood, kept >= 0. The

@@ -41,8 +41,19 @@ def best_of(problem, rows, free, final_nfev, fixed=None, keep=3):
     prefix = [] if fixed is None else list(fixed)
     chosen = starts.best_starts(problem, rows, fixed, keep=keep)
     short = [fit(problem, np.array(prefix + [p]), free, SHORT_NFEV) for p in chosen]
-    best = min(short, key=lambda r: r.cost)
-    return fit(problem, best.params, free, final_nfev)
+    short.sort(key=lambda r: (not _plausible(r), r.cost))
+    final = fit(problem, short[0].params, free, final_nfev)
+    for other in short[1:]:  # a fit that drifted to implausible amplitudes: the next start
+        if _plausible(final):
+            break
+        again = fit(problem, other.params, free, final_nfev)
+        if _plausible(again):
+            final = again
+    return final
+
+
+def _plausible(result) -> bool:
+    return starts.plausible(result.linear, len(result.params))
 
 
 def one_plate(problem, argmax_position, free, z0, final_nfev):
@@ -57,7 +68,10 @@ def add_plate(problem, current, free, z0, final_nfev):
     if problem.obs.mode == "poisson":
         rest = rest + problem.obs.y[:, :5].mean(axis=1, keepdims=True)
     centres = starts.start_centres(problem.obs, None, bool(free[2]), z0, data=rest)
-    centres += starts.residual_centres(problem.obs, rest, [p[:3] for p in current.params], z0,
+    mu = problem.mean(cols, current.linear)
+    z = ((problem.obs.y - mu) / problem.obs.noise[:, None] if problem.obs.mode == "gauss"
+         else (problem.obs.y - mu) / np.sqrt(np.maximum(mu, 1.0)))  # counts: Poisson's sd
+    centres += starts.residual_centres(problem.obs, z, [p[:3] for p in current.params], z0,
                                        bool(free[2]), count=RESIDUAL_STARTS)
     rows = starts.candidates(centres, problem.obs.laser)
     joint = best_of(problem, rows, free, final_nfev, fixed=current.params)
@@ -104,7 +118,7 @@ def accepts(problem, before, after, free) -> tuple[bool, dict]:
     energy = np.array([np.sum((a * c) ** 2) for a, c in zip(after.linear, cols)])
     share = float(energy.min() / max(energy.sum(), 1e-300))
     apart = separate(after.params)
-    ok = gain > penalty and (adequate or share >= MIN_SHARE or apart)
+    ok = gain > penalty and share > 0 and (adequate or share >= MIN_SHARE or apart)
     return ok, {"bic_gain": gain - penalty, "share": share, "birge_after": birge,
                 "explains_data": bool(adequate), "apart": apart}
 
