@@ -43,10 +43,18 @@ def groups(rows, keys=GROUP) -> dict:
     return out
 
 
+# The issue's one-target goal is for "any layout of >= 3 non-degenerate spots": spots on one
+# line with the laser spot leave the height unobservable (draws.yaml's min_spread_m), so the
+# one and closed families also get a row without their line layouts.
+OFF_LINE = "off a line"
+
+
 def summary(rows, failure_m: float) -> list[dict]:
     """One row per family (mismatch: per sub-family; the others: all shapes together) and
-    estimator."""
+    estimator; for one and closed also their draws whose spots are not on a line (OFF_LINE)."""
     keyed = [{**r, "sub": r["sub"] if r["family"] == "mismatch" else "all"} for r in rows]
+    keyed += [{**r, "sub": OFF_LINE} for r in rows if r["family"] in ("one", "closed")
+              and not str(r["layout"]).startswith("line")]
     return [{"family": f, "sub": sub, "estimator": est, **stats(g, failure_m)}
             for (f, sub, est), g in groups(keyed).items()]
 
@@ -89,6 +97,14 @@ def goals(summ) -> list[dict]:
         goal("one target: default p90", one, _m(one["p90_m"]), "<= 0.03 m", one["p90_m"] <= 0.03)
         goal("one target: default beyond 0.15 m without a warning", one,
              str(one["unwarned_failures"]), "0", one["unwarned_failures"] == 0)
+    off = _find(summ, "one", "default", OFF_LINE)
+    if off:
+        goal(f"one target, spots {OFF_LINE}: default median", off, _m(off["median_m"]),
+             "<= 0.01 m", off["median_m"] <= 0.01)
+        goal(f"one target, spots {OFF_LINE}: default p90", off, _m(off["p90_m"]), "<= 0.03 m",
+             off["p90_m"] <= 0.03)
+        goal(f"one target, spots {OFF_LINE}: beyond 0.15 m without a warning", off,
+             str(off["unwarned_failures"]), "0", off["unwarned_failures"] == 0)
     for sub in sorted({r["sub"] for r in summ if r["family"] == "mismatch"}):
         d, p = _find(summ, "mismatch", "default", sub), _find(summ, "mismatch", "paper", sub)
         if d and p:
@@ -105,6 +121,10 @@ def goals(summ) -> list[dict]:
     if closed:
         goal("closed: default centre p90", closed, _m(closed["p90_m"]), "<= 0.10 m",
              closed["p90_m"] <= 0.10)
+    off = _find(summ, "closed", "default", OFF_LINE)
+    if off:
+        goal(f"closed, spots {OFF_LINE}: default centre p90", off, _m(off["p90_m"]),
+             "<= 0.10 m", off["p90_m"] <= 0.10)
     return out
 
 
