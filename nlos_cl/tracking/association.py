@@ -3,6 +3,7 @@
 Screening (per frame, before any track is looked at):
 - a measurement whose position sd exceeds `max_sigma_m` along some measured axis says nothing
   useful about where a target is (a spare plate fitted to noise reports sd of metres): dropped;
+  so is one with no measured axis at all (a plate held at amplitude 0: every variance infinite);
 - a measurement from a fit that does not explain the frame (the model estimator's Birge ratio,
   residual variance / the noise's, above `max_birge_ratio`: a wrong local minimum, or a scene
   beyond the model) is dropped; estimators that report no Birge ratio are not screened;
@@ -37,6 +38,8 @@ def screen(measurements, *, max_sigma_m, max_birge_ratio, gate_probability) -> l
         fit = getattr(m.source, "fit", None)  # a model fit's typed result, or None
         birge = None if fit is None else fit.birge_ratio
         if max_birge_ratio is not None and birge is not None and birge > max_birge_ratio:
+            continue
+        if not len(m.axes):  # every variance infinite (a plate the data want none of)
             continue
         if max_sigma_m is not None and len(m.axes) and \
                 np.linalg.eigvalsh(m.R).max() > max_sigma_m ** 2:

@@ -27,8 +27,9 @@ class Lifecycle:
         self.max_history = max_history
         self._ids = itertools.count(1)
 
-    def birth(self, m, t: float, frame_index: int) -> Track:
-        """A tentative track at measurement m (confirmed at once where M = 1)."""
+    def birth(self, m, t: float, frame_index: int, numbered: bool = True) -> Track:
+        """A tentative track at measurement m (confirmed at once where M = 1); numbered=False:
+        id 0, no id used up (a re-acquisition candidate, nlos_cl.tracking.recovery)."""
         d = self.dims
         x, P = np.zeros(2 * d), np.zeros((2 * d, 2 * d))
         x[:d] = np.asarray(m.position[:d])
@@ -37,7 +38,7 @@ class Lifecycle:
         P[:d, :d] = np.diag(np.full(d, 4.0))  # unmeasured axes: +-2 m, the scale of a room
         P[np.ix_(m.axes, m.axes)] = m.R
         P[d:, d:] = self.motion.initial_speed_sigma ** 2 * np.eye(d)
-        track = Track(next(self._ids), x, P, self.plane_z, t_s=t,
+        track = Track(next(self._ids) if numbered else 0, x, P, self.plane_z, t_s=t,
                       history=deque(maxlen=self.max_history),
                       steps=deque(maxlen=self.max_history))
         if self.confirm[0] <= 1:

@@ -67,16 +67,20 @@ class Track:
         a `Smoothed(frame, t_s, position, covariance, velocity)` per frame of the history, each
         using the frames after it as well. Costs one small solve per frame. last: only the
         last `last` frames (the backward pass needs nothing older: the first of them is the
-        fixed-lag estimate, `Tracker.lagged`)."""
+        fixed-lag estimate, `Tracker.lagged`). A re-acquired track's record (no prediction
+        into the frame it was re-found at: nlos_cl.tracking.recovery) is smoothed in segments."""
         d = self.dims
         n = 2 * d
         steps, history = _tail(self.steps, last), _tail(self.history, last)
-        filtered, predicted = [], []
-        for row in steps:  # unpack: x (n), P (n^2), x_pred (n), P_pred (n^2), dt
+        filtered, predicted, smooth = [], [], []
+        for k, row in enumerate(steps):  # unpack: x (n), P (n^2), x_pred (n), P_pred (n^2), dt
+            if k and not math.isfinite(row[-1]):  # a restart: what came before, smoothed alone
+                smooth += kalman.rts_smooth(filtered, predicted)
+                filtered, predicted = [], []
             filtered.append((row[:n], row[n:n + n * n].reshape(n, n)))
             predicted.append((ConstantVelocity.transition(row[-1], d),
                               row[n + n * n:2 * n + n * n], row[2 * n + n * n:-1].reshape(n, n)))
-        smooth = kalman.rts_smooth(filtered, predicted)
+        smooth += kalman.rts_smooth(filtered, predicted)
         out = []
         for h, (x, P) in zip(history, smooth):
             view = Track(self.id, x, P, self.plane_z)

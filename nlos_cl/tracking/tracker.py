@@ -14,8 +14,11 @@ their prediction -> measurements left over start tentative tracks (while fewer t
 (`confirm=(M, N)`) and deleted if it is not; a confirmed track is deleted after `max_misses`
 frames in a row without a measurement. Identities survive crossings because the assignment
 compares measurements with each track's *predicted* position and covariance, and tracks coast
-where the measurements cannot tell the targets apart. `smooth()`: the offline RTS smoother
-over every track's record.
+where the measurements cannot tell the targets apart. A target whose track lost it while every
+slot is taken (`reacquire=True`, nlos_cl.tracking.recovery) is re-found by free measurements
+with a birth's M-of-N evidence and continues that track, under its id, where the track could
+have reached it at a birth's speed prior. `smooth()`: the offline RTS smoother over every
+track's record.
 """
 from __future__ import annotations
 
@@ -29,6 +32,7 @@ from ..core.errors import InputError, require
 from ..core.tuning import auto_log_mode
 from . import association, kalman, warm
 from .lifecycle import Lifecycle
+from .recovery import Recovery
 from .motion import MEMBERS as MOTION_MEMBERS, ConstantVelocity
 from .track import Smoothed, Track  # noqa: F401  (Smoothed: what Track.smoothed() returns)
 
@@ -56,7 +60,7 @@ class Tracker:
                  confirm=(2, 3), max_misses: int = 5, frame_interval_s: float = 0.1,
                  max_history: int | None = None, backend=None, search="auto",
                  max_sigma_m: float | None = 0.5, max_birge_ratio: float | None = None,
-                 warm_start: bool = True):
+                 warm_start: bool = True, reacquire: bool = True):
         from ..core.grid import Grid
         from ..localization.estimators import as_estimator
         from ..localization.filter import GaussFilter
@@ -82,6 +86,8 @@ class Tracker:
         self.lifecycle = Lifecycle(motion, self.dims, self.plane_z, confirm=confirm,
                                    max_misses=max_misses, max_history=max_history)
         self.max_tracks, self.gate_probability = int(max_tracks), float(gate_probability)
+        self.recovery = Recovery(self.lifecycle, motion, self.gate_probability) \
+            if reacquire else None
         self.frame_interval_s, self.backend = float(frame_interval_s), backend
         self.max_sigma_m, self.max_birge_ratio = max_sigma_m, max_birge_ratio
         self._as_measurement = functools.partial(
@@ -176,15 +182,24 @@ class Tracker:
             track.state, track.covariance = kalman.update(track.state, track.covariance, m)
             track.plate = warm.plate_of(m)
         paired = {id(tr) for tr, _ in pairs}
-        for track in list(self.tracks):
-            if self.lifecycle.account(track, id(track) in paired, self.frame_index):
-                self.tracks.remove(track)
-                self.finished = (self.finished + [track])[-100:]
-        for m in free:
-            if len(self.tracks) < self.max_tracks:
-                self.tracks.append(self.lifecycle.birth(m, t, self.frame_index))
+        if self.recovery is not None:  # a lost target re-found continues its track
+            recovered, free = self.recovery.step(self.tracks, paired, free, t, self.frame_index,
+                                                 len(self.tracks) >= self.max_tracks)
+            paired |= recovered
+        _bury_and_bear(self, paired, free, t)
         self.t_s = t
         return list(self.tracks)
+
+
+def _bury_and_bear(tracker, paired: set, free: list, t: float) -> None:
+    """Count each track's hit or miss (deleting where due), then births from `free`."""
+    for track in list(tracker.tracks):
+        if tracker.lifecycle.account(track, id(track) in paired, tracker.frame_index):
+            tracker.tracks.remove(track)
+            tracker.finished = (tracker.finished + [track])[-100:]
+    for m in free:
+        if len(tracker.tracks) < tracker.max_tracks:
+            tracker.tracks.append(tracker.lifecycle.birth(m, t, tracker.frame_index))
 
 def _next_time(previous, t_s, interval):
     """The frame's time: t_s, checked to come after the previous frame's, or one interval on."""

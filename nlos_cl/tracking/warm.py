@@ -61,8 +61,8 @@ def outside_gates(measurements, predictions, gate_probability) -> bool:
     """Is some warm-fitted measurement outside the gate of every start track?"""
     for m in measurements:
         fit = getattr(m.source, "fit", None)
-        if fit is None or fit.warm_start is None or not fit.warm_start.used:
-            continue
+        if fit is None or fit.warm_start is None or not fit.warm_start.used or not len(m.axes):
+            continue  # (no measured axis: a plate held at amplitude 0 says nothing of where)
         gate = kalman.gate_threshold(gate_probability, len(m.axes))
         if all(kalman.mahalanobis2(x, P, m) > gate for _, x, P in predictions):
             return True
