@@ -14,7 +14,7 @@ import pytest
 
 import nlos_cl as nl
 from nlos_cl.localization.model import ModelEstimator
-from nlos_cl.localization.model.data import signal_windows
+from nlos_cl.localization.model.data import TARGETS_FRAC, signal_windows
 from nlos_cl.localization.model.likelihood import nonnegative_lstsq
 from nlos_cl.localization.model.select import separate
 from nlos_cl.localization.model.starts import MAX_AMPLITUDE_RATIO, plausible
@@ -60,12 +60,15 @@ def test_the_weak_far_plate_is_found(frame, targets):
     assert all(t.fit.amplitude > 0 for t in loc.targets)
 
 
-def test_the_window_keeps_a_target_at_one_percent_of_the_peak():
+def test_the_window_keeps_a_target_at_one_percent_of_the_peak_when_there_are_several():
     row = np.zeros(4000)
     row[1000:1010] = 100.0  # the strong target
     row[3000:3010] = 1.0  # 1 % of its peak, far above the noise
-    (first, last), = signal_windows(row[None], np.array([0.01]), margin_bins=5)
+    (first, last), = signal_windows(row[None], np.array([0.01]), margin_bins=5,
+                                    frac=TARGETS_FRAC)
     assert first <= 995 and last >= 3014
+    (first, last), = signal_windows(row[None], np.array([0.01]), margin_bins=5)
+    assert last < 1100  # one target: its main lobe (ONE_TARGET_FRAC)
 
 
 @pytest.mark.parametrize("k", [1, 2, 3, 5, 8])

@@ -74,12 +74,22 @@ def full_gauss_taps(h_s, dt_s, reach=5.0):
     return taps / taps.sum()
 
 
-def signal_windows(filtered, noise, margin_bins, frac=0.003, n_sigma=6.0):
+# The window's floor, a fraction of each row's peak (it bounds the window of noise-free data).
+# One target: its main lobe, 3 %; the tail below carries more model error than signal (closed
+# shapes on 40 draws: spheres 0.015 -> 0.05 m, a cylinder 0.015 -> 0.10 m at 0.3 %). Several
+# targets: 0.3 %, or a target 2.4x farther than the strongest (1/r^4: 2-11 % of its peak) is
+# cut out of the window and the fit cannot see it (a plate 8.3 m off).
+ONE_TARGET_FRAC, TARGETS_FRAC = 0.03, 0.003
+
+
+def window_frac(targets) -> float:
+    """The window's floor for a fit of `targets` (an int or 'auto')."""
+    return ONE_TARGET_FRAC if targets == 1 else TARGETS_FRAC
+
+
+def signal_windows(filtered, noise, margin_bins, frac=ONE_TARGET_FRAC, n_sigma=6.0):
     """Per detector (first, last) bin of the signal: where the filtered row exceeds both
-    n_sigma noise and `frac` of its peak, widened by margin_bins. frac bounds the window of
-    noise-free data; at 0.03 it cut off targets 2.4x farther than the strongest (1/r^4: a
-    third target 2.2 x as far carried 5 % of the peak, 2.3 % at some detectors) and the
-    fit could not see them."""
+    n_sigma noise and `frac` of its peak, widened by margin_bins."""
     out = []
     for row, s in zip(filtered, noise):
         row = row - np.median(row)  # photon counts sit on a dark/ambient floor
@@ -112,7 +122,7 @@ def _starts(windows, n_samples, stride, n_bins):
 
 
 def gaussian_observation(layout, filtered, raw, *, h_s=PAPER_H_S, pulse_sigma_s=29.73e-12,
-                         margin_m=0.35) -> Observation:
+                         margin_m=0.35, frac=ONE_TARGET_FRAC) -> Observation:
     """Filtered samples around the signal. `filtered`: (D, N) host rows after the Gauss filter
     of window `h_s`; `raw`: the same frame unfiltered (or None: the filtered rows are used)."""
     axis, paths = layout.time_axis, layout.path_axis()
@@ -126,7 +136,7 @@ def gaussian_observation(layout, filtered, raw, *, h_s=PAPER_H_S, pulse_sigma_s=
     # information for its MAD at an eighth of the cost (1,024 rows x 60,000 bins: 2 s).
     f_noise = _mad_std(filtered[:, ::8])
     margin = int(math.ceil((margin_m + 3 * sigma_f) / (a * axis.dt_s)))
-    wins = signal_windows(filtered, f_noise, margin)
+    wins = signal_windows(filtered, f_noise, margin, frac)
     n = int(math.ceil((wins[:, 1] - wins[:, 0]).max() / stride)) + 1
     k0 = _starts(wins, n, stride, axis.n_bins)
     idx = k0[:, None] + stride * np.arange(n)[None, :]
@@ -152,12 +162,12 @@ def gaussian_observation(layout, filtered, raw, *, h_s=PAPER_H_S, pulse_sigma_s=
 
 
 def poisson_observation(layout, counts, filtered, *, pulse_sigma_s=29.73e-12, jitter_s=30e-12,
-                        margin_m=0.35) -> Observation:
+                        margin_m=0.35, frac=ONE_TARGET_FRAC) -> Observation:
     """Photon counts per bin around the signal (windows found on the filtered rows)."""
     axis, paths = layout.time_axis, layout.path_axis()
     a = layout.calibration.a_m_per_s
     step = a * axis.dt_s
-    wins = signal_windows(filtered, _mad_std(filtered), int(math.ceil(margin_m / step)))
+    wins = signal_windows(filtered, _mad_std(filtered), int(math.ceil(margin_m / step)), frac)
     n = int((wins[:, 1] - wins[:, 0]).max()) + 1
     k0 = _starts(wins, n, 1, axis.n_bins)
     idx = k0[:, None] + np.arange(n)[None, :]
@@ -177,7 +187,8 @@ def looks_like_counts(values) -> bool:
     return bool(v.min() >= 0 and np.allclose(v, np.round(v), atol=1e-3) and v.max() >= 1)
 
 
-def observation(scored, likelihood: str, *, h_s: float, pulse_sigma_s: float, jitter_s: float):
+def observation(scored, likelihood: str, *, h_s: float, pulse_sigma_s: float, jitter_s: float,
+                frac: float = ONE_TARGET_FRAC):
     """A scored frame as the fit sees it: a Gauss observation of the filtered data, or (counts
     in `raw`, likelihood 'poisson' or 'auto') a Poisson one."""
     be, layout = scored.backend, scored.signals.layout
@@ -191,5 +202,6 @@ def observation(scored, likelihood: str, *, h_s: float, pulse_sigma_s: float, ji
         require(raw is not None, "raw", "the Poisson likelihood needs the photon counts",
                 "pass raw=counts to locate")
         return poisson_observation(layout, raw * scored.raw.scale_w, filtered,
-                                   pulse_sigma_s=pulse_sigma_s, jitter_s=jitter_s)
-    return gaussian_observation(layout, filtered, raw, h_s=h_s, pulse_sigma_s=pulse_sigma_s)
+                                   pulse_sigma_s=pulse_sigma_s, jitter_s=jitter_s, frac=frac)
+    return gaussian_observation(layout, filtered, raw, h_s=h_s, pulse_sigma_s=pulse_sigma_s,
+                                frac=frac)

@@ -84,9 +84,9 @@ class ModelEstimator:
         self.timings: dict = {}
 
     def observation(self, scored):
-        """The frame as the fit sees it (nlos_cl.localization.model.data.observation)."""
-        return data.observation(scored, self.likelihood, h_s=self.h_s,
-                                pulse_sigma_s=self.pulse_sigma_s, jitter_s=self.jitter_s)
+        return data.observation(scored, self.likelihood, frac=data.window_frac(self.targets),
+                                h_s=self.h_s, pulse_sigma_s=self.pulse_sigma_s,
+                                jitter_s=self.jitter_s)
 
     # ------------------------------------------------------------------ the estimate
     def estimate(self, scored, prior: Prior | None = None, *, start=None) -> Estimate:
