@@ -48,6 +48,13 @@ def _number(field: str, value, low: float, high: float, fix: str) -> float:
     return float(value)
 
 
+def _albedo(what: str, total: float, fix: str) -> None:
+    """A model's parts' albedos summed: some light reflected, never more than received."""
+    require(total > 0, "reflectance", f"{what} is 0: the target reflects nothing", fix)
+    require(total <= 1.0, "reflectance", f"{what} exceeds 1: the surface would reflect more "
+            "light than it receives", fix)
+
+
 @dataclass(frozen=True)
 class GGX:
     """A glossy surface: a GGX (Trowbridge-Reitz) microfacet lobe over an optional diffuse
@@ -68,10 +75,7 @@ class GGX:
         _number("reflectance.specular", self.specular, 0.0, 1.0, fix)
         _number("reflectance.diffuse", self.diffuse, 0.0, 1.0, fix)
         _number("reflectance.roughness", self.roughness, 1e-3, 1.0, fix)
-        require(self.specular + self.diffuse > 0, "reflectance", "specular + diffuse is 0: the "
-                "target reflects nothing", fix)
-        require(self.specular + self.diffuse <= 1.0, "reflectance", "specular + diffuse "
-                "exceeds 1: the surface would reflect more light than it receives", fix)
+        _albedo("specular + diffuse", self.specular + self.diffuse, fix)
 
     @property
     def scale(self) -> float:
@@ -128,10 +132,7 @@ class Retroreflective:
         _number("reflectance.retro", self.retro, 0.0, 1.0, fix)
         _number("reflectance.diffuse", self.diffuse, 0.0, 1.0, fix)
         _number("reflectance.width_rad", self.width_rad, 1e-3, 1e3, fix)
-        require(self.retro + self.diffuse > 0, "reflectance", "retro + diffuse is 0: the "
-                "target reflects nothing", fix)
-        require(self.retro + self.diffuse <= 1.0, "reflectance", "retro + diffuse exceeds 1: "
-                "the surface would reflect more light than it receives", fix)
+        _albedo("retro + diffuse", self.retro + self.diffuse, fix)
 
     @property
     def scale(self) -> float:

@@ -59,8 +59,8 @@ def candidates(centres, laser, sizes=SIZES, yaw_offsets=YAW_OFFSETS) -> np.ndarr
 
 def best_starts(problem, rows, fixed=None, keep=3) -> list[np.ndarray]:
     """Score each candidate row (with the plates in `fixed` alongside) by its profiled cost;
-    return the `keep` best, distinct in centre or yaw. (All rows in one column_batch: the
-    host model evaluates them in one call.)"""
+    return the `keep` best, distinct in centre or yaw. (The rows go to column_batch
+    SCORE_ROWS at a time: the host model evaluates each group in one call, in bounded memory.)"""
     fixed_cols = problem.columns(fixed) if fixed is not None and len(fixed) else None
     costs, rows = [], np.asarray(rows, np.float64)
     for at in range(0, len(rows), SCORE_ROWS):  # (B, D, n) floats: bounded, B <= SCORE_ROWS
