@@ -18,6 +18,10 @@ from .common import Settings
 # Said for every collinear layout whatever the answer (z is held on the spots' plane, where
 # the draws put the truth): not a sign that this answer is off, so not counted as a warning.
 INFORMATIONAL = ("height (z) is unobservable",)
+# Said where the spots cannot tell how deep one target is (model.depth): a warning about a
+# closed object's centre, which says nothing about a plate's, whose centre is its surface's.
+DEPTH_UNSEEN = ("the spots see only the front of target", "the depth of target")
+CLOSED_SHAPES = ("box", "sphere", "cylinder")
 
 
 def estimators(d: dict) -> list[tuple[str, dict]]:
@@ -42,8 +46,15 @@ def matched_errors(found, truths) -> list[float]:
     return errors
 
 
-def _warned(notes) -> bool:
-    return any(not str(n).startswith(INFORMATIONAL) for n in notes)
+def _warned(notes, closed_truth: bool = True) -> bool:
+    """Did the answer warn? Not counted: the collinear notice, and the depth notice where the
+    truth is a plate (the notice is about closed objects' centres)."""
+    quiet = INFORMATIONAL if closed_truth else INFORMATIONAL + DEPTH_UNSEEN
+    return any(not str(n).startswith(quiet) for n in notes)
+
+
+def depth_unseen(notes) -> bool:
+    return any(str(n).startswith(DEPTH_UNSEEN) for n in notes)
 
 
 def _short(notes) -> str:
@@ -89,6 +100,7 @@ def run(d: dict, s: Settings) -> list[dict]:
     sim_s = time.perf_counter() - start
     truths = np.array([t["centre"] for t in d["targets"]], float)
     rows, base = [], describe(d)
+    closed_truth = any(t["shape"] in CLOSED_SHAPES for t in d["targets"])
     for label, options in estimators(d):
         found, notes, seconds = locate(frame, options)
         errors = matched_errors(found, truths)
@@ -97,7 +109,8 @@ def run(d: dict, s: Settings) -> list[dict]:
                      "error_m": round(worst, 5) if math.isfinite(worst) else math.nan,
                      "errors_m": " ".join(f"{e:.5f}" for e in errors),
                      "missed": sum(math.isnan(e) for e in errors),
-                     "warned": _warned(notes), "seconds": round(seconds, 3),
+                     "warned": _warned(notes, closed_truth),
+                     "depth_unseen": depth_unseen(notes), "seconds": round(seconds, 3),
                      "sim_s": round(sim_s, 3), "warnings": _short(notes),
                      "sim_notes": _short(sim_notes)})
     return rows

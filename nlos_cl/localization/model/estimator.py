@@ -20,6 +20,7 @@ from ..paper import PaperArgmax
 from . import data, plate
 from .fit import centre_covariance, covariance
 from .likelihood import Problem
+from .depth import unseen_note
 from .sanity import checked, unfittable_line
 from .shape import MODELS, name_of
 
@@ -123,7 +124,7 @@ class ModelEstimator:
         problem, chosen, result, free, (cov_all, info), history = fitted
         if warm_info is not None:
             info = dict(info, warm_start=warm_info)
-        notes = [] if observable else [HEIGHT_WARNING.format(z=z0)]
+        notes = _notes(observable, z0, chosen.shape, result, cov_all, info)
         for note in notes:
             warnings.warn(note, stacklevel=3)
         self.timings = _stages(clock, problem)
@@ -235,6 +236,15 @@ def _model_fit(shape, p, result, cov_all, k, info, notes, obs, history, observab
                     obs.mode, result.cost, result.n_residuals, info.get("birge_ratio"),
                     observable, dict(timings), tuple(history), tuple(notes),
                     None if warm is None else WarmStart(**warm), diagnostics)
+
+
+def _notes(observable, z0, shape, result, cov_all, info) -> list[str]:
+    """What every answer of this fit says: z unobservable (collinear spots); one target's depth
+    not seen by these spots."""
+    notes = [] if observable else [HEIGHT_WARNING.format(z=z0)]
+    if len(result.params) == 1 and (why := unseen_note(shape, result, cov_all, info)):
+        notes.append(why)
+    return notes
 
 
 def _order(result):

@@ -67,11 +67,16 @@ class Problem:
         import time
         t = time.perf_counter()
         obs = self.obs
-        facets, blur, shift = self.shape.model_facets(p, self.lattice, obs.spots, obs.laser)
-        sigma = math.sqrt(obs.sigma0_m ** 2 + blur ** 2 - obs.box_excess_m2)
-        hist, _ = self.backend.call("forward", facets, obs.spots, obs.laser, obs.edge0 - shift,
-                                    obs.dpath, sigma, obs.n, self.reflectance)
-        out = np.asarray(self.backend.to_numpy(hist), dtype=np.float64)
+        parts = self.shape.model_facets(p, self.lattice, obs.spots, obs.laser)
+        out = 0.0
+        # a shape gives one (facets, blur, shift) or a list of them (a box: one per face, each
+        # its own pulse blur), one forward call each
+        for facets, blur, shift in parts if isinstance(parts, list) else [parts]:
+            sigma = math.sqrt(obs.sigma0_m ** 2 + blur ** 2 - obs.box_excess_m2)
+            hist, _ = self.backend.call("forward", facets, obs.spots, obs.laser,
+                                        obs.edge0 - shift, obs.dpath, sigma, obs.n,
+                                        self.reflectance)
+            out = out + np.asarray(self.backend.to_numpy(hist), dtype=np.float64)
         self.calls += 1
         self.model_s += time.perf_counter() - t
         return np.where(obs.valid, out, 0.0)

@@ -26,7 +26,7 @@ import math
 import numpy as np
 
 from ...core.stats import chi2_quantile
-from . import box, cylinder, ellipsoid, plate, starts
+from . import box, cylinder, depth, ellipsoid, plate, starts
 from .fit import covariance, fit
 from .shape import name_of
 
@@ -251,6 +251,10 @@ def closed_or_plate(problem, plate_result, free, final_nfev, plate_cov, closed="
             inadequate, birge = misfit(problem, plate_result, free, plate_cov[1])
             plate_cov[1].update(plate_reseated=True)
     plate_cov[1].update(plate_birge_ratio=birge, closed_tried=False)
+    if closed == "auto" and not inadequate:  # does a box behind it explain the data better?
+        seen = depth.probe(problem, plate_result, kappa(problem.obs))
+        plate_cov[1].update(depth_sd_m=seen["depth_sd_m"], box_probe_better=seen["box_better"])
+        inadequate = seen["box_better"]
     if closed is False or (closed == "auto" and not inadequate):
         return problem, plate_result, free, plate_cov
     fits = [fit_closed(problem, plate_result, free, final_nfev, shape) for shape in CLOSED]

@@ -27,7 +27,9 @@ class Shape(Protocol):
     X_SCALE: np.ndarray  # typical scales (the LM fit's variable scaling)
 
     def model_facets(self, p, lattice, spots, laser):
-        """The facets of row p that the laser spot and detectors can see, for the model."""
+        """What the forward model sees of row p (the facets the laser spot and detectors can
+        see): (facets, pulse blur m, per-detector path shift), or a list of such parts, one
+        forward call each (their histograms add)."""
 
     def extent(self, p) -> np.ndarray:
         """Size along the shape's own axes (across, up, along the normal), m."""
