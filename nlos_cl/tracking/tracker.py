@@ -152,7 +152,7 @@ class Tracker:
             starters = warm.starters(predictions, self.estimator.targets)
         location, found = self._locate(sig, None if starters is None else warm.prior(starters))
         if starters is not None and warm.outside_gates(found, starters, self.gate_probability):
-            location, found = self._locate(sig, None)  # another basin: fit this frame cold
+            location, found = warm.better((location, found), self._locate(sig, None))  # cold
         self.last_location, self.last_measurements = location, found
         return found
 

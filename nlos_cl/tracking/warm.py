@@ -8,7 +8,8 @@ runs, ~30 model evaluations on the host instead of ~150 forward calls. Two fallb
 cold (full) fit: the estimator's own (the warm fit misses the data: Birge ratio above its
 99.9 % point), and the tracker's (a warm-fitted position outside every start track's gate: the
 fit found another basin, or the track is wrong; either way the frame is fitted from its data
-alone). The estimator keeps no per-frame state: the prior travels with the call.
+alone too, and the fit with the lower cost is kept: `better`). The estimator keeps no
+per-frame state: the prior travels with the call.
 """
 from __future__ import annotations
 
@@ -67,3 +68,14 @@ def outside_gates(measurements, predictions, gate_probability) -> bool:
         if all(kalman.mahalanobis2(x, P, m) > gate for _, x, P in predictions):
             return True
     return False
+
+
+def better(warm_located, cold_located):
+    """Of two fits of one frame, (Location, measurements) each, the one with the lower cost
+    (chi^2 / 2 of the whole frame; the same data and number of plates): a cold fit that lands
+    in a worse basin than the warm one does not replace it. A fit without a cost loses."""
+    def cost(located):
+        fits = [getattr(m.source, "fit", None) for m in located[1]]
+        costs = [f.cost for f in fits if f is not None and f.cost is not None]
+        return min(costs) if costs else np.inf
+    return warm_located if cost(warm_located) < cost(cold_located) else cold_located
