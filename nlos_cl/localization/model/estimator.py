@@ -113,14 +113,7 @@ class ModelEstimator:
             return Estimate(list(paper.targets), paper.cell_position, paper.score)
         z0 = float(scored.grid.origin[2] + 0.5 * (scored.grid.shape[2] - 1) * scored.grid.step[2])
         free = np.array([True, True, observable, True, True, True])
-        fitted, warm_info = None, None
-        if start is not None:
-            from .warm import warm_fit
-            fitted, warm_info = warm_fit(self, obs, start_rows(self, start), free, z0,
-                                          scored.backend)
-            clock["warm_fit"] = time.perf_counter()
-        if fitted is None:
-            fitted = self._cold(scored, obs, paper, free, z0, clock)
+        fitted, warm_info = _warm_or_cold(self, scored, obs, paper, free, z0, start, clock)
         problem, chosen, result, free, (cov_all, info), history = fitted
         if warm_info is not None:
             info = dict(info, warm_start=warm_info)
@@ -236,6 +229,24 @@ def _model_fit(shape, p, result, cov_all, k, info, notes, obs, history, observab
                     obs.mode, result.cost, result.n_residuals, info.get("birge_ratio"),
                     observable, dict(timings), tuple(history), tuple(notes),
                     None if warm is None else WarmStart(**warm), diagnostics)
+
+
+def _warm_or_cold(est, scored, obs, paper, free, z0, start, clock):
+    """(fitted, warm_info): the warm fit from `start` where it explains the data, else the cold
+    fit, unless the cold fit costs more than the misfit warm one (same data, same K)."""
+    fitted, warm_info, missed = None, None, None
+    if start is not None:
+        from .warm import warm_fit
+        fitted, warm_info, missed = warm_fit(est, obs, start_rows(est, start), free, z0,
+                                             scored.backend)
+        clock["warm_fit"] = time.perf_counter()
+    if fitted is None:
+        fitted = est._cold(scored, obs, paper, free, z0, clock)
+        if missed is not None and missed[2].cost < fitted[2].cost:
+            fitted = missed
+            warm_info = dict(warm_info, used=True, reason=warm_info["reason"] +
+                             "; the cold fit cost more, so the warm fit is kept")
+    return fitted, warm_info
 
 
 def _notes(observable, z0, shape, result, cov_all, info) -> list[str]:

@@ -236,7 +236,8 @@ def reseat_plate(problem, plate_result, free, final_nfev):
     return result if result.cost < plate_result.cost else plate_result
 
 
-def closed_or_plate(problem, plate_result, free, final_nfev, plate_cov, closed="auto"):
+def closed_or_plate(problem, plate_result, free, final_nfev, plate_cov, closed="auto",
+                    probe_depth=True):
     """Plate or closed shape for one target. The closed shapes (CLOSED) are fitted only where
     the plate, re-seated (`reseat_plate`), still misses the data (`misfit`) or closed=True;
     the one of lowest cost (they share the parameters) is kept where its one more parameter
@@ -251,7 +252,7 @@ def closed_or_plate(problem, plate_result, free, final_nfev, plate_cov, closed="
             inadequate, birge = misfit(problem, plate_result, free, plate_cov[1])
             plate_cov[1].update(plate_reseated=True)
     plate_cov[1].update(plate_birge_ratio=birge, closed_tried=False)
-    if closed == "auto" and not inadequate:  # does a box behind it explain the data better?
+    if closed == "auto" and not inadequate and probe_depth:  # would a box behind it do better?
         seen = depth.probe(problem, plate_result, kappa(problem.obs))
         plate_cov[1].update(depth_sd_m=seen["depth_sd_m"], box_probe_better=seen["box_better"])
         inadequate = seen["box_better"]

@@ -12,7 +12,8 @@ batched model for up to HOST_DETECTORS detectors with model_on='auto', as a cold
 Fallback: where the warm fit misses the data (the Birge ratio above the 99.9 % point of its
 noise distribution: `select.misfit`, the test that also sends a cold fit on to the closed
 shapes), the start was wrong (another basin, a target that turned or changed shape) and the
-estimator runs the cold fit instead. A fit that explains the data but lands far from where the
+estimator runs the cold fit, keeping the warm one where the cold fit costs more (a shadowed
+plate misses the data from any start: crossing draw 7 frame 13, warm Birge 7.9, cold 20). A fit that explains the data but lands far from where the
 caller expected is the caller's to judge (the tracker's gate: nlos_cl.tracking.warm).
 """
 from __future__ import annotations
@@ -35,8 +36,10 @@ WARM_TAU = 1e-6
 
 
 def warm_fit(est, obs, rows, free, z0, backend=None):
-    """(fitted, info): fitted as ModelEstimator._cold returns it, or None where the warm fit
-    misses the data (the caller then fits cold); info: what was tried (details['warm_start'])."""
+    """(fitted, info, missed): fitted as ModelEstimator._cold returns it, or None where the
+    warm fit misses the data (the caller then fits cold, and keeps `missed`, the same tuple of
+    the misfit warm fit, if the cold fit costs more); info: what was tried
+    (details['warm_start'])."""
     from .select import closed_or_plate, misfit
     rows = np.array(rows, dtype=np.float64)
     if not free[2]:
@@ -48,12 +51,13 @@ def warm_fit(est, obs, rows, free, z0, backend=None):
     info = {"used": not inadequate, "birge_ratio": birge, "nfev": result.nfev,
             "forward_calls": problem.calls,
             "moved_m": float(np.max(np.linalg.norm(result.params[:, :3] - rows[:, :3], axis=1)))}
+    history = [{"targets": len(rows), "cost": result.cost, "warm_start": True}]
     if inadequate:
         info["reason"] = "the warm fit misses the data (Birge ratio above its 99.9 % point)"
-        return None, info
+        return None, info, (problem, problem, result, free, cov, history)
     chosen = problem
-    if len(rows) == 1:  # adequate: closed_or_plate keeps the plate (and records why)
+    if len(rows) == 1:  # adequate: closed_or_plate keeps the plate (and records why); no
+        # depth probe: a tracked frame stays a plate fit of a few evaluations
         chosen, result, free, cov = closed_or_plate(problem, result, free, est.final_nfev, cov,
-                                                    est.closed)
-    history = [{"targets": len(rows), "cost": result.cost, "warm_start": True}]
-    return (problem, chosen, result, free, cov, history), info
+                                                    est.closed, probe_depth=False)
+    return (problem, chosen, result, free, cov, history), info, None
