@@ -6,6 +6,7 @@ through `reproduce draws --only crossings`."""
 import copy
 import csv
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -146,6 +147,19 @@ def test_a_quick_run_writes_the_report(tmp_path):
     assert draws_run.describe(d)["truths"] == rows[0]["truths"]
     with pytest.raises(InputError, match="--only"):
         rp.run("draws", s, tmp_path, only=["nothing"])
+
+
+def test_draws_in_worker_processes_are_those_of_one_process():
+    """--jobs 2: the same rows in the same order, times aside (a draw is a pure function of
+    its family, index and master seed)."""
+    s = Settings.make(quick=True)
+    timed = ("seconds", "sim_s")
+    one = draws.run_rows(["one"], 2, s, 2201, g.config())
+    two = draws.run_rows(["one"], 2, s, 2201, g.config(), jobs=2)
+    assert [{k: v for k, v in r.items() if k not in timed} for r in two] == \
+        [{k: v for k, v in r.items() if k not in timed} for r in one]
+    with pytest.raises(InputError, match="--jobs"):
+        draws.draws(s, Path("unused"), only=["one"], jobs=0)
 
 
 FAM = CFG["families"]["crossings"]

@@ -90,6 +90,9 @@ def _reproduce_args(p):
     p.add_argument("--draws", type=_number("draws", "pass a count, e.g. 200", minimum=1,
                                            integer=True), default=None,
                    help="draws: scenes per family (default 200; 1 with --quick)")
+    p.add_argument("--jobs", type=_number("jobs", "pass a count, e.g. 2", minimum=1,
+                                          integer=True), default=None,
+                   help="draws: worker processes, each its own OpenCL context (default 1)")
     p.add_argument("--data", default=None, metavar="DIR",
                    help="real: the measured datasets' folder (default $NLOS_CL_REALDATA, else "
                    "../shared/realdata beside the repository)")

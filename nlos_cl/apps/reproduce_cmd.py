@@ -99,6 +99,8 @@ def main(args) -> int:
         options["cold"] = True
     if getattr(args, "draws", None):  # draws: scenes per family
         options["draws"] = args.draws
+    if getattr(args, "jobs", None):  # draws: worker processes
+        options["jobs"] = args.jobs
     if getattr(args, "data", None):  # real: the measured datasets' folder
         options["data"] = args.data
     results = rp.run(args.name, settings, Path(args.out), **options)

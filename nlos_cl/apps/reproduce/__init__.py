@@ -47,7 +47,7 @@ def run(name: str, s: Settings, out: Path, **options) -> list[Result]:
         for option in options:
             require(option in taken, f"--{option}", f"is not an option of {n}",
                     "leave it out (beyond takes --only; tracking --only and --cold; draws "
-                    "--only and --draws; real --data)")
+                    "--only, --draws and --jobs; real --data)")
     out.mkdir(parents=True, exist_ok=True)
     results = []
     for n in tqdm(names, desc="reproduce", disable=len(names) == 1):

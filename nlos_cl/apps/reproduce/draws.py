@@ -41,21 +41,34 @@ def _families(only) -> list[str]:
     return [n for n in draws_gen.FAMILIES if n in only]
 
 
-def run_rows(families, count: int, s: Settings, master_seed: int, cfg) -> list[dict]:
+def _run_one(job) -> list[dict]:
+    """One draw's rows (a worker process's task: everything it needs is in `job`)."""
     from . import draws_run  # nlos_cl's estimators and SciPy: only when draws run
-    rows = []
-    jobs = [(f, i) for f in families for i in range(count)]
+    family, index, master_seed, cfg, s = job
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # each row keeps its own warnings
-        for family, index in tqdm(jobs, desc=NAME, disable=len(jobs) < 2):
-            rows += draws_run.run(draws_gen.draw(family, index, master_seed, cfg), s)
-    return rows
+        return draws_run.run(draws_gen.draw(family, index, master_seed, cfg), s)
+
+
+def run_rows(families, count: int, s: Settings, master_seed: int, cfg, jobs: int = 1
+             ) -> list[dict]:
+    """Every draw's rows, in (family, index) order whatever `jobs`: with jobs > 1 the draws
+    run in that many spawned processes (each its own OpenCL context; a draw is a pure function
+    of its job, so the rows are those of one process, times aside)."""
+    tasks = [(f, i, master_seed, cfg, s) for f in families for i in range(count)]
+    bar = dict(desc=NAME, total=len(tasks), disable=len(tasks) < 2)
+    if jobs <= 1:
+        return [r for t in tqdm(tasks, **bar) for r in _run_one(t)]
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+    with ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+        return [r for rows in tqdm(pool.map(_run_one, tasks), **bar) for r in rows]
 
 
 def draws(s: Settings, out: Path, only=None, draws: int | None = None,
-          master_seed: int | None = None) -> Result:
+          master_seed: int | None = None, jobs: int | None = None) -> Result:
     """Draw `draws` scenes per family (default draws.yaml's; --quick: quick_draws), run them
-    all, write the summary CSV and the page OUT/draws.md."""
+    all (in `jobs` processes: --jobs), write the summary CSV and the page OUT/draws.md."""
     cfg = draws_gen.config()
     count = draws or (cfg["quick_draws"] if s.quick else cfg["draws"])
     require(isinstance(count, int) and count >= 1, "--draws", f"must be a positive whole "
@@ -63,14 +76,17 @@ def draws(s: Settings, out: Path, only=None, draws: int | None = None,
     seed = cfg["master_seed"] if master_seed is None else int(master_seed)
     families = _families(only)
     start = time.perf_counter()
-    rows = run_rows(families, count, s, seed, cfg)
+    require(jobs is None or (isinstance(jobs, int) and jobs >= 1), "--jobs", f"must be a "
+            f"positive whole number, got {jobs!r}", "pass e.g. --jobs 2 (one per core)")
+    rows = run_rows(families, count, s, seed, cfg, jobs or 1)
     seconds = time.perf_counter() - start
     located = [r for r in rows if r["family"] != cross.FAMILY]
     summ = report.summary(located, cfg["failure_m"]) + cross.summary(rows)
     out.mkdir(parents=True, exist_ok=True)
     write_csv(out / f"{NAME}-summary.csv", uniform(summ))
     options = (" --quick" if s.quick else "") + (f" --draws {draws}" if draws else "") + (
-        " --only " + " ".join(families) if only is not None else "")
+        " --only " + " ".join(families) if only is not None else "") + (
+        f" --jobs {jobs}" if jobs and jobs > 1 else "")
     text = page(rows, summ, cfg, s, options, seconds, seed)
     goals = report.goals(summ) + cross.goals(summ)
     from ...io.safe_write import write_text
@@ -108,7 +124,8 @@ def page(rows, summ, cfg, s: Settings, options: str, seconds: float, seed: int) 
            f"target not found counts as an infinite error. A failure is an error above {fail:g} "
            "m; 'without a warning' counts failures whose answer carried no warning (the "
            "collinear layouts' notice that z is unobservable is not counted: it is said for "
-           "every answer). Times are per call, on shared cores: noisy.")
+           "every answer; nor, where the truth is a plate, the notice that the spots cannot "
+           "see a closed object's depth). Times are per call, on shared cores: noisy.")
     located = [r for r in rows if r["family"] != cross.FAMILY]
     sections = [header, how, "## Goals (issue 22)",
                 report.goal_table(report.goals(summ) + cross.goals(summ))]
