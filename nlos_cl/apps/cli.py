@@ -12,7 +12,7 @@ import sys
 from ..core.limits import MAX_FRAMES, MAX_TARGETS
 from . import terminal
 from .cli_types import (COORD, H_NS, MAX_ACCEL, MAX_FPS, MIN_FPS, SEED, Defaults as _Defaults,
-                        Parser as _Parser, number as _number)
+                        Parser as _Parser, number as _number, reflectance as REFLECTANCE)
 
 
 def _parents():
@@ -199,6 +199,14 @@ def _estimator_args(p):
                    "(default: model; paper for paired and confocal captures)")
     p.add_argument("--targets", type=_targets, default=1,
                    help="targets to fit (model estimator): a count, or 'auto' (by BIC)")
+    _reflectance_arg(p)
+
+
+def _reflectance_arg(p):
+    p.add_argument("--reflectance", type=REFLECTANCE, default=None, metavar="MODEL[:K=V,...]",
+                   help="the targets' reflectance in the model fit, e.g. retroreflective:retro="
+                   "0.7,width_rad=0.005,diffuse=0.2 or ggx:specular=0.5,roughness=0.3 "
+                   "(default: Lambertian; docs/model-estimator.md)")
 
 
 def _track_args(p):
@@ -211,6 +219,7 @@ def _track_args(p):
     p.add_argument("--targets", type=_number("targets", "pass a count, e.g. 1", minimum=1,
                                              integer=True, maximum=MAX_TARGETS),
                    default=1, help="targets to follow")
+    _reflectance_arg(p)
     p.add_argument("--region", type=_number("region", "pass finite ranges in metres"), nargs=6,
                    default=None, metavar=("A0", "A1", "B0", "B1", "C0", "C1"),
                    help="search ranges along the file's axes (default: what the capture sees)")

@@ -61,3 +61,24 @@ MIN_FPS, MAX_FPS, MAX_ACCEL = 1e-6, 1e6, 1e4
 COORD = number("position", "pass finite coordinates in metres")
 SEED = number("seed", "pass e.g. 0", minimum=0, integer=True)
 H_NS = number("h_s", "pass the window in ns, e.g. 0.65", positive=True)
+
+
+def reflectance(text: str):
+    """--reflectance MODEL[:KEY=VALUE,...], e.g. retroreflective:retro=0.7,width_rad=0.005:
+    the scene files' `reflectance:` mapping (physics.reflectance.from_spec) on one line."""
+    from ..core.errors import InputError
+    from ..physics.reflectance import from_spec
+    name, _, rest = text.partition(":")
+    spec = {"model": name.strip().lower()}
+    try:
+        for item in filter(None, (s.strip() for s in rest.split(","))):
+            key, sep, value = item.partition("=")
+            if not sep:
+                raise ValueError(f"{item!r} is not KEY=VALUE")
+            spec[key.strip()] = float(value)
+        return from_spec(spec)
+    except (ValueError, TypeError, InputError) as exc:
+        raise argparse.ArgumentTypeError(
+            f"reflectance: {text!r}: {str(exc).splitlines()[0]}. Fix: pass e.g. "
+            "retroreflective:retro=0.7,width_rad=0.005,diffuse=0.2 or "
+            "ggx:specular=0.5,roughness=0.3") from None

@@ -164,6 +164,17 @@ def _check_map_path(args) -> None:
 NO_TARGET_STATUS = 3  # `nlos-cl locate`: no laser point held target signal
 
 
+def _estimator(args):
+    """--estimator, or with --reflectance the model fit that knows it."""
+    if args.reflectance is None:
+        return args.estimator
+    from ..core.errors import require
+    from ..localization.model import ModelEstimator
+    require(args.estimator != "paper", "--reflectance", "is for the model fit; the paper's "
+            "argmax has no reflectance", "leave out --estimator paper, or --reflectance")
+    return ModelEstimator(targets=args.targets, reflectance=args.reflectance)
+
+
 def locate(args) -> int:
     """nl.locate_capture with the command's options; the JSON is its as_json()."""
     from ..localization.capture import locate_capture
@@ -172,7 +183,7 @@ def locate(args) -> int:
     region = None if args.region is None else list(zip(args.region[::2], args.region[1::2]))
     h_s = None if args.h_ns is None else args.h_ns * 1e-9
     found = locate_capture(args.file, region=region, step_m=args.step, h_s=h_s, pulses=args.pulses,
-                           estimator=args.estimator, targets=args.targets,
+                           estimator=_estimator(args), targets=args.targets,
                            log_mode=True if args.log else None, background=args.background,
                            negatives=args.negatives, calibration=args.calibration,
                            return_map=bool(args.map), backend=args.device,

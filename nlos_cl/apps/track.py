@@ -65,13 +65,16 @@ def _estimator(args, first):
     and confocal captures, where locate_capture's default (the paper's argmax) holds too."""
     from ..localization.capture import PAIRED_DEFAULT
     choice = args.estimator
-    if choice is None and first.paired:
+    if choice is None and first.paired and args.reflectance is None:
         print(f"nlos-cl: warning: {PAIRED_DEFAULT}", file=sys.stderr)
         choice = "paper"
     if choice == "paper":
+        from ..core.errors import require
+        require(args.reflectance is None, "--reflectance", "is for the model fit; the paper's "
+                "argmax has no reflectance", "leave out --estimator paper, or --reflectance")
         return "paper"
     from ..localization.model import ModelEstimator
-    return ModelEstimator(targets=args.targets)
+    return ModelEstimator(targets=args.targets, reflectance=args.reflectance)
 
 
 def _entry(frame, tracks, measurements, cframe, smoothed=None, mark=None) -> dict:
