@@ -37,6 +37,7 @@ from .likelihood import Problem
 # in one pass, 3.8 ms as 6 + 5 (3.3 ms with MALLOC_MMAP_THRESHOLD_ raised; 6 rows 1.9 ms either
 # way). A warm stream frame: 24.8 -> 23.0 ms (chunks of 3, 4, 5, 8: 24.1-24.4 ms).
 CHUNK_ROWS = 6
+HISTS_BYTES = 32 * 2 ** 20  # the remembered histograms at most (HostProblem._hists)
 
 
 class HostProblem(Problem):
@@ -56,36 +57,81 @@ class HostProblem(Problem):
         # a plate's histograms do not depend on which batch it is evaluated in
         self.os = max(1, int(math.ceil(float(np.max(obs.dpath)) * SUB_BINS_PER_SIGMA / floor)))
         self._stats = {}  # row bytes -> its cell statistics (_remember, _statistics_of)
+        self._hists = {}  # row bytes -> its histograms, evaluated with its own statistics
+        self._keep_hists = int(min(64, HISTS_BYTES // max(8 * obs.y.size, 1)))
+        self._taps = {}  # (pad, scale) -> the deposit's taps (_deposit_bins)
+        some = np.unique(np.linspace(0, len(obs.spots) - 1, min(len(obs.spots),
+                                                                 plate.STAT_SPOTS)).round())
+        self._stat_spots = obs.spots[some.astype(int)]  # the cell statistics' spots
+        self._affine = None
+        self._coarser = {}
+        if len(some) < len(obs.spots):  # the shift's affine fit, the same for every plate
+            basis = np.hstack([np.ones((len(obs.spots), 1)), obs.spots - obs.spots.mean(axis=0)])
+            self._affine = (basis, np.linalg.pinv(basis[some.astype(int)]))
 
     def column(self, p) -> np.ndarray:
         return self.column_batch(np.asarray(p, float)[None])[0]
+
+    def coarser(self, lattice) -> "HostProblem":
+        """This observation's model on another lattice (kept: one per lattice)."""
+        got = self._coarser.get(tuple(lattice))
+        if got is None:
+            got = self._coarser[tuple(lattice)] = HostProblem(
+                self.obs, lattice, self.backend, self.reflectance)
+        return got
 
     def column_batch(self, rows, like=None) -> np.ndarray:
         """(B, D, n) unit-amplitude histograms of B plates (rows (B, 6)). like: None, or
         (B, 6) rows whose cell statistics each plate borrows instead of its own (a Jacobian's
         plates, each a small step from `like`: fit._Objective.jac; the statistics of rows
-        evaluated in the last calls are remembered, so they cost nothing there)."""
+        evaluated in the last calls are remembered, so they cost nothing there). A plate
+        evaluated with its own statistics in the last calls is not evaluated again (a start
+        the short fit begins at, the short fit's end the final fit begins at)."""
         rows = np.atleast_2d(np.asarray(rows, np.float64))
-        if len(rows) > CHUNK_ROWS:  # see CHUNK_ROWS
-            return np.concatenate([self.column_batch(
-                rows[i:i + CHUNK_ROWS], None if like is None else like[i:i + CHUNK_ROWS])
-                for i in range(0, len(rows), CHUNK_ROWS)])
+        own = [r.tobytes() for r in rows] if like is None else \
+            [r.tobytes() if np.array_equal(r, q) else None for r, q in zip(rows, like)]
+        out = np.empty((len(rows),) + self.obs.y.shape)
+        todo = []
+        for i, key in enumerate(own):
+            if key in self._hists:
+                out[i] = self._hists[key]
+            else:
+                todo.append(i)
+        if len(self._hists) > self._keep_hists:
+            self._hists.clear()
+        for at in range(0, len(todo), CHUNK_ROWS):  # see CHUNK_ROWS
+            part = todo[at:at + CHUNK_ROWS]
+            out[part] = self._evaluate(rows[part], None if like is None else like[part])
+            if self._keep_hists:  # copies: the caller may change what it is given
+                self._hists.update((own[i], out[i].copy()) for i in part if own[i] is not None)
+        return out
+
+    def _evaluate(self, rows, like) -> np.ndarray:
         t = time.perf_counter()
         obs = self.obs
         stats = None if like is None else self._statistics_of(np.atleast_2d(like))
-        points, normal, area, stats = _plate_points(rows, self.lattice, obs.spots, obs.laser,
-                                                    stats)
+        points, normal, area, stats = _plate_points(rows, self.lattice, self._stat_spots,
+                                                    obs.laser, stats)
         if like is None:
             self._remember(rows, stats)
         _, blur2, shift = stats
+        shift = self._spread(shift)
         sigma = np.sqrt(obs.sigma0_m ** 2 + blur2 - obs.box_excess_m2)  # (B,)
         path, weight = _paths(points.reshape(len(rows), -1, 3), normal, area / 4.0, obs.spots,
                               obs.laser, self._factor)
         hist = _deposit_bins(path, weight, obs.edge0[None] - shift, obs.dpath, sigma, obs.n,
-                             self.os)
+                             self.os, self._taps)
         self.calls += len(rows)
         self.model_s += time.perf_counter() - t
         return np.where(obs.valid[None], hist, 0.0)
+
+    def _spread(self, shift):
+        """(B, D) shifts from the STAT_SPOTS spots' (B, S): affine in the spot's position
+        (plate.cell_model), least squares over the spots measured."""
+        if self._affine is None:
+            return shift
+        basis, coef_of = self._affine
+        return (basis @ (coef_of @ shift.T)).T
 
     def _remember(self, rows, stats):
         if len(self._stats) > 64:
@@ -98,7 +144,7 @@ class HostProblem(Problem):
         new = {r.tobytes(): r for r in rows if r.tobytes() not in self._stats}
         if new:
             obs, new = self.obs, np.array(list(new.values()))
-            self._remember(new, _plate_points(new, self.lattice, obs.spots, obs.laser)[3])
+            self._remember(new, _plate_points(new, self.lattice, self._stat_spots, obs.laser)[3])
         got = [self._stats[r.tobytes()] for r in rows]
         return tuple(np.stack([g[i] for g in got]) for i in range(3))
 
@@ -144,19 +190,20 @@ def _plate_points(rows, lattice, spots, laser, stats=None):
 
 def _cell_statistics(centres, offsets, normal, area, spots, laser):
     """plate.cell_model's statistics of each cell's Gauss points: keep (B, C) (how far the
-    points are pulled in), the blur^2 (B,) and the shift (B, D)."""
+    points are pulled in), the blur^2 (B,) and the shift (B, S) at each of `spots` (the
+    STAT_SPOTS the problem measures them at: HostProblem._spread carries them to all)."""
     b, c = centres.shape[:2]
-    some = np.unique(np.linspace(0, len(spots) - 1, min(len(spots), plate.STAT_SPOTS)).round()
-                     ).astype(int)
     full = (centres[:, None] + offsets).reshape(b, 4 * c, 3)  # the cells' Gauss points
-    path, weight = _paths(full, normal, area / 4.0, spots[some], laser)
-    path, weight = path.reshape(len(some), b, 4, c), weight.reshape(len(some), b, 4, c)
+    path, weight = _paths(full, normal, area / 4.0, spots, laser)
+    path, weight = path.reshape(len(spots), b, 4, c), weight.reshape(len(spots), b, 4, c)
     wsum = weight.sum(axis=2)  # (S, B, C)
     safe = np.maximum(wsum, 1e-300)
     mean = (weight * path).sum(axis=2) / safe
-    var_sc = (weight * (path - mean[:, :, None]) ** 2).sum(axis=2) / safe
-    centre = (np.linalg.norm(centres - laser, axis=2)[None]
-              + np.linalg.norm(spots[some][:, None, None] - centres[None], axis=3))
+    path -= mean[:, :, None]
+    path *= path
+    path *= weight
+    var_sc = path.sum(axis=2) / safe
+    centre = _distance(centres, laser)[None] + _distance(spots[:, None, None], centres[None])
     var_c = (var_sc * wsum).sum(axis=0) / np.maximum(wsum.sum(axis=0), 1e-300)  # (B, C)
     lit = wsum.sum(axis=0) > 0
     blur2 = plate.BLUR_SHARE * np.where(lit, var_c, 0.0).sum(axis=1) / np.maximum(
@@ -164,31 +211,39 @@ def _cell_statistics(centres, offsets, normal, area, spots, laser):
     keep = np.sqrt(np.clip(1.0 - blur2[:, None] / np.maximum(var_c, 1e-300), 0.0, 1.0))
     lost = (1.0 - keep ** 2)[None] * (mean - centre) * wsum  # (S, B, C)
     shift = (lost.sum(axis=2) / np.maximum(wsum.sum(axis=2), 1e-300)).T  # (B, S)
-    if len(some) < len(spots):  # affine in the spot's position (plate.cell_model)
-        basis = np.hstack([np.ones((len(spots), 1)), spots - spots.mean(axis=0)])
-        coef, *_ = np.linalg.lstsq(basis[some], shift.T, rcond=None)
-        shift = (basis @ coef).T
     return keep, blur2, shift
+
+
+def _distance(a, b):
+    """|a - b| over the last axis (np.linalg.norm's numbers without its checks)."""
+    d = a - b
+    d *= d
+    return np.sqrt(d.sum(axis=-1))
 
 
 def _paths(points, normal, area, spots, laser, factor=None):
     """Hidden path r1 + r2 and weight per (detector, plate, point) (D, B, M): the forward
     twin's (ops.forward.facet_paths: four cosines, area / (r1^2 r2^2), 0 where the point faces
     away from O or the spot) for Lambertian upright plates, one normal per plate, without the
-    twin's (D, F, 3) temporaries and in place (7x faster here). points (B, M, 3), normal
-    (B, 3), area (B,). factor: None, or the reflectance's direction factor as a function of
-    l.v = -(v1 . v2) / (r1 r2) (model.estimator passes Retroreflective.factor_of_cosine)."""
+    twin's (D, F, 3) temporaries and in place (7x faster here). points (B, M, 3), each plate's
+    in its plane; normal (B, 3), area (B,). factor: None, or the reflectance's direction
+    factor as a function of l.v = -(v1 . v2) / (r1 r2) (model.estimator passes
+    Retroreflective.factor_of_cosine)."""
     px, py, pz = np.moveaxis(points, -1, 0)
-    nx, ny = normal[:, 0:1], normal[:, 1:2]  # upright: no z component
+    nx, ny = normal[:, 0], normal[:, 1]  # upright: no z component
+    # The points lie in their plate's plane, so n . (P - O) = -r1 cos_b1 and n . (S - P) =
+    # r2 cos_a2 are one number per plate (and spot): taken at the plate's first point. A plate
+    # facing away from O or from a spot sends nothing there.
+    p0 = points[:, 0]
+    front_o = np.maximum(nx * (laser[0] - p0[:, 0]) + ny * (laser[1] - p0[:, 1]), 0.0)
+    faces = np.maximum(nx * (spots[:, 0, None] - p0[:, 0]) + ny * (spots[:, 1, None] - p0[:, 1]),
+                       0.0)  # (D, B)
     v1x, v1y, v1z = px - laser[0], py - laser[1], pz - laser[2]
     r1sq = v1x * v1x
     r1sq += v1y * v1y
     r1sq += v1z * v1z
-    toward_o = nx * v1x  # -r1 cos_b1
-    toward_o += ny * v1y
     front = np.abs(v1y)  # -> cos_a1 cos_b1 area / r1^2
-    front *= toward_o
-    front *= -area[:, None]
+    front *= (front_o * area)[:, None]
     front /= r1sq
     front /= r1sq
     sx, sy, sz = (spots[:, k, None, None] for k in range(3))
@@ -196,25 +251,23 @@ def _paths(points, normal, area, spots, laser, factor=None):
     r2sq = v2x * v2x
     r2sq += v2y * v2y
     r2sq += v2z * v2z
-    toward_spot = nx * v2x  # r2 cos_a2
-    toward_spot += ny * v2y
-    weight = np.abs(v2y)  # -> cos_a2 cos_b2 / r2^2 x front
-    weight *= toward_spot
+    weight = np.abs(v2y, out=v2y)  # -> cos_a2 cos_b2 / r2^2 x front
+    weight *= faces[:, :, None]
     weight *= front
     weight /= r2sq
     weight /= r2sq
     if factor is not None:
-        dot = v1x * v2x + v1y * v2y + v1z * v2z
+        dot = v1x * v2x + v1y * (sy - py) + v1z * v2z
         weight *= factor(-dot / np.sqrt(r1sq * r2sq))
-    weight[(toward_spot <= 0) | (toward_o >= 0)[None]] = 0.0
     path = np.sqrt(r2sq, out=r2sq)
     path += np.sqrt(r1sq)
     return path, weight
 
 
-def _deposit_bins(path, weight, edge0, dpath, sigma, n_bins, os_):
+def _deposit_bins(path, weight, edge0, dpath, sigma, n_bins, os_, cache=None):
     """hist (B, D, n): bin k of detector d covers paths edge0[b, d] + [k, k + 1) dpath[d] and
-    receives w (erf(z_hi) - erf(z_lo)) from each point (path, weight: (D, B, N))."""
+    receives w (erf(z_hi) - erf(z_lo)) from each point (path, weight: (D, B, N)). cache: a
+    dict the problem keeps the taps in (they depend only on the pulse width)."""
     n_det, n_b = path.shape[:2]
     reach = REACH_SIGMAS * float(np.max(sigma))
     pad = int(math.ceil(reach / float(np.min(dpath)))) + 1  # bins each side of the window
@@ -225,23 +278,36 @@ def _deposit_bins(path, weight, edge0, dpath, sigma, n_bins, os_):
     t = u - j
     ok = (weight > 0) & (j >= 0) & (j < length - 1)
     row = (np.arange(n_det * n_b).reshape(n_det, n_b, 1) * length + j.astype(np.int64))[ok]
-    w, t = weight[ok], t[ok]
-    dep = np.bincount(np.concatenate([row, row + 1]), np.concatenate([w * (1 - t), w * t]),
-                      minlength=n_det * n_b * length).reshape(n_det, n_b, n_bins + 2 * pad, os_)
-    taps = _taps(dpath / os_, sigma, pad, os_)
+    w = weight[ok]
+    upper = w * t[ok]
+    size = n_det * n_b * length
+    dep = np.bincount(row, w - upper, minlength=size)  # the lower sub-bin's share
+    dep[1:] += np.bincount(row, upper, minlength=size)[:-1]  # the upper's (row + 1)
+    dep = dep.reshape(n_det, n_b, n_bins + 2 * pad, os_)
+    taps = _taps(dpath / os_, sigma, pad, os_, {} if cache is None else cache)
     # hist[k] = sum over i, p of dep[k + i, p] taps[p, i] (sub-bin j = (k + i) os + p)
     windows = np.lib.stride_tricks.sliding_window_view(dep, span, axis=2)[:, :, :n_bins]
     return np.einsum("dbkpi,dbpi->bdk", windows, taps)
 
 
-def _taps(dsub, sigma, pad, os_):
+def _taps(dsub, sigma, pad, os_, cache):
     """(D, B, os, 2 pad + 1): what a unit weight at the centre of phase p of the sub-bins i
     bins after bin k's window start puts into bin k: erf((m + os - 1/2) s) - erf((m - 1/2) s),
-    m = (pad - i) os - p, s = dsub / (sqrt 2 sigma); erf evaluated once per distinct m."""
+    m = (pad - i) os - p, s = dsub / (sqrt 2 sigma); erf evaluated once per distinct m, and
+    once per distinct s: a Jacobian's plates share their unmoved plate's pulse width, so
+    `cache` ((pad, s) -> taps) has them from the residual call before."""
     from ...core.erf import erf  # not SciPy's: its import is a seventh of a one-shot locate
-    m = (pad - np.arange(2 * pad + 1))[None, :] * os_ - np.arange(os_)[:, None]  # (os, span)
-    lowest = int(m.min())
-    grid = np.arange(lowest, int(m.max()) + os_ + 1) - 0.5
     scale = dsub[:, None] / (math.sqrt(2.0) * sigma[None, :])  # (D, B)
-    e = erf(scale[:, :, None] * grid)
-    return e[:, :, m - lowest + os_] - e[:, :, m - lowest]
+    values, which = np.unique(scale, return_inverse=True)
+    new = [float(v) for v in values if (pad, float(v)) not in cache]
+    if new:
+        m = (pad - np.arange(2 * pad + 1))[None, :] * os_ - np.arange(os_)[:, None]  # (os, span)
+        lowest = int(m.min())
+        grid = np.arange(lowest, int(m.max()) + os_ + 1) - 0.5
+        e = erf(np.array(new)[:, None] * grid)
+        if len(cache) > 256:
+            cache.clear()
+        cache.update(((pad, v), taps) for v, taps in zip(new, e[:, m - lowest + os_]
+                                                          - e[:, m - lowest]))
+    table = np.stack([cache[(pad, float(v))] for v in values])
+    return table[which.reshape(scale.shape)]

@@ -57,9 +57,26 @@ class Observation:
         return self.path0[:, None] + self.dpath[:, None] * np.arange(self.n)[None, :]
 
 
+def row_median(rows, *, overwrite=False) -> np.ndarray:
+    """np.median(rows, axis=1), the same numbers, ~10x faster on long rows: np.median also
+    partitions at the last element to find NaNs (kth=[mid, -1]), which costs 2 ms on 3 x 60,000
+    bins where one partition at the middle costs 0.2 ms. Rows holding NaN go to np.median.
+    overwrite: rows is a temporary of the caller's, partitioned in place (no copy)."""
+    rows = np.asarray(rows, dtype=np.float64)
+    n = rows.shape[1]
+    if n == 0 or not np.isfinite(rows).all():
+        return np.median(rows, axis=1)
+    part = rows if overwrite and rows.flags.writeable else rows.copy()
+    mid = n // 2
+    part.partition(mid, axis=1)
+    if n % 2:
+        return part[:, mid].copy()
+    return 0.5 * (part[:, :mid].max(axis=1) + part[:, mid])  # np.median's mean of the two
+
+
 def _mad_std(rows) -> np.ndarray:
-    med = np.median(rows, axis=1, keepdims=True)
-    return MAD * np.median(np.abs(rows - med), axis=1)
+    med = row_median(rows)
+    return MAD * row_median(np.abs(rows - med[:, None]), overwrite=True)
 
 
 TRUNCATED_SD = 0.98655  # sd of a Gaussian cut at +-3 sigma, in sigma
@@ -91,8 +108,9 @@ def signal_windows(filtered, noise, margin_bins, frac=ONE_TARGET_FRAC, n_sigma=6
     """Per detector (first, last) bin of the signal: where the filtered row exceeds both
     n_sigma noise and `frac` of its peak, widened by margin_bins."""
     out = []
-    for row, s in zip(filtered, noise):
-        row = row - np.median(row)  # photon counts sit on a dark/ambient floor
+    floors = row_median(filtered)  # photon counts sit on a dark/ambient floor
+    for row, s, floor in zip(filtered, noise, floors):
+        row = row - floor
         above = np.flatnonzero(row > max(n_sigma * s, frac * row.max()))
         if above.size == 0:
             above = np.array([int(np.argmax(row))])

@@ -26,6 +26,7 @@ frames of 1 ps data, 165 against 194 per frame for the whole estimator, at the s
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -125,16 +126,18 @@ class _State:
         return ~(at_lo | at_hi)
 
     def gradient_converged(self, gtol):
-        g = (self.jac * self.scale).T @ self.r
+        # the Jacobian in scaled variables and the gradient, kept for _iterate, which follows
+        self.js = self.jac * self.scale
+        self.g = g = self.js.T @ self.r
         free = self.free(g)
         return 1 if not free.any() or np.max(np.abs(g[free])) < gtol else None
 
 
 def _iterate(s, jacobian, ftol, xtol, max_nfev, jac_update):
     """Damped steps from s.x until one lowers the cost (then update the Jacobian) or a
-    termination test holds; returns the status or None to go on."""
-    js = s.jac * s.scale  # the Jacobian in scaled variables
-    g = js.T @ s.r
+    termination test holds; returns the status or None to go on. (s.js, s.g: from
+    s.gradient_converged, called just before with the same point and Jacobian.)"""
+    js, g = s.js, s.g
     a = js.T @ js
     free = s.free(g)
     if s.mu is None:
@@ -198,6 +201,10 @@ def _fd_column(fun, x, r0, j, step, hi_j):
 
 def _damped_step(a, g, mu, free):
     """Solve (A + mu I) h = -g over the free variables; zero on the others."""
+    if free.all():  # the usual case, without the index arrays (the same numbers)
+        m = a.copy()
+        m.flat[::len(g) + 1] += mu
+        return np.linalg.solve(m, -g)
     h = np.zeros_like(g)
     idx = np.flatnonzero(free)
     if idx.size:
@@ -209,7 +216,7 @@ def _damped_step(a, g, mu, free):
 def _termination(actual, cost, dx, x, ratio, ftol, xtol):
     """SciPy's test: ftol on the cost's drop (with a trusted model), xtol on the step."""
     f_ok = actual < ftol * cost and ratio > 0.25
-    x_ok = float(np.linalg.norm(dx)) < xtol * (xtol + float(np.linalg.norm(x)))
+    x_ok = math.sqrt(float(dx @ dx)) < xtol * (xtol + math.sqrt(float(x @ x)))  # 2-norms
     return 4 if f_ok and x_ok else 2 if f_ok else 3 if x_ok else None
 
 
