@@ -1,12 +1,32 @@
 """The chi-square quantile every test in nlos_cl uses (the tracker's gates, the model fit's
 misfit test), without SciPy: scipy.stats' import (~0.6 s) would be most of a one-shot
 `nlos-cl locate`. Newton's method on the regularized incomplete gamma function from the
-Wilson-Hilferty start; within 1e-10 (relative) of scipy.stats.chi2.ppf (tests/test_stats.py)."""
+Wilson-Hilferty start; within 1e-10 (relative) of scipy.stats.chi2.ppf (tests/test_stats.py).
+And a row median with NumPy's numbers at a tenth of its cost on long rows."""
 from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from .errors import require
+
+
+def row_median(rows, *, overwrite=False) -> np.ndarray:
+    """np.median(rows, axis=1), the same numbers, ~10x faster on long rows: np.median also
+    partitions at the last element to find NaNs (kth=[mid, -1]), which costs 2 ms on 3 x 60,000
+    bins where one partition at the middle costs 0.2 ms. Rows holding NaN go to np.median.
+    overwrite: rows is a temporary of the caller's, partitioned in place (no copy)."""
+    rows = np.asarray(rows, dtype=np.float64)
+    n = rows.shape[1]
+    if n == 0 or not np.isfinite(rows).all():
+        return np.median(rows, axis=1)
+    part = rows if overwrite and rows.flags.writeable else rows.copy()
+    mid = n // 2
+    part.partition(mid, axis=1)
+    if n % 2:
+        return part[:, mid].copy()
+    return 0.5 * (part[:, :mid].max(axis=1) + part[:, mid])  # np.median's mean of the two
 
 
 def chi2_quantile(probability: float, dof: float) -> float:

@@ -27,6 +27,7 @@ import numpy as np
 from ..core.constants import PAPER_H_S
 from ..core.errors import require
 from ..core.grid import Grid
+from ..core.stats import row_median
 from ..core.histograms import HistogramSet
 from ..io.ytal.frames import require_locatable
 
@@ -72,8 +73,8 @@ def signal_reach(sets) -> np.ndarray | None:
     reach = None
     for h in sets:
         data = np.asarray(h.data, dtype=np.float64)
-        floor = np.median(data, axis=1, keepdims=True)
-        sigma = 1.4826 * np.median(np.abs(data - floor), axis=1, keepdims=True)
+        floor = row_median(data)[:, None]
+        sigma = 1.4826 * row_median(np.abs(data - floor), overwrite=True)[:, None]
         above = data > floor + SIGNAL_SIGMAS * sigma
         last = np.where(above.any(axis=1), data.shape[1] - np.argmax(above[:, ::-1], axis=1), -1)
         axis = h.path_axis()

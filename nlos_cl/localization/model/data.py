@@ -17,6 +17,7 @@ import numpy as np
 
 from ...core.constants import PAPER_H_S
 from ...core.errors import require
+from ...core.stats import row_median
 from ...ops.gauss_filter import gauss_taps
 
 MAD = 1.4826  # MAD -> standard deviation for Gaussian noise
@@ -55,23 +56,6 @@ class Observation:
 
     def centres(self) -> np.ndarray:
         return self.path0[:, None] + self.dpath[:, None] * np.arange(self.n)[None, :]
-
-
-def row_median(rows, *, overwrite=False) -> np.ndarray:
-    """np.median(rows, axis=1), the same numbers, ~10x faster on long rows: np.median also
-    partitions at the last element to find NaNs (kth=[mid, -1]), which costs 2 ms on 3 x 60,000
-    bins where one partition at the middle costs 0.2 ms. Rows holding NaN go to np.median.
-    overwrite: rows is a temporary of the caller's, partitioned in place (no copy)."""
-    rows = np.asarray(rows, dtype=np.float64)
-    n = rows.shape[1]
-    if n == 0 or not np.isfinite(rows).all():
-        return np.median(rows, axis=1)
-    part = rows if overwrite and rows.flags.writeable else rows.copy()
-    mid = n // 2
-    part.partition(mid, axis=1)
-    if n % 2:
-        return part[:, mid].copy()
-    return 0.5 * (part[:, :mid].max(axis=1) + part[:, mid])  # np.median's mean of the two
 
 
 def _mad_std(rows) -> np.ndarray:
