@@ -136,3 +136,19 @@ def test_damped_step_without_index_arrays_is_the_indexed_one():
     step = lm._damped_step(a, g, 0.3, free)
     assert step[2] == 0.0 and np.array_equal(
         step[free], np.linalg.solve(a[np.ix_(free, free)] + 0.3 * np.eye(4), -g[free]))
+
+
+def test_full_memories_never_lose_what_a_call_reads(obs):
+    """The host model's bounded memories (cell statistics, taps) are cleared when full; a call
+    that mixes remembered and new rows must still find both (the review found both raised
+    KeyError once full: a several-target fit with targets='auto' fills them)."""
+    rng = np.random.default_rng(5)
+    known, new = _plates(rng, 2), _plates(rng, 2)
+    problem = batch.HostProblem(obs)
+    problem.column_batch(known)  # remembers their statistics and taps
+    problem._stats.update((b"filler %d" % i, None) for i in range(70))  # both memories full
+    problem._taps.update(((999, float(i)), None) for i in range(300))
+    rows = np.vstack([known, new])
+    got = problem.column_batch(rows + 1e-4, like=rows)  # known rows' statistics, new ones'
+    fresh = batch.HostProblem(obs).column_batch(rows + 1e-4, like=rows)
+    assert np.allclose(got, fresh, rtol=1e-12, atol=0)

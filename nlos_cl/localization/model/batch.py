@@ -134,19 +134,24 @@ class HostProblem(Problem):
         return (basis @ (coef_of @ shift.T)).T
 
     def _remember(self, rows, stats):
-        if len(self._stats) > 64:
+        if len(self._stats) + len(rows) > 64:  # bounded; what this call needs is in hand
             self._stats.clear()
         for row, keep, blur2, shift in zip(rows, *stats):
             self._stats[row.tobytes()] = (keep, blur2, shift)
 
     def _statistics_of(self, rows):
-        """(keep, blur2, shift) stacked over rows, computed for rows not remembered."""
-        new = {r.tobytes(): r for r in rows if r.tobytes() not in self._stats}
+        """(keep, blur2, shift) stacked over rows, computed for rows not remembered (read from
+        what was found and what was computed, not back from the memory, which may be cleared
+        in between)."""
+        keys = [r.tobytes() for r in rows]
+        got = {k: self._stats[k] for k in keys if k in self._stats}
+        new = {k: r for k, r in zip(keys, rows) if k not in got}
         if new:
-            obs, new = self.obs, np.array(list(new.values()))
-            self._remember(new, _plate_points(new, self.lattice, self._stat_spots, obs.laser)[3])
-        got = [self._stats[r.tobytes()] for r in rows]
-        return tuple(np.stack([g[i] for g in got]) for i in range(3))
+            fresh_rows = np.array(list(new.values()))
+            fresh = _plate_points(fresh_rows, self.lattice, self._stat_spots, self.obs.laser)[3]
+            self._remember(fresh_rows, fresh)
+            got.update((k, tuple(s[i] for s in fresh)) for i, k in enumerate(new))
+        return tuple(np.stack([got[k][i] for k in keys]) for i in range(3))
 
     def columns(self, params) -> np.ndarray:
         return self.column_batch(np.reshape(params, (-1, plate.N_PARAMS)))
@@ -299,14 +304,14 @@ def _taps(dsub, sigma, pad, os_, cache):
     from ...core.erf import erf  # not SciPy's: its import is a seventh of a one-shot locate
     scale = dsub[:, None] / (math.sqrt(2.0) * sigma[None, :])  # (D, B)
     values, which = np.unique(scale, return_inverse=True)
+    if len(cache) > 256:  # before the look-up: clearing after it lost taps this call reads
+        cache.clear()
     new = [float(v) for v in values if (pad, float(v)) not in cache]
     if new:
         m = (pad - np.arange(2 * pad + 1))[None, :] * os_ - np.arange(os_)[:, None]  # (os, span)
         lowest = int(m.min())
         grid = np.arange(lowest, int(m.max()) + os_ + 1) - 0.5
         e = erf(np.array(new)[:, None] * grid)
-        if len(cache) > 256:
-            cache.clear()
         cache.update(((pad, v), taps) for v, taps in zip(new, e[:, m - lowest + os_]
                                                           - e[:, m - lowest]))
     table = np.stack([cache[(pad, float(v))] for v in values])
