@@ -48,7 +48,7 @@ def test_row_median_is_numpys(shape):
 
 def test_plate_paths_are_the_forward_twins(obs):
     """batch._paths (one cosine per plate and spot) against ops.forward.facet_paths, per point,
-    for plates facing the wall, one turned away from it and one edge-on to a spot."""
+    for plates facing the wall and one turned away from it."""
     rows = np.vstack([_plates(np.random.default_rng(1), 4), [4.0, 2.0, 0.0, 0.3, 1.6, 0.0]])
     centres, normal, area, _, _ = batch._cells(rows, (16, 24))
     path, weight = batch._paths(centres, normal, area, obs.spots, obs.laser)

@@ -202,3 +202,29 @@ def test_a_plate_the_data_want_none_of_has_no_information(scored, cold):
                         np.array([True, True, False, True, True, True]))
     assert np.all(np.isinf(np.diag(cov)[6:]))
     assert np.all(np.isfinite(np.diag(cov)[[0, 1, 3, 4, 5]]))
+
+
+def test_a_misfit_warm_fit_is_kept_where_the_cold_fit_costs_more(monkeypatch):
+    """estimator._warm_or_cold: the warm fit misses the data, the cold fit runs, and the one of
+    lower cost is the answer (with the cold fit's work counted and the reason said)."""
+    from types import SimpleNamespace as NS
+    from nlos_cl.localization.model import estimator, warm
+    est = ModelEstimator()
+    row = np.array([4.0, 2.0, 0.0, 0.3, 1.6, np.pi])
+
+    def fitted(cost, calls):
+        return (NS(calls=calls, model_s=0.1), None, NS(cost=cost), None, None, [])
+    info = {"used": False, "birge_ratio": 9.0, "nfev": 5, "forward_calls": 7, "moved_m": 0.01,
+            "reason": "the warm fit misses the data"}
+    for cold_cost, keep_warm in ((50.0, True), (5.0, False)):
+        missed = fitted(10.0, 7)
+        monkeypatch.setattr(warm, "warm_fit", lambda *a, **k: (None, dict(info), missed))
+        monkeypatch.setattr(ModelEstimator, "_cold", lambda self, *a: fitted(cold_cost, 100))
+        got, got_info = estimator._warm_or_cold(est, NS(backend=None), None, None, None, 0.0,
+                                                row, {})
+        assert (got is missed) == keep_warm
+        if keep_warm:
+            assert got_info["used"] and "the cold fit cost more" in got_info["reason"]
+            assert got[0].calls == 107  # the cold fit's 100 evaluations counted
+        else:
+            assert not got_info["used"] and got[2].cost == 5.0

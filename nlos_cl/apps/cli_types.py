@@ -72,13 +72,19 @@ def reflectance(text: str):
     spec = {"model": name.strip().lower()}
     try:
         for item in filter(None, (s.strip() for s in rest.split(","))):
-            key, sep, value = item.partition("=")
+            key, sep, value = (part.strip() for part in item.partition("="))
             if not sep:
                 raise ValueError(f"{item!r} is not KEY=VALUE")
-            spec[key.strip()] = float(value)
+            if key in spec:
+                raise ValueError(f"{key} is given twice")
+            try:
+                spec[key] = float(value)
+            except ValueError:
+                raise ValueError(f"{key}={value!r} is not a number") from None
         return from_spec(spec)
     except (ValueError, TypeError, InputError) as exc:
+        problem = str(exc).splitlines()[0].split(". Fix: ")[0]  # the CLI's own fix below
         raise argparse.ArgumentTypeError(
-            f"reflectance: {text!r}: {str(exc).splitlines()[0]}. Fix: pass e.g. "
+            f"reflectance: {text!r}: {problem}. Fix: pass e.g. "
             "retroreflective:retro=0.7,width_rad=0.005,diffuse=0.2 or "
             "ggx:specular=0.5,roughness=0.3") from None

@@ -72,7 +72,7 @@ def outside_gates(measurements, predictions, gate_probability) -> bool:
 
 def better(warm_located, cold_located):
     """Of two fits of one frame, (Location, measurements) each, the one with the lower cost
-    (chi^2 / 2 of the whole frame; the same data and number of plates): a cold fit that lands
+    (chi^2 of the whole frame, FitResult.cost; the same data and number of plates): a cold fit that lands
     in a worse basin than the warm one does not replace it. A fit without a cost loses."""
     def cost(located):
         fits = [getattr(m.source, "fit", None) for m in located[1]]

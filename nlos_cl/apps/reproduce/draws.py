@@ -61,8 +61,26 @@ def run_rows(families, count: int, s: Settings, master_seed: int, cfg, jobs: int
         return [r for t in tqdm(tasks, **bar) for r in _run_one(t)]
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
-    with ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+    saved = {k: os.environ.get(k) for k in BLAS_THREADS}
+    os.environ.update(dict.fromkeys(BLAS_THREADS, "1"))  # inherited by the spawned workers
+    pool = ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn"))
+    try:
         return [r for rows in tqdm(pool.map(_run_one, tasks), **bar) for r in rows]
+    except BaseException:  # a failed draw (or ^C): do not wait for the others first
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    finally:
+        pool.shutdown()
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
+# A worker's BLAS on one thread: `jobs` workers share the cores (read when NumPy loads, so
+# set in the parent's environment, which the spawned workers start with)
+BLAS_THREADS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 
 
 def draws(s: Settings, out: Path, only=None, draws: int | None = None,
@@ -125,7 +143,8 @@ def page(rows, summ, cfg, s: Settings, options: str, seconds: float, seed: int) 
            "m; 'without a warning' counts failures whose answer carried no warning (the "
            "collinear layouts' notice that z is unobservable is not counted: it is said for "
            "every answer; nor, where the truth is a plate, the notice that the spots cannot "
-           "see a closed object's depth). Times are per call, on shared cores: noisy.")
+           "see a closed object's depth). Times are per call, on shared cores: noisy (with "
+           "--jobs N, N draws share the cores: inflated).")
     located = [r for r in rows if r["family"] != cross.FAMILY]
     sections = [header, how, "## Goals (issue 22)",
                 report.goal_table(report.goals(summ) + cross.goals(summ))]

@@ -28,35 +28,47 @@ MIN_PROBE_M = 0.1
 DEPTH_SD_LIMIT_M = 0.2  # the centre's sd along the normal is half of it: the goal's 0.10 m
 DEPTH_WARNING = ("the spots see only the front of target {k}: if it is a closed object, its "
                  "centre lies behind the found surface by half its depth, which these spots "
-                 "cannot measure (depth sd {sd:.2f} m); spots farther apart see its sides")
+                 "cannot measure (depth sd {sd}); spots farther apart see its sides")
 
 
 def probe(problem, plate_result, kappa: float) -> dict:
-    """{box_better: a box behind the plate costs less on the data, depth_sd_m: the depth's sd
-    predicted at a box as deep as the plate is wide, depth_probe_m: that depth}."""
+    """{box_better: a box behind the plate costs less on the data (by more than kappa, one
+    unit of chi^2 in the BIC's units: noise alone puts a faint side's box below the plate half
+    the time), depth_sd_m: the depth's sd predicted at a box as deep as the plate is wide,
+    depth_probe_m: that depth}. The sd holds the plate's other parameters fixed, so it is a
+    lower bound: a plate's position and yaw can absorb part of a side's signal."""
     from .likelihood import Problem
     q = np.asarray(plate_result.params[0], float)
     width = max(float(q[plate.WIDTH]), MIN_PROBE_M)
     # Which faces a box behind the plate shows does not depend on its depth; where it shows
     # only its front, its histograms are the plate's: nothing to evaluate
-    if len(_visible(box.from_plate(q, width), problem.obs)) == 1:
+    faces = _visible(box.from_plate(q, width), problem.obs)
+    if len(faces) == 1:
         return {"box_better": False, "depth_sd_m": math.inf, "depth_probe_m": width,
                 "probe_box_cost": plate_result.cost}
     boxes = Problem(problem.obs, problem.backend, problem.lattice, shape=box,
                     reflectance=problem.reflectance)
-    plate_cols = problem.columns(q[None])
-    plate_mean = problem.mean(plate_cols, problem.linear(plate_cols))
-    as_data = Problem(replace(problem.obs, y=plate_mean), problem.backend, problem.lattice)
+    on_host = hasattr(problem, "coarser") and all(abs(f[3][2]) < 1e-12 for f in faces)
+    # the plate and the boxes through one model (host plates, or the device's box model, whose
+    # depth-0 box is the plate): the comparison must not carry the two models' difference
+    columns = (lambda d: _face_plates(problem, q, d)) if on_host else \
+        (lambda d: boxes.columns(box.from_plate(q, d)[None]))
+    plate_cols = columns(0.0)
+    plate_lin = problem.linear(plate_cols)
+    r = problem.residual(plate_cols, plate_lin)
+    plate_cost = float(r @ r)
+    as_data = Problem(replace(problem.obs, y=problem.mean(plate_cols, plate_lin)),
+                      problem.backend, problem.lattice)
     best, dchi2 = math.inf, 0.0
     for share in PROBE_DEPTHS:
-        cols = _box_columns(problem, boxes, box.from_plate(q, share * width))
+        cols = columns(share * width)
         r = problem.residual(cols, problem.linear(cols))
         best = min(best, float(r @ r))
         r = as_data.residual(cols, as_data.linear(cols))
         dchi2 = float(r @ r) / kappa  # the last probe: the deepest, depth = width
     sd = width / math.sqrt(dchi2) if dchi2 > 0 else math.inf
     problem.calls += boxes.calls
-    return {"box_better": best < plate_result.cost, "depth_sd_m": sd, "depth_probe_m": width,
+    return {"box_better": best < plate_cost - kappa, "depth_sd_m": sd, "depth_probe_m": width,
             "probe_box_cost": best}
 
 
@@ -66,17 +78,18 @@ def _visible(p, obs) -> list:
     return [f for f in box.faces(p) if box.seen(f[0], f[3], spots, laser)]
 
 
-def _box_columns(problem, boxes, p) -> np.ndarray:
-    """(1, D, n) box p's unit histograms. Where its visible faces are all upright (no top or
-    bottom) and the plates' problem is the host's batched model, they are those faces as
-    plates, summed, in one host call (the device's forward op per face cost ~8 ms of a 50 ms
-    paper-scene locate); else the box model on the device (`boxes`)."""
-    faces = _visible(p, problem.obs)
-    if not hasattr(problem, "coarser") or any(abs(n[2]) > 1e-12 for *_, n in faces):
-        return boxes.columns(p[None])
-    rows = np.array([[*c, np.linalg.norm(u), np.linalg.norm(v), math.atan2(n[1], n[0])]
-                     for c, u, v, n in faces])
-    return problem.column_batch(rows).sum(axis=0)[None]
+def _face_plates(problem, q, depth) -> np.ndarray:
+    """(1, D, n): the box of `depth` behind plate q, its visible faces (all upright) as plates
+    on the host, summed in one call: the front is q itself (remembered from its fit), each
+    side a plate across the depth (the device's forward op per face cost ~8 ms of a 50 ms
+    paper-scene locate). The same box as box.model_facets up to the lattice across the
+    depth (tests/test_model_depth.py)."""
+    rows, front = [q], plate.normal_of(q)
+    if depth > 0:
+        rows += [[*c, np.linalg.norm(u), np.linalg.norm(v), math.atan2(n[1], n[0])]
+                 for c, u, v, n in _visible(box.from_plate(q, depth), problem.obs)
+                 if not np.allclose(n, front)]
+    return problem.column_batch(np.array(rows, float)).sum(axis=0)[None]
 
 
 CLOSED_WARNING = ("the depth of target {k} is poorly determined (sd {sd:.2f} m): its centre is "
@@ -91,7 +104,13 @@ def unseen_note(shape, result, cov_all, info, k: int = 0) -> str | None:
         sd = info.get("depth_sd_m")
         if sd is None or not sd > DEPTH_SD_LIMIT_M:
             return None
-        return DEPTH_WARNING.format(k=k + 1, sd=sd)
+        return DEPTH_WARNING.format(k=k + 1, sd=_metres(sd))
     n = shape.N_PARAMS
     sd = math.sqrt(max(float(cov_all[k * n + box.DEPTH, k * n + box.DEPTH]), 0.0))
     return CLOSED_WARNING.format(k=k + 1, sd=sd) if sd > DEPTH_SD_LIMIT_M else None
+
+
+def _metres(sd: float) -> str:
+    if math.isfinite(sd):
+        return f"{sd:.2f} m"
+    return "unbounded: no side of such a box is lit and seen"

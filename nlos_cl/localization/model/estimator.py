@@ -243,6 +243,8 @@ def _warm_or_cold(est, scored, obs, paper, free, z0, start, clock):
     if fitted is None:
         fitted = est._cold(scored, obs, paper, free, z0, clock)
         if missed is not None and missed[2].cost < fitted[2].cost:
+            missed[0].calls += fitted[0].calls  # the timings count the cold fit's work too
+            missed[0].model_s += fitted[0].model_s
             fitted = missed
             warm_info = dict(warm_info, used=True, reason=warm_info["reason"] +
                              "; the cold fit cost more, so the warm fit is kept")
