@@ -31,6 +31,7 @@ import numpy as np
 from ...ops.forward import REACH_SIGMAS, SUB_BINS_PER_SIGMA
 from . import plate
 from .likelihood import Problem
+from .shadow import occluders_of, shade
 
 # Rows per NumPy pass. A pass's temporaries grow with its rows, and past ~6 plates (3 spots,
 # 1,536 points each) glibc's allocator maps and unmaps them on every call: 11 rows took 6.2 ms
@@ -41,7 +42,8 @@ HISTS_BYTES = 32 * 2 ** 20  # the remembered histograms at most (HostProblem._hi
 
 
 class HostProblem(Problem):
-    """A `Problem` (plates only) whose model runs on the host, a batch of rows per call.
+    """A `Problem` (plates only) whose model runs on the host, a batch of rows per call, with
+    the plates' mutual shadows (`columns`, `occluders`: model.shadow).
     A Jacobian's or a covariance's moved plates (`column_batch(rows, like)`) are evaluated with
     the unmoved plate's cell statistics: d(model)/d(parameter) at frozen blur, shift and
     pull-in, half the work of a column; residuals use each plate's own."""
@@ -51,6 +53,7 @@ class HostProblem(Problem):
         # with factor_of_cosine (its factor from l.v alone: Retroreflective), applied to the
         # points' weights; the cell statistics (pull-in, blur, shift) stay Lambertian's
         super().__init__(obs, backend, lattice, reflectance=reflectance)
+        self.shadows = True  # False: every plate alone, as likelihood.Problem (comparisons)
         self._factor = None if reflectance is None else reflectance.factor_of_cosine
         floor = math.sqrt(max(obs.sigma0_m ** 2 - obs.box_excess_m2, 1e-300))
         # one sub-bin count per observation (from the narrowest pulse any plate can have):
@@ -80,16 +83,20 @@ class HostProblem(Problem):
                 self.obs, lattice, self.backend, self.reflectance)
         return got
 
-    def column_batch(self, rows, like=None) -> np.ndarray:
+    def column_batch(self, rows, like=None, occluders=None) -> np.ndarray:
         """(B, D, n) unit-amplitude histograms of B plates (rows (B, 6)). like: None, or
         (B, 6) rows whose cell statistics each plate borrows instead of its own (a Jacobian's
         plates, each a small step from `like`: fit._Objective.jac; the statistics of rows
-        evaluated in the last calls are remembered, so they cost nothing there). A plate
-        evaluated with its own statistics in the last calls is not evaluated again (a start
-        the short fit begins at, the short fit's end the final fit begins at)."""
+        evaluated in the last calls are remembered, so they cost nothing there). occluders:
+        None, or per row the (K', 6) plate rows that shadow it (model.shadow). A plate
+        evaluated with its own statistics and occluders in the last calls is not evaluated
+        again (a start the short fit begins at, the short fit's end the final fit begins at)."""
         rows = np.atleast_2d(np.asarray(rows, np.float64))
-        own = [r.tobytes() for r in rows] if like is None else \
-            [r.tobytes() if np.array_equal(r, q) else None for r, q in zip(rows, like)]
+        occ = [None] * len(rows) if occluders is None else \
+            [None if o is None or not len(o) else np.asarray(o, np.float64) for o in occluders]
+        own = [None if like is not None and not np.array_equal(r, q) else
+               r.tobytes() + (b"" if o is None else o.tobytes())
+               for r, q, o in zip(rows, rows if like is None else like, occ)]
         out = np.empty((len(rows),) + self.obs.y.shape)
         todo = []
         for i, key in enumerate(own):
@@ -101,12 +108,13 @@ class HostProblem(Problem):
             self._hists.clear()
         for at in range(0, len(todo), CHUNK_ROWS):  # see CHUNK_ROWS
             part = todo[at:at + CHUNK_ROWS]
-            out[part] = self._evaluate(rows[part], None if like is None else like[part])
+            out[part] = self._evaluate(rows[part], None if like is None else like[part],
+                                       [occ[i] for i in part])
             if self._keep_hists:  # copies: the caller may change what it is given
                 self._hists.update((own[i], out[i].copy()) for i in part if own[i] is not None)
         return out
 
-    def _evaluate(self, rows, like) -> np.ndarray:
+    def _evaluate(self, rows, like, occluders=None) -> np.ndarray:
         t = time.perf_counter()
         obs = self.obs
         stats = None if like is None else self._statistics_of(np.atleast_2d(like))
@@ -117,8 +125,9 @@ class HostProblem(Problem):
         _, blur2, shift = stats
         shift = self._spread(shift)
         sigma = np.sqrt(obs.sigma0_m ** 2 + blur2 - obs.box_excess_m2)  # (B,)
-        path, weight = _paths(points.reshape(len(rows), -1, 3), normal, area / 4.0, obs.spots,
-                              obs.laser, self._factor)
+        points = points.reshape(len(rows), -1, 3)
+        path, weight = _paths(points, normal, area / 4.0, obs.spots, obs.laser, self._factor)
+        weight = shade(weight, points, rows, occluders, self.lattice, obs.laser, obs.spots)
         hist = _deposit_bins(path, weight, obs.edge0[None] - shift, obs.dpath, sigma, obs.n,
                              self.os, self._taps)
         self.calls += len(rows)
@@ -154,7 +163,18 @@ class HostProblem(Problem):
         return tuple(np.stack([got[k][i] for k in keys]) for i in range(3))
 
     def columns(self, params) -> np.ndarray:
-        return self.column_batch(np.reshape(params, (-1, plate.N_PARAMS)))
+        """(K, D, n): each plate's histograms, shadowed by the others where they can be
+        (model.shadow; one plate, or plates apart: each alone, as column_batch gives it)."""
+        rows = np.reshape(params, (-1, plate.N_PARAMS))
+        return self.column_batch(rows, occluders=self.occluders(rows))
+
+    def occluders(self, params) -> list | None:
+        """Per row of params (K, 6) the other rows that can shadow it (None where none can)."""
+        rows = np.reshape(params, (-1, plate.N_PARAMS))
+        if len(rows) < 2 or not self.shadows:  # shadows False: each plate alone, as before
+            return None
+        which = occluders_of(rows, self.obs.laser, self.obs.spots, self.lattice)
+        return None if not any(len(w) for w in which) else [rows[w] for w in which]
 
 
 def _cells(rows, lattice):

@@ -5,7 +5,8 @@ The target's shape is the problem's `shape` module (default model.plate): its N_
 LOWER, UPPER, STEPS and X_SCALE are read from there, so a new shape needs no edit here.
 Finite-difference steps are absolute (STEPS: 2 mm, 4 mrad for the plate): the forward kernel
 works in float32, so relative steps (~1e-8) would differentiate rounding noise. A Jacobian
-column re-simulates only the target whose parameter moved.
+column re-simulates only the target whose parameter moved, and, where K >= 2 plates can shadow
+each other (model.shadow, HostProblem only), the targets the moved one can shadow.
 
 Covariance. AWGN: the sandwich (J'J)^-1 J' C J (J'J)^-1 of weighted least squares on filtered
 samples whose noise correlation C comes from the filter's taps (no free factor), times the
@@ -80,34 +81,74 @@ class _Objective:
 
     def jac(self, theta):
         """Forward differences along every free parameter; the moved targets' histograms in
-        one `column_batch` (what `column` computes, column by column)."""
+        one `column_batch` (what `column` computes, column by column), and with shadows those
+        of the targets each moved one can shadow (`stepped_columns`)."""
         cols, lin = self._eval(theta)
         full = self.full(theta)
-        which = [divmod(int(f), self.shape.N_PARAMS) for f in np.flatnonzero(self.free)]
-        like = np.array([full[k] for k, _ in which])
-        rows = like.copy()
-        rows[np.arange(len(which)), [i for _, i in which]] += self.steps
-        moved_cols = self.problem.column_batch(rows, like)
+        moves = []
+        for f, step in zip(np.flatnonzero(self.free), self.steps):
+            k, i = divmod(int(f), self.shape.N_PARAMS)
+            row = full[k].copy()
+            row[i] += step
+            moves.append((k, row))
+        stepped = stepped_columns(self.problem, full, cols, moves)
         base = self.problem.residual(cols, lin)
-        out = []
-        for (k, _), col, step in zip(which, moved_cols, self.steps):
-            moved = cols.copy()
-            moved[k] = col
-            out.append((self.problem.residual(moved, self.problem.linear(moved, lin)) - base)
-                       / step)
+        out = [(self.problem.residual(moved, self.problem.linear(moved, lin)) - base) / step
+               for moved, step in zip(stepped, self.steps)]
         return np.stack(out, axis=1)
 
     def column(self, theta, j):
         """Forward difference along free parameter j: one forward call, only the target whose
-        parameter moved is re-simulated."""
+        parameter moved is re-simulated (and, with shadows, those it can shadow)."""
         cols, lin = self._eval(theta)
         k, i = divmod(int(np.flatnonzero(self.free)[j]), self.shape.N_PARAMS)
-        p = self.full(theta)[k].copy()
+        full = self.full(theta)
+        p = full[k].copy()
         p[i] += self.steps[j]
-        moved = cols.copy()
-        moved[k] = self.problem.column(p)
+        if shadowed_by(self.problem, full) is not None:
+            moved = stepped_columns(self.problem, full, cols, [(k, p)])[0]
+        else:
+            moved = cols.copy()
+            moved[k] = self.problem.column(p)
         r = self.problem.residual(moved, self.problem.linear(moved, lin))
         return (r - self.problem.residual(cols, lin)) / self.steps[j]
+
+
+def shadowed_by(problem, params):
+    """Per target of params (K, N), the indices of the targets that can shadow it
+    (model.shadow's bounding test), or None: one target, a problem without shadows
+    (likelihood.Problem.shadows), or targets that cannot shadow each other."""
+    if not getattr(problem, "shadows", False) or len(params) < 2:
+        return None
+    from .shadow import occluders_of
+    which = occluders_of(params, problem.obs.laser, problem.obs.spots, problem.lattice)
+    return which if any(len(w) for w in which) else None
+
+
+def stepped_columns(problem, params, cols, moves) -> np.ndarray:
+    """(len(moves), K, D, n): the K targets' columns with target k moved to `row`, for each
+    (k, row) in moves; cols (K, D, n): the columns at params. The moved target's column is
+    evaluated with params[k]'s cell statistics (`like`); with shadows (`shadowed_by`) so are
+    those of the targets it can shadow (their own rows, shadowed by the moved one), the rest
+    are cols' (where no shadow can fall, only the moved target is re-simulated)."""
+    params = np.asarray(params, np.float64)
+    shadowed = shadowed_by(problem, params)
+    rows, like, occluders, where = [], [], [], []
+    for m, (k, row) in enumerate(moves):
+        moved = params.copy()
+        moved[k] = row
+        hit = [] if shadowed is None else [j for j, w in enumerate(shadowed) if k in w]
+        for j in [k] + hit:
+            rows.append(moved[j])
+            like.append(params[j])
+            occluders.append(None if shadowed is None else moved[shadowed[j]])
+            where.append((m, j))
+    evaluated = problem.column_batch(np.array(rows), np.array(like),
+                                     **({} if shadowed is None else {"occluders": occluders}))
+    out = np.repeat(np.asarray(cols)[None], len(moves), axis=0)
+    for (m, j), col in zip(where, evaluated):
+        out[m, j] = col
+    return out
 
 
 def fit(problem, params0, free, max_nfev=30, tau=None, atol=None) -> FitResult:
@@ -130,22 +171,41 @@ def _mean_jacobian(problem, params, lin, free):
     """d mu / d (free target parameters, linear factors), central differences: (D, n, P)."""
     steps = shape_of(problem).STEPS
     which = [(k, i) for k in range(len(params)) for i in np.flatnonzero(free)]
-    rows = [p.copy() for p in params]  # the targets, then hi, lo, parameter after parameter
-    like = list(params)  # the row each one steps from
-    for k, i in which:
-        for sign in (1.0, -1.0):
-            rows.append(params[k].copy())
-            rows[-1][i] += sign * steps[i]
-            like.append(params[k])
-    evaluated = problem.column_batch(np.array(rows), np.array(like))
-    cols, moved = evaluated[:len(params)], evaluated[len(params):]
-    blocks = [lin[k] * (moved[2 * n] - moved[2 * n + 1]) / (2 * steps[i])
-              for n, (k, i) in enumerate(which)]
+    if shadowed_by(problem, params) is not None:
+        blocks, cols = _shadowed_blocks(problem, params, lin, which, steps)
+    else:
+        rows = [p.copy() for p in params]  # the targets, then hi, lo, parameter after parameter
+        like = list(params)  # the row each one steps from
+        for k, i in which:
+            for sign in (1.0, -1.0):
+                rows.append(params[k].copy())
+                rows[-1][i] += sign * steps[i]
+                like.append(params[k])
+        evaluated = problem.column_batch(np.array(rows), np.array(like))
+        cols, moved = evaluated[:len(params)], evaluated[len(params):]
+        blocks = [lin[k] * (moved[2 * n] - moved[2 * n + 1]) / (2 * steps[i])
+                  for n, (k, i) in enumerate(which)]
     blocks.extend(cols)
     if problem.obs.mode == "poisson":
         n_det = problem.obs.y.shape[0]
         blocks.extend(np.eye(n_det)[:, :, None] * problem.obs.valid[None])
     return cols, np.stack(blocks, axis=-1)
+
+
+def _shadowed_blocks(problem, params, lin, which, steps):
+    """`_mean_jacobian`'s derivative blocks where targets shadow each other: moving target k
+    changes the columns of the targets it shadows too, so d mu = sum_j a_j d(column j)."""
+    cols = problem.columns(params)
+    moves = []
+    for k, i in which:
+        for sign in (1.0, -1.0):
+            row = params[k].copy()
+            row[i] += sign * steps[i]
+            moves.append((k, row))
+    moved = stepped_columns(problem, params, cols, moves)
+    amp = np.asarray(lin[:len(params)])
+    return [np.tensordot(amp, moved[2 * n] - moved[2 * n + 1], 1) / (2 * steps[i])
+            for n, (k, i) in enumerate(which)], list(cols)
 
 
 def _correlated_terms(obs, j):

@@ -54,7 +54,15 @@ def nonnegative_lstsq(gram, rhs, free=None) -> np.ndarray:
 class Problem:
     """Evaluates the forward model for parameter rows (K, shape.N_PARAMS) on `backend`.
     `shape`: the target model's module (model.plate or .box): its model_facets, and
-    the N_PARAMS, STEPS, X_SCALE, LOWER, UPPER the fit reads."""
+    the N_PARAMS, STEPS, X_SCALE, LOWER, UPPER the fit reads.
+
+    No shadows (`shadows` False): every target's column is computed alone, so where one of K
+    targets hides part of another from O or a spot, this model still sees all of it. The
+    forward op takes occlusion only as a (D, F) bool mask, and a hard mask makes the cost a
+    staircase in the targets' positions; model.batch.HostProblem models the plates' shadows
+    smoothly (model.shadow) and is the problem to use where K >= 2 plates may shadow."""
+
+    shadows = False  # HostProblem: True
 
     def __init__(self, obs, backend, lattice=(16, 24), shape=plate, reflectance=None):
         self.obs, self.backend, self.lattice = obs, backend, tuple(lattice)
@@ -85,12 +93,20 @@ class Problem:
     def columns(self, params) -> np.ndarray:
         return np.stack([self.column(p) for p in np.reshape(params, (-1, self.shape.N_PARAMS))])
 
-    def column_batch(self, rows, like=None) -> np.ndarray:
+    def column_batch(self, rows, like=None, occluders=None) -> np.ndarray:
         """(B, D, n): `column` of each parameter row, in order (one forward call each here;
         model.batch.HostProblem evaluates them all in one host call). like: the rows
         each one is a small step from (a Jacobian's), which a problem may use to share work
-        between them (HostProblem: their cell statistics); here every row is exact."""
+        between them (HostProblem: their cell statistics); here every row is exact.
+        occluders: shadowing rows per row, which only a problem with `shadows` models."""
+        if occluders is not None and any(o is not None and len(o) for o in occluders):
+            raise NotImplementedError("this Problem models no shadows (shadows=False): "
+                                      "use model.batch.HostProblem for shadowed plates")
         return np.stack([self.column(p) for p in rows])
+
+    def occluders(self, params):
+        """Per target row, the rows that shadow it: None here (see `shadows`)."""
+        return None
 
     # ------------------------------------------------------------------ linear factors
     def linear(self, cols, warm=None) -> np.ndarray:

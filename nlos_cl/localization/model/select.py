@@ -139,7 +139,26 @@ def separate(params) -> bool:
 
 
 def fit_targets(problem, est, argmax_position, free, z0):
-    """The fit for est.targets plates (int or 'auto'), and what was tried."""
+    """The fit for est.targets plates (int or 'auto'), and what was tried. The search (starts,
+    short fits, K) runs without the plates' mutual shadows; where the problem models them
+    (batch.HostProblem) and one of K >= 2 plates can shadow another, a final fit with shadows
+    starts from its answer. (Searching with shadows found worse minima: on 40 multi draws the
+    K-given p90 went 0.17 -> 0.43 m, two draws' answers costing 4-9x the unshadowed ones'.)"""
+    shadows = bool(getattr(problem, "shadows", False))
+    problem.shadows = False
+    try:
+        current, history = _search(problem, est, argmax_position, free, z0)
+    finally:
+        problem.shadows = shadows
+    if shadows and len(current.params) >= 2 and problem.occluders(current.params) is not None:
+        shadowed = fit(problem, current.params, free, est.final_nfev)
+        history.append({"targets": len(current.params), "cost": shadowed.cost,
+                        "shadowed": True})
+        current = shadowed
+    return current, history
+
+
+def _search(problem, est, argmax_position, free, z0):
     current = one_plate(problem, argmax_position, free, z0, est.final_nfev)
     history = [{"targets": 1, "cost": current.cost}]
     wanted = est.targets if est.targets != "auto" else est.max_targets

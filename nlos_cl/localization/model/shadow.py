@@ -1,0 +1,124 @@
+"""Mutual shadowing of K >= 2 model plates: plate j's points lose the weight of the rays
+(laser spot O -> point, point -> detector spot) that cross another plate i, as the simulator's
+occlusion (physics/visibility.py) takes them out of the data.
+
+Each plate is an opaque rectangle of known centre, size and yaw, so the test is analytic: where
+the ray P -> T (T = O or a spot) meets plate i's plane, at H = P + t (T - P), the ray is blocked
+when 0 < t < 1 and H lies inside the rectangle (|u| < w/2 along its width, |v| < h/2 along
+its height). Either side blocks (the simulator's any-hit test is two-sided).
+
+Smooth, for finite-difference Jacobians. A hard 0/1 test at the shadowed plate's points makes
+the cost a staircase in the occluder's position (2 mm steps would see it jump or not at all).
+Here each of the three conditions is a linear ramp, 0 -> 1 across the edge, that spans one cell
+of the *shadowed* plate (its larger cell edge, `cell_m`) on that plate: on the occluder's plane
+the ramp is (1 - t) cell_m wide (H moves by (1 - t) dP when the point moves by dP), and the
+t-ramp (a point just behind the occluder's plane, where plates cross) is cell_m of distance
+along the ray. A ramp as wide as the points' period (2 Gauss points a cell per axis) makes the
+shadowed weight a piecewise-linear function of a shadow edge's position with a constant slope
+between the lattice's kinks, and a symmetric ramp keeps the shadowed area of a sharp edge
+unchanged (no bias). Plate i's blocking is inside_u inside_v inside_t; several occluders
+multiply their (1 - blocking).
+
+The cell statistics (pull-in, blur, shift: model.plate.cell_model) stay the unshadowed plate's:
+second order, and they keep a Jacobian's frozen statistics valid.
+
+Bounding test (`occluders_of`): plate i can shadow plate j only if plate i's bounding sphere
+comes within reach of the capsule from j's bounding sphere to a wall point (O or a spot),
+widened by the ramp's reach and a margin for the finite-difference steps. Outside it every
+ramp is exactly 0, so an occluder left out changes no bit: one target, or targets apart, give
+the numbers they gave before shadows were modelled.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import plate
+
+MARGIN_M = 0.02  # the bounding test's slack beyond the ramp's reach (steps: 2 mm, 4 mrad)
+
+
+def cell_size(rows, lattice) -> np.ndarray:
+    """(B,) the larger cell edge of each plate row on `lattice` (nu across, nv up): the ramp's
+    width on the shadowed plate."""
+    rows = np.atleast_2d(rows)
+    return np.maximum(rows[:, plate.WIDTH] / lattice[0], rows[:, plate.HEIGHT] / lattice[1])
+
+
+def _half_diagonal(rows):
+    return 0.5 * np.hypot(rows[:, plate.WIDTH], rows[:, plate.HEIGHT])
+
+
+def can_shadow(occluder, shadowed, laser, spots, lattice) -> bool:
+    """Can plate row `occluder` block any ray between plate row `shadowed` and O or a spot?
+    Conservative: False means every ray misses it by more than the ramps reach."""
+    occluder, shadowed = np.asarray(occluder, float), np.asarray(shadowed, float)
+    ends = np.vstack([np.reshape(laser, (1, 3)), np.asarray(spots, float)])  # (E, 3)
+    start = shadowed[:3]
+    reach = float(_half_diagonal(occluder[None])[0] + _half_diagonal(shadowed[None])[0]
+                  + cell_size(shadowed, lattice)[0] + MARGIN_M)
+    seg = ends - start  # the capsule's axes, start -> wall point
+    along = np.clip((occluder[:3] - start) @ seg.T / np.maximum(
+        np.einsum("ek,ek->e", seg, seg), 1e-300), 0.0, 1.0)
+    nearest = start + along[:, None] * seg
+    return bool(np.min(np.linalg.norm(occluder[:3] - nearest, axis=1)) < reach)
+
+
+def occluders_of(params, laser, spots, lattice) -> list[np.ndarray]:
+    """Per plate row of params (K, 6): the indices of the other plates that can shadow it
+    (`can_shadow`); all empty for one plate."""
+    params = np.reshape(params, (-1, plate.N_PARAMS))
+    return [np.array([i for i in range(len(params)) if i != j and
+                      can_shadow(params[i], params[j], laser, spots, lattice)], int)
+            for j in range(len(params))]
+
+
+def _ramp(distance, width):
+    """0 -> 1 linearly over `width` centred on distance 0 (inside: distance > 0)."""
+    return np.clip(0.5 + distance / width, 0.0, 1.0)
+
+
+def _blocked(points, ends, occluder, cell_m):
+    """(E, M) how much plate row `occluder` blocks each ray points (M, 3) -> ends (E, 3)."""
+    centre, half_w, half_h = occluder[:3], 0.5 * occluder[plate.WIDTH], \
+        0.5 * occluder[plate.HEIGHT]
+    yaw = occluder[plate.YAW]
+    nx, ny = np.cos(yaw), np.sin(yaw)  # upright: the normal has no z
+    ax, ay = -ny, nx  # along the width
+    ray = ends[:, None, :] - points[None]  # (E, M, 3)
+    rel = points - centre  # (M, 3)
+    towards = ray[..., 0] * nx + ray[..., 1] * ny
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(towards != 0.0, -(rel[:, 0] * nx + rel[:, 1] * ny) / towards, -1.0)
+    t = np.clip(t, -1e3, 1e3)  # near-parallel rays: far outside, and no inf * 0
+    u = (rel[:, 0] + t * ray[..., 0]) * ax + (rel[:, 1] + t * ray[..., 1]) * ay
+    v = rel[:, 2] + t * ray[..., 2]
+    length = np.sqrt(np.einsum("emk,emk->em", ray, ray))
+    edge = np.maximum(1.0 - t, 0.0) * cell_m  # one shadowed cell, seen on the occluder
+    edge = np.maximum(edge, 1e-12)
+    inside = _ramp(half_w - np.abs(u), edge)
+    inside *= _ramp(half_h - np.abs(v), edge)
+    inside *= _ramp(np.minimum(t, 1.0 - t) * length, cell_m)  # crossing between P and T
+    return inside
+
+
+def visible(points, laser, spots, occluders, cell_m) -> np.ndarray:
+    """(D, M) the share of each point's weight that reaches detector d past the occluder rows
+    (K', 6): the laser leg's and the detector leg's unblocked shares, multiplied. points
+    (M, 3) of one plate whose larger cell edge is cell_m."""
+    ends = np.vstack([np.reshape(laser, (1, 3)), np.asarray(spots, float)])
+    share = np.ones((len(ends), len(points)))
+    for occluder in np.reshape(occluders, (-1, plate.N_PARAMS)):
+        share *= 1.0 - _blocked(points, ends, occluder, float(cell_m))
+    return share[1:] * share[0]
+
+
+def shade(weight, points, rows, occluders, lattice, laser, spots) -> np.ndarray:
+    """weight (D, B, M) of B plate rows' points (B, M, 3) times each plate's `visible` share
+    past its occluders (a list of B (K', 6) arrays; None or empty: unshadowed, unchanged)."""
+    if occluders is None:
+        return weight
+    cells = cell_size(rows, lattice)
+    for b, occ in enumerate(occluders):
+        if occ is not None and len(occ):
+            weight[:, b] *= visible(points[b], laser, spots, occ, cells[b])
+    return weight

@@ -1,0 +1,139 @@
+"""Mutual shadowing in the K >= 2 plate model (nlos_cl.localization.model.shadow): the analytic
+ray-rectangle test against the simulator's ray caster, its smoothness for finite-difference
+Jacobians, the Jacobian's shadowed columns, and one target (or targets apart) unchanged."""
+import warnings
+
+import numpy as np
+import pytest
+
+import nlos_cl as nl
+from nlos_cl.localization.estimate import Scored
+from nlos_cl.localization.model import ModelEstimator, plate, shadow
+from nlos_cl.localization.model.fit import covariance, fit, shadowed_by, stepped_columns
+from nlos_cl.localization.model.likelihood import Problem
+from nlos_cl.physics import layouts
+from nlos_cl.physics.visibility import any_hit_brute, visibility
+
+SPOTS = layouts.circle(centre=[-1.0, 0, 0], radius_m=0.5, count=8)
+NEAR = np.array([2.5, 2.0, 0.0, 0.3, 0.3, np.pi])  # faces -x, as nl.rectangle's default
+FAR = np.array([3.5, 3.0, 0.0, 0.3, 0.3, np.pi])  # ~half of it behind NEAR from the laser spot
+GRID = nl.Grid.from_ranges(x=(1, 5), y=(0.5, 4.5), step_m=0.02)
+FREE = np.ones(plate.N_PARAMS, bool)
+
+
+@pytest.fixture(scope="module")
+def host():
+    """The estimator's host problem on a 10 dB frame of NEAR and FAR (occlusion simulated)."""
+    setup = nl.paper_setup(detector_spots=SPOTS)
+    near, far = (nl.Target(nl.rectangle(0.3, 0.3, centre=p[:3])) for p in (NEAR, FAR))
+    scene = nl.Scene(setup, near, truth=NEAR[:3], more_targets=(far,))
+    raw = nl.add_noise(nl.simulate(scene), 10, seed=0)
+    filtered = nl.gauss_filter(raw)
+    locator = nl.Locator(filtered, GRID, estimator="model", log_mode=True)
+    scored = Scored(filtered.backend, locator.scores(filtered), GRID, True,
+                    filtered.n_detectors, filtered, raw)
+    est = ModelEstimator(targets=2)
+    obs = est.observation(scored)
+    problem = est.problem(obs, filtered.backend)
+    assert problem.shadows  # a host problem: 8 spots
+    return problem
+
+
+def _cost(problem, params):
+    cols = problem.columns(params)
+    r = problem.residual(cols, problem.linear(cols))
+    return float(r @ r)
+
+
+def test_the_ramp_agrees_with_the_simulators_ray_caster():
+    """Points more than a ramp from a shadow edge: blocked exactly where the ray caster says;
+    the shadowed shares (the ramps' integral) within one lattice row of the hard test's."""
+    facets = plate.plate_facets(FAR, (60, 60))
+    meshes = [nl.rectangle(0.3, 0.3, centre=FAR[:3]), nl.rectangle(0.3, 0.3, centre=NEAR[:3])]
+    hard = visibility(facets, np.zeros(3), SPOTS, meshes, 0, caster=any_hit_brute)
+    soft = shadow.visible(facets.centres, np.zeros(3), SPOTS, NEAR[None], 0.3 / 60)
+    assert 0.3 < hard.mean() < 0.7  # a real shadow, not all or nothing
+    settled = (soft == 0.0) | (soft == 1.0)
+    assert settled.mean() > 0.9
+    np.testing.assert_array_equal(soft[settled] > 0.5, hard[settled])
+    np.testing.assert_allclose(soft.mean(axis=1), hard.mean(axis=1), atol=1.0 / 60)
+
+
+def test_the_shadowed_weight_moves_continuously_with_the_occluder():
+    """The far plate's visible share as the near plate slides by 0.25 mm steps: no jumps (a
+    hard test would step by a lattice row's share at once), slope steady within a factor 2."""
+    pts = plate.plate_facets(FAR, (16, 24)).centres
+    cell = float(shadow.cell_size(FAR, (16, 24))[0])
+    shares = []
+    for dy in np.arange(0.0, 0.02, 0.00025):
+        moved = NEAR.copy()
+        moved[plate.Y] += dy
+        shares.append(shadow.visible(pts, np.zeros(3), SPOTS, moved[None], cell)[0].mean())
+    step = np.diff(shares)
+    assert np.all(step < 0)  # the shadow grows as the occluder slides up the far plate's way
+    assert step.max() / step.min() < 2.0 and step.min() / step.max() < 2.0
+    assert np.abs(step).max() < 0.01  # a 16-row lattice's row: 1/16 of the points at once
+
+
+def test_one_target_is_bit_identical_with_and_without_shadows(host):
+    start = FAR.copy()
+    start[plate.X] += 0.02
+    with_shadows = fit(host, start[None], FREE, 8)
+    host.shadows = False
+    try:
+        without = fit(host, start[None], FREE, 8)
+    finally:
+        host.shadows = True
+    assert with_shadows.params.tobytes() == without.params.tobytes()
+    assert with_shadows.cost == without.cost
+    assert host.occluders(start[None]) is None
+
+
+def test_plates_apart_cast_no_shadow_and_change_nothing(host):
+    aside = np.array([-3.0, 1.0, 0.0, 0.3, 0.3, 0.0])  # beside the wall, far to the side
+    params = np.stack([FAR, aside])
+    assert host.occluders(params) is None and shadowed_by(host, params) is None
+    np.testing.assert_array_equal(host.columns(params), host.column_batch(params))
+
+
+def test_the_shadowed_model_explains_the_data_at_the_truth(host):
+    """At the true rows the shadowed model fits the occluded data to within the noise (Birge
+    ~1); each plate alone misses it by far (the far square's hidden half is in its column)."""
+    truth = np.stack([NEAR, FAR])
+    assert [list(w) for w in shadowed_by(host, truth)] == [[], [0]]
+    shadowed = _cost(host, truth)
+    host.shadows = False
+    try:
+        alone = _cost(host, truth)
+    finally:
+        host.shadows = True
+    assert shadowed < 1.2 * host.obs.valid.sum() and alone > 50 * shadowed
+    result = fit(host, truth, FREE, 30)  # started at the truth, it stays there
+    assert np.linalg.norm(result.params[:, :3] - truth[:, :3], axis=1).max() < 0.02
+    cov, info = covariance(host, result, FREE)
+    assert info["birge_ratio"] < 1.2 and np.all(np.isfinite(np.diag(cov)))
+
+
+def test_moving_the_occluder_re_simulates_the_shadowed_plate(host):
+    """stepped_columns: the moved occluder's column with borrowed cell statistics (within
+    0.2 %), the plate it shadows exactly as columns() gives it; a problem without shadows
+    changes only the moved plate."""
+    truth = np.stack([NEAR, FAR])
+    cols = host.columns(truth)
+    moved = NEAR.copy()
+    moved[plate.Y] += 0.002
+    stepped = stepped_columns(host, truth, cols, [(0, moved)])[0]
+    exact = host.columns(np.stack([moved, FAR]))
+    np.testing.assert_array_equal(stepped[1], exact[1])
+    assert not np.array_equal(stepped[1], cols[1])  # the shadow moved on the far plate
+    np.testing.assert_allclose(stepped[0], exact[0], rtol=0, atol=2e-3 * np.abs(exact[0]).max())
+
+
+def test_the_device_problem_says_it_has_no_shadows(host):
+    device = Problem(host.obs, host.backend, host.lattice)
+    assert device.shadows is False and device.occluders(np.stack([NEAR, FAR])) is None
+    with pytest.raises(NotImplementedError, match="shadows"):
+        device.column_batch(FAR[None], occluders=[NEAR[None]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert shadowed_by(device, np.stack([NEAR, FAR])) is None
