@@ -39,8 +39,13 @@ def run(c: Common, setup, moving, estimator, *, n_frames, seed=0, static=(), bac
 
 
 def _xy_covariance(m):
-    """A Kalman measurement's x-y covariance (its R, min_sigma_m included)."""
-    at = [list(m.axes).index(a) for a in (0, 1)]
+    """A Kalman measurement's x-y covariance (its R, min_sigma_m included); NaN, as a frame
+    without one, where the measurement leaves x or y out (a fit that did not determine it: a
+    plate of zero amplitude reports an infinite variance there)."""
+    axes = list(m.axes)
+    if 0 not in axes or 1 not in axes:
+        return np.full((2, 2), np.nan)
+    at = [axes.index(a) for a in (0, 1)]
     return m.R[np.ix_(at, at)]
 
 
