@@ -56,3 +56,19 @@ def facing_rectangle(position, size=0.3, cell=0.01):
     normal = np.array([-0.75, 0.0, 0.0]) - p
     normal[2] = 0.0
     return nl.rectangle(size, size, centre=p, normal=normal, cell_m=cell)
+
+
+def paper_frame(runtime, snr_db=10.0, seed=3, truth=(4.0, 2.0, 0.0)):
+    """(filtered, raw) of one noisy frame of the paper's 0.3 x 1.6 m plate at `truth`."""
+    mesh = nl.rectangle(0.3, 1.6, centre=truth)
+    raw = nl.add_noise(nl.simulate(nl.Scene(nl.paper_setup(), nl.Target(mesh), truth=truth),
+                                   backend=runtime), snr_db, seed=seed)
+    return nl.gauss_filter(raw), raw
+
+
+def model_observation(filtered, raw):
+    """The model estimator's Observation of a frame, handed over without a score map."""
+    from nlos_cl.localization.estimate import Scored
+    from nlos_cl.localization.model import ModelEstimator
+    return ModelEstimator().observation(Scored(filtered.backend, None, nl.Grid(), False,
+                                               filtered.n_detectors, filtered, raw))

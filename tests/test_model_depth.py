@@ -12,6 +12,8 @@ from nlos_cl.localization.model.depth import DEPTH_WARNING
 from nlos_cl.ops import forward
 from nlos_cl.physics import layouts
 
+from conftest import model_observation
+
 # closed draw 8 of docs/draws.md: a 0.75 m box turned 12 degrees, 3.3 m away, 3 spots below it
 BOX = np.array([1.661, 3.269, 0.11, 0.746, 0.672, 0.753, -1.901])
 SPOTS = np.array([[0.5, 0, -0.6], [-1.4, 0, -0.6], [-0.38, 0, -0.67]])
@@ -84,8 +86,7 @@ def test_the_probes_host_boxes_are_the_box_model():
     """depth._face_plates (a box's visible upright faces as host plates, summed) against the
     box model on the forward op: the same histograms but for the lattice across the depth
     (16 host cells against the box's 8), within 0.5 % (L2, per detector)."""
-    from nlos_cl.localization.estimate import Scored
-    from nlos_cl.localization.model import ModelEstimator, batch, depth
+    from nlos_cl.localization.model import batch, depth
     from nlos_cl.localization.model.likelihood import Problem
     centre = tuple(BOX[:3])
     setup = nl.paper_setup(detector_spots=SPOTS)
@@ -93,8 +94,7 @@ def test_the_probes_host_boxes_are_the_box_model():
                                                                      centre=centre)),
                                             truth=centre)), 20, seed=1)
     filtered = nl.gauss_filter(raw)
-    obs = ModelEstimator().observation(Scored(filtered.backend, None, nl.Grid(), False,
-                                              filtered.n_detectors, filtered, raw))
+    obs = model_observation(filtered, raw)
     front = np.r_[BOX[:3] + 0.5 * BOX[5] * box.normal_of(BOX), BOX[3], BOX[4], BOX[6]]
     host = batch.HostProblem(obs)
     got = depth._face_plates(host, front, BOX[5])[0]

@@ -6,10 +6,11 @@ import numpy as np
 import pytest
 
 import nlos_cl as nl
-from nlos_cl.localization.estimate import Scored
-from nlos_cl.localization.model import ModelEstimator, batch, lm, starts
+from nlos_cl.localization.model import batch, lm, starts
 from nlos_cl.localization.model.data import row_median
 from nlos_cl.ops.forward import facet_paths
+
+from conftest import model_observation, paper_frame
 
 TRUTH = (4.0, 2.0, 0.0)
 PLATE = np.array([4.0, 2.0, 0.0, 0.3, 1.6, np.pi])  # facing the wall
@@ -18,14 +19,7 @@ PLATE = np.array([4.0, 2.0, 0.0, 0.3, 1.6, np.pi])  # facing the wall
 @pytest.fixture(scope="module")
 def obs(runtime):
     """The Gaussian observation of one 10 dB frame of the paper's scene."""
-    setup = nl.paper_setup()
-    mesh = nl.rectangle(0.3, 1.6, centre=TRUTH)
-    raw = nl.add_noise(nl.simulate(nl.Scene(setup, nl.Target(mesh), truth=TRUTH),
-                                   backend=runtime), 10, seed=3)
-    filtered = nl.gauss_filter(raw)
-    scored = Scored(filtered.backend, None, nl.Grid(), False, filtered.n_detectors, filtered,
-                    raw)
-    return ModelEstimator().observation(scored)
+    return model_observation(*paper_frame(runtime, truth=TRUTH))
 
 
 def _plates(rng, count):

@@ -14,6 +14,8 @@ from nlos_cl.localization.model.batch import CHUNK_ROWS, HostProblem
 from nlos_cl.localization.model.likelihood import Problem
 from nlos_cl.tracking import Tracker, kalman, warm
 
+from conftest import paper_frame
+
 GRID = nl.Grid.from_ranges(x=(2, 6), y=(0.5, 4), step_m=0.02)
 TRUTH = (4.0, 2.0, 0.0)
 
@@ -21,11 +23,7 @@ TRUTH = (4.0, 2.0, 0.0)
 @pytest.fixture(scope="module")
 def scored(runtime):
     """One 10 dB frame of the paper's scene, as a Locator hands it to the estimator."""
-    setup = nl.paper_setup()
-    mesh = nl.rectangle(0.3, 1.6, centre=TRUTH)
-    raw = nl.add_noise(nl.simulate(nl.Scene(setup, nl.Target(mesh), truth=TRUTH),
-                                   backend=runtime), 10, seed=3)
-    filtered = nl.gauss_filter(raw)
+    filtered, raw = paper_frame(runtime, truth=TRUTH)
     locator = nl.Locator(filtered, GRID, estimator="model")
     scores = locator.scores(filtered)
     return Scored(filtered.backend, scores, GRID, False, filtered.n_detectors, filtered, raw)

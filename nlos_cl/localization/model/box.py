@@ -60,13 +60,19 @@ def seen(centre, normal, spots, laser) -> bool:
     return bool(normal @ (laser - centre) > 0 and np.any(seen_by))
 
 
+def shown(p, spots, laser) -> list[bool]:
+    """Per face of box p (faces' order): is it lit by the laser spot and seen by a wall spot?"""
+    spots, laser = np.asarray(spots, float), np.asarray(laser, float)
+    return [seen(c, n, spots, laser) for c, _, _, n in faces(p)]
+
+
 def face_cells(p, lattice, spots=None, laser=None) -> list:
     """Per face of box p (only those lit and seen, when spots and laser are given): Facets of
     its cell centres and the cells' two edge vectors (each (F, 3))."""
     parts = []
-    for (c, u, v, n), (nu, nv) in zip(faces(p), _lattices(lattice)):
-        if spots is not None and not seen(c, n, np.asarray(spots, float),
-                                          np.asarray(laser, float)):
+    keep = shown(p, spots, laser) if spots is not None else [True] * 6
+    for (c, u, v, n), (nu, nv), ok in zip(faces(p), _lattices(lattice), keep):
+        if not ok:
             continue
         su = ((np.arange(nu) + 0.5) / nu - 0.5)[:, None, None] * u
         sv = ((np.arange(nv) + 0.5) / nv - 0.5)[None, :, None] * v

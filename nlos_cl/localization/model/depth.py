@@ -74,8 +74,7 @@ def probe(problem, plate_result, kappa: float) -> dict:
 
 def _visible(p, obs) -> list:
     """Box p's faces (centre, u, v, normal) that the laser spot lights and a wall spot sees."""
-    spots, laser = np.asarray(obs.spots, float), np.asarray(obs.laser, float)
-    return [f for f in box.faces(p) if box.seen(f[0], f[3], spots, laser)]
+    return [f for f, ok in zip(box.faces(p), box.shown(p, obs.spots, obs.laser)) if ok]
 
 
 def _face_plates(problem, q, depth) -> np.ndarray:
