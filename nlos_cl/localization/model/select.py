@@ -27,7 +27,7 @@ import numpy as np
 
 from ...core.stats import chi2_quantile
 from . import box, cylinder, depth, ellipsoid, plate, starts
-from .fit import covariance, fit
+from .fit import FitResult, covariance, fit
 from .shape import name_of
 
 SHORT_NFEV = 6
@@ -61,8 +61,66 @@ def one_plate(problem, argmax_position, free, z0, final_nfev):
     return best_of(problem, starts.candidates(centres, problem.obs.laser), free, final_nfev)
 
 
-def add_plate(problem, current, free, z0, final_nfev):
-    """current + one plate started where the residual signal is."""
+def add_plate(problem, current, free, z0, final_nfev, reseat_dead=True):
+    """current + one plate started where the residual signal is; a plate the joint fit left
+    dead (`dead_plates`) is dropped and re-added from the residual of the live ones."""
+    joint = _add_one(problem, current, free, z0, final_nfev)
+    if reseat_dead:
+        joint = _reseat_dead(problem, joint, free, z0, final_nfev)
+        if misfit(problem, joint, free, {})[0]:
+            joint = reseat_each(problem, joint, free, z0, final_nfev)
+    return joint
+
+
+def reseat_each(problem, current, free, z0, final_nfev):
+    """Each plate in turn dropped and re-added where the residual of the others is (the
+    joint fit from there), the lowest cost kept: for a fit that still misses the data, where
+    one plate had spread into a 2.8 x 0.04 m sliver over a target and its neighbour's ridge."""
+    best = current
+    for k in range(len(current.params)):
+        others = _result_of(problem, np.delete(best.params, k, axis=0))
+        again = _add_one(problem, others, free, z0, final_nfev)
+        if again.cost < best.cost and _plausible(again):
+            best = again
+    return best
+
+
+def _result_of(problem, params) -> FitResult:
+    """The plates `params` as they are, amplitudes profiled: a FitResult without a fit."""
+    cols = problem.columns(params)
+    lin = problem.linear(cols)
+    r = problem.residual(cols, lin)
+    return FitResult(np.array(params, float), lin, float(r @ r), int(r.size), 0)
+
+
+def _reseat_dead(problem, joint, free, z0, final_nfev):
+    dead = dead_plates(problem, joint)
+    if not dead.any() or dead.all():
+        return joint
+    # A dead plate has no gradient (its amplitude sits at the bound 0), so no fit moves it
+    # again: in a held-out draw of three plates the second had landed 0.56 m off in height
+    # and, when the third took its target, died there, while the residual's third target
+    # (1/r^4 fainter, 1.9 m away) was never reached.
+    again = fit(problem, joint.params[~dead], free, final_nfev)
+    while len(again.params) < len(joint.params):
+        again = _add_one(problem, again, free, z0, final_nfev)
+    return again if again.cost < joint.cost else joint
+
+
+DEAD_SHARE = 1e-4  # of the fitted signal energy: a target 2.2x farther carries ~1/600
+
+
+def dead_plates(problem, result) -> np.ndarray:
+    """(K,) bool: plates whose fitted amplitude is 0 or that carry less than DEAD_SHARE of
+    the signal energy the fit explains."""
+    k = len(result.params)
+    lin = np.asarray(result.linear[:k], float)
+    cols = problem.columns(result.params)
+    energy = np.array([np.sum((a * c) ** 2) for a, c in zip(lin, cols)])
+    return (lin <= 0) | (energy < DEAD_SHARE * max(float(energy.sum()), 1e-300))
+
+
+def _add_one(problem, current, free, z0, final_nfev):
     cols = problem.columns(current.params)
     rest = problem.obs.y - problem.mean(cols, current.linear)
     if problem.obs.mode == "poisson":
