@@ -131,11 +131,15 @@ def test_box_model_is_the_plate_at_depth_zero():
 def test_curved_shapes_cover_their_surface_and_cull_what_no_spot_sees():
     from nlos_cl.localization.model import cylinder, ellipsoid
     # The cell areas sum to the surface's: a sphere's 4 pi r^2 within the midpoint rule's
-    # error on 32 x 16 cells (measured 0.16 %); a cylinder's side and caps exactly (flat in
+    # error (measured 0.16 % on 32 x 16 cells); a cylinder's side and caps exactly (flat in
     # height, the caps' rings summed exactly by the midpoint rule in radius).
     sphere = ellipsoid.ellipsoid_facets([2.0, 3.0, 0.0, 0.6, 0.6, 0.6, 1.0])
     assert math.isclose(sphere.areas.sum(), 4 * math.pi * 0.09, rel_tol=5e-3)
-    assert np.allclose(np.linalg.norm(sphere.centres - [2, 3, 0], axis=1), 0.3)
+    # each cell's facet at its patch's mean position: inside the surface by the chord factors
+    k_az, k_po = (ellipsoid.chord_mean(2 * math.pi / ellipsoid.CELLS[0]),
+                  ellipsoid.chord_mean(math.pi / ellipsoid.CELLS[1]))
+    radii = np.linalg.norm(sphere.centres - [2, 3, 0], axis=1)
+    assert np.all(radii >= 0.3 * k_po * k_az - 1e-12) and np.all(radii <= 0.3 * k_po + 1e-12)
     can = cylinder.cylinder_facets([2.0, 3.0, 0.1, 0.4, 1.7, 0.4, 1.0])
     assert math.isclose(can.areas.sum(), 2 * math.pi * 0.2 * 1.7 + 2 * math.pi * 0.04,
                         rel_tol=1e-9)

@@ -85,9 +85,9 @@ def model_facets(p, lattice, spots, laser):
     return cell_model(cells, plate_edges(p, lattice, cells.count), spots, laser)
 
 
-def cell_model(cells, edges, spots, laser):
+def cell_model(cells, edges, spots, laser, blur_share=None):
     """Point facets, shared blur and per-detector shift for rectangular cells (centres,
-    normals, areas; `edges` their two edge vectors).
+    normals, areas; `edges` their two edge vectors). blur_share: BLUR_SHARE unless given.
 
     The forward call puts each facet's pulse at its path and spreads it by one width for all
     facets, but a lattice cell spans a range of paths, and that range differs from cell to
@@ -109,7 +109,8 @@ def cell_model(cells, edges, spots, laser):
                                              laser[some] if paired else laser)
     var_f = (var_df * wsum).sum(axis=0) / np.maximum(wsum.sum(axis=0), 1e-300)  # (F,)
     lit = wsum.sum(axis=0) > 0
-    blur2 = BLUR_SHARE * float(np.mean(var_f[lit])) if lit.any() else 0.0
+    share = BLUR_SHARE if blur_share is None else blur_share
+    blur2 = share * float(np.mean(var_f[lit])) if lit.any() else 0.0
     keep = np.sqrt(np.clip(1.0 - blur2 / np.maximum(var_f, 1e-300), 0.0, 1.0))
     lost = (1.0 - keep ** 2)[None] * (mean - centre) * wsum
     shift = lost.sum(axis=1) / np.maximum(wsum.sum(axis=1), 1e-300)
