@@ -138,7 +138,7 @@ class ModelEstimator:
         clock["covariance"] = time.perf_counter()
         chosen = problem
         if len(result.params) == 1:  # one target: a plate, or a box where the data ask for it
-            from .select import closed_or_plate
+            from .closed import closed_or_plate
             chosen, result, free, cov = closed_or_plate(problem, result, free, self.final_nfev,
                                                         cov, self.closed)
             clock["box"] = time.perf_counter()

@@ -3,7 +3,7 @@
 A shape is a module (plate.py, box.py, ellipsoid.py, cylinder.py) whose rows of parameters
 start x, y, z (the centre) and end with the yaw; the fit reads its names, bounds, steps and
 scales, and asks it for the lit facets of a row, its extent and its normal. A new shape is one
-module with these members, one entry in SHAPES, and its starts in select.py
+module with these members, one entry in SHAPES, and its starts in closed.py
 (docs/architecture.md walks through it)."""
 from __future__ import annotations
 

@@ -40,7 +40,8 @@ def warm_fit(est, obs, rows, free, z0, backend=None):
     warm fit misses the data (the caller then fits cold, and keeps `missed`, the same tuple of
     the misfit warm fit, if the cold fit costs more); info: what was tried
     (details['warm_start'])."""
-    from .select import closed_or_plate, misfit
+    from .closed import closed_or_plate
+    from .select import misfit
     rows = np.array(rows, dtype=np.float64)
     if not free[2]:
         rows[:, 2] = z0  # height unobservable: held on the search plane, as a cold fit holds it

@@ -1,0 +1,120 @@
+"""Plate or closed shape for one target (`closed_or_plate`): where the plate, re-seated, still
+misses the data (select.misfit) or the depth probe finds a box behind it better, the closed
+shapes (box, ellipsoid, cylinder) are fitted from starts around the plate and at the centroid,
+and the one of lowest cost is kept where its one more parameter (depth) passes the BIC test."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from . import box, cylinder, depth, ellipsoid, plate, starts
+from .fit import covariance
+from .select import best_of, kappa, misfit
+from .shape import name_of
+
+CLOSED = (box, ellipsoid, cylinder)  # the closed families tried, same parameters
+BOX_DEPTHS = (0.1, 0.3, 0.6)  # m: starts behind the fitted plate's face
+BOX_YAWS = np.radians([-35.0, 0.0, 35.0])  # a box seen corner-on: the plate's yaw is between
+BOX_WIDTHS = (1.0, 0.6)  # times the plate's width (the plate spans both visible faces)
+# The closed fits get this many times final_nfev: from starts 0.3 m off, a cylinder on a
+# capsule still lowered its cost 40-fold between 30 and 90 evaluations.
+CLOSED_NFEV = 3
+CENTRE_SIZES = ((0.3, 0.3, 0.3), (0.6, 0.6, 0.6), (0.4, 1.7, 0.3))  # (w, h, d) m, at centres
+
+
+def box_rows(q, centres=(), laser=None) -> np.ndarray:
+    """Closed-shape starts around a fitted plate q (depths behind its face, yaws, narrower
+    widths; none if q is None) and, facing the laser spot, at each of `centres`."""
+    rows = []
+    for depth in BOX_DEPTHS if q is not None else ():
+        for dyaw in BOX_YAWS:
+            for scale in BOX_WIDTHS:
+                p = np.array(q, float)
+                p[plate.WIDTH], p[plate.YAW] = p[plate.WIDTH] * scale, p[plate.YAW] + dyaw
+                rows.append(box.from_plate(p, depth))
+    for c in centres:
+        for w, h, depth in CENTRE_SIZES:
+            rows.append(box.from_plate([*c[:3], w, h, plate.facing(c, laser)], depth))
+    return np.array(rows)
+
+
+def fit_closed(problem, plate_result, free, final_nfev, shape):
+    """A closed shape's fit (box or ellipsoid) started from the plate's, on the same data;
+    (problem, result, free)."""
+    from .likelihood import Problem
+    closed = Problem(problem.obs, problem.backend, problem.lattice, shape=shape,
+                     reflectance=problem.reflectance)
+    free_closed = np.insert(np.asarray(free, bool), 5, True)  # + depth
+    q = plate_result.params[0]
+    centres = starts.start_centres(problem.obs, None, bool(free[2]), float(q[2]))
+    # Two groups of starts, each to convergence: around the plate, and at the centroid start
+    # (for a sphere the plate landed 0.5 m off and its starts won the short fits, in a minimum
+    # of twice the cost of the one the centroid's start reaches).
+    groups = (box_rows(q), box_rows(None, centres, problem.obs.laser))
+    result = min((best_of(closed, rows, free_closed, CLOSED_NFEV * final_nfev, keep=2)
+                  for rows in groups), key=lambda r: r.cost)
+    return closed, result, free_closed
+
+
+RESEAT_YAWS = np.radians([-40.0, -20.0, 20.0, 40.0])
+RESEAT_WIDTHS = (0.6, 1.0, 1.6)  # times the fitted width
+
+
+def reseat_plate(problem, plate_result, free, final_nfev):
+    """The plate refitted from a lattice of yaws and widths around its own fit (the better
+    result of the two). With collinear spots width and yaw trade against each other, and a
+    far plate (the 0.3 x 1.6 m one at (5, 1)) converged 26 degrees off its yaw with 0.6 of its
+    width: Birge ratio 7, where the lattice reaches 0.89 (and the closed shapes, whose starts
+    include those yaws, had fitted a 0.1 m-deep box 0.05 m behind the plate). So a misfit plate
+    is re-seated before anything closed is tried."""
+    q = plate_result.params[0]
+    rows = [q.copy()]
+    for dyaw in RESEAT_YAWS:
+        for scale in RESEAT_WIDTHS:
+            p = q.copy()
+            p[plate.WIDTH], p[plate.YAW] = p[plate.WIDTH] * scale, p[plate.YAW] + dyaw
+            rows.append(p)
+    result = best_of(problem, np.array(rows), free, final_nfev)
+    return result if result.cost < plate_result.cost else plate_result
+
+
+def closed_or_plate(problem, plate_result, free, final_nfev, plate_cov, closed="auto",
+                    probe_depth=True):
+    """Plate or closed shape for one target. The closed shapes (CLOSED) are fitted only where
+    the plate, re-seated (`reseat_plate`), still misses the data (`misfit`) or closed=True;
+    the one of lowest cost (they share the parameters) is kept where its one more parameter
+    (depth) passes the BIC test in units of its own residual variance (as `accepts`).
+    plate_cov: covariance(...) of the plate.
+    Returns (problem, result, free, (cov_all, info)) of the chosen model."""
+    inadequate, birge = misfit(problem, plate_result, free, plate_cov[1])
+    if inadequate and closed is not True:  # a misfit plate is re-seated first
+        reseated = reseat_plate(problem, plate_result, free, final_nfev)
+        if reseated is not plate_result:
+            plate_result, plate_cov = reseated, covariance(problem, reseated, free)
+            inadequate, birge = misfit(problem, plate_result, free, plate_cov[1])
+            plate_cov[1].update(plate_reseated=True)
+    plate_cov[1].update(plate_birge_ratio=birge, closed_tried=False)
+    if closed == "auto" and not inadequate and probe_depth:  # would a box behind it do better?
+        seen = depth.probe(problem, plate_result, kappa(problem.obs))
+        plate_cov[1].update(depth_sd_m=seen["depth_sd_m"], box_probe_better=seen["box_better"])
+        inadequate = seen["box_better"]
+    if closed is False or (closed == "auto" and not inadequate):
+        return problem, plate_result, free, plate_cov
+    fits = [fit_closed(problem, plate_result, free, final_nfev, shape) for shape in CLOSED]
+    for closed_problem, _, _ in fits:  # the plate's problem counts every forward call
+        problem.calls += closed_problem.calls
+        problem.model_s += closed_problem.model_s
+    shaped, result, free_shaped = min(fits, key=lambda f: f[1].cost)
+    shaped_cov = covariance(shaped, result, free_shaped)
+    k = kappa(problem.obs)
+    log_n = math.log(max(result.n_residuals / k, 2.0))
+    scale = max(1.0, misfit(shaped, result, free_shaped, shaped_cov[1])[1])
+    gain = (plate_result.cost - result.cost) / (k * scale)
+    why = {"plate_birge_ratio": birge, "closed_tried": True, "closed_bic_gain": gain - log_n,
+           "closed_costs": {name_of(f[0].shape): f[1].cost for f in fits}}
+    if closed is True or gain > log_n:
+        shaped_cov[1].update(why)
+        return shaped, result, free_shaped, shaped_cov
+    plate_cov[1].update(why)
+    return problem, plate_result, free, plate_cov
