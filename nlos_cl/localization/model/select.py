@@ -66,21 +66,33 @@ def add_plate(problem, current, free, z0, final_nfev, reseat_dead=True):
     joint = _add_one(problem, current, free, z0, final_nfev)
     if reseat_dead:
         joint = _reseat_dead(problem, joint, free, z0, final_nfev)
-        if misfit(problem, joint, free, {})[0]:
-            joint = reseat_each(problem, joint, free, z0, final_nfev)
+        for _ in range(RESEAT_PASSES):  # while it misses the data and a pass improves it
+            if not misfit(problem, joint, free, {})[0]:
+                break
+            again = reseat_each(problem, joint, free, z0, final_nfev)
+            if again is joint:
+                break
+            joint = again
     return joint
+
+
+RESEAT_PASSES = 3
 
 
 def reseat_each(problem, current, free, z0, final_nfev):
     """Each plate in turn dropped and re-added where the residual of the others is (the
     joint fit from there), the lowest cost kept: for a fit that still misses the data, where
     one plate had spread into a 2.8 x 0.04 m sliver over a target and its neighbour's ridge."""
-    best = current
-    for k in range(len(current.params)):
+    best, n = current, len(current.params)
+    for k in range(n):
         others = _result_of(problem, np.delete(best.params, k, axis=0))
         again = _add_one(problem, others, free, z0, final_nfev)
         if again.cost < best.cost and _plausible(again):
-            best = again
+            # the re-added plate (last) back in place k, so that k + 1 drops the next one
+            order = [*range(k), n - 1, *range(k, n - 1)]
+            best = FitResult(again.params[order], np.concatenate(
+                [again.linear[:n][order], again.linear[n:]]), again.cost, again.n_residuals,
+                again.nfev)
     return best
 
 
