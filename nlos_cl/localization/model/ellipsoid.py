@@ -57,8 +57,8 @@ def ellipsoid_cells(p, spots=None, laser=None, cells=CELLS):
                          indexing="ij")
     az, po = az.reshape(-1, 1), po.reshape(-1, 1)
     s_po, c_po, s_az, c_az = np.sin(po), np.cos(po), np.sin(az), np.cos(az)
-    # each cell's facet at its patch's mean position (cylinder.chord_mean: the mean of sin and
-    # cos over a cell of angle step is the centre's times sinc(step / 2))
+    # each cell's facet at its patch's mean position (chord_mean: the mean of sin and cos over
+    # a cell of angle step is the centre's times sinc(step / 2))
     k_az, k_po = chord_mean(d_az), chord_mean(d_po)
     centres = np.array([x, y, z]) + k_po * (k_az * (sb * s_po * c_az * n + sa * s_po * s_az * a)
                                             + sc * c_po * plate.UP)

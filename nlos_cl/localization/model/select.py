@@ -60,20 +60,19 @@ def one_plate(problem, argmax_position, free, z0, final_nfev):
     return best_of(problem, starts.candidates(centres, problem.obs.laser), free, final_nfev)
 
 
-def add_plate(problem, current, free, z0, final_nfev, reseat_dead=True, passes=None):
+def add_plate(problem, current, free, z0, final_nfev, passes):
     """current + one plate started where the residual signal is; a plate the joint fit left
-    dead (`dead_plates`) is dropped and re-added from the residual of the live ones."""
-    joint = _add_one(problem, current, free, z0, final_nfev)
-    if reseat_dead:
-        joint = _reseat_dead(problem, joint, free, z0, final_nfev)
-        for _ in range(RESEAT_PASSES if passes is None else passes):  # while it misses the
-            # data and a pass improves it
-            if not misfit(problem, joint, free, {})[0]:
-                break
-            again = reseat_each(problem, joint, free, z0, final_nfev)
-            if again is joint:
-                break
-            joint = again
+    dead (`dead_plates`) is dropped and re-added from the residual of the live ones, then up
+    to `passes` of `reseat_each` while the fit misses the data and a pass improves it."""
+    joint = _reseat_dead(problem, _add_one(problem, current, free, z0, final_nfev), free, z0,
+                         final_nfev)
+    for _ in range(passes):
+        if not misfit(problem, joint, free, {})[0]:
+            break
+        again = reseat_each(problem, joint, free, z0, final_nfev)
+        if again is joint:
+            break
+        joint = again
     return joint
 
 
@@ -130,11 +129,16 @@ DEAD_SHARE = 1e-4  # of the fitted signal energy: a target 2.2x farther carries 
 def dead_plates(problem, result) -> np.ndarray:
     """(K,) bool: plates whose fitted amplitude is 0 or that carry less than DEAD_SHARE of
     the signal energy the fit explains."""
-    k = len(result.params)
-    lin = np.asarray(result.linear[:k], float)
+    energy = plate_energies(problem, result)
+    return (result.linear[:len(energy)] <= 0) | (
+        energy < DEAD_SHARE * max(float(energy.sum()), 1e-300))
+
+
+def plate_energies(problem, result) -> np.ndarray:
+    """(K,) the signal energy each fitted plate explains: sum of (amplitude x column)^2."""
     cols = problem.columns(result.params)
-    energy = np.array([np.sum((a * c) ** 2) for a, c in zip(lin, cols)])
-    return (lin <= 0) | (energy < DEAD_SHARE * max(float(energy.sum()), 1e-300))
+    lin = np.asarray(result.linear[:len(cols)], float)
+    return np.einsum("k,kdn->k", lin ** 2, cols ** 2)
 
 
 def _add_one(problem, current, free, z0, final_nfev):
@@ -189,8 +193,7 @@ def accepts(problem, before, after, free) -> tuple[bool, dict]:
         birge = covariance(problem, after, free)[1]["birge_ratio"]
         adequate = birge <= chi2_quantile(0.999, n_eff) / n_eff
     gain = (before.cost - after.cost) / (k * max(1.0, birge))
-    cols = problem.columns(after.params)
-    energy = np.array([np.sum((a * c) ** 2) for a, c in zip(after.linear, cols)])
+    energy = plate_energies(problem, after)
     share = float(energy.min() / max(energy.sum(), 1e-300))
     apart = separate(after.params)
     ok = gain > penalty and share > 0 and (adequate or share >= MIN_SHARE or apart)
@@ -238,8 +241,8 @@ def _search(problem, est, argmax_position, free, z0):
     history = [{"targets": 1, "cost": current.cost}]
     wanted = est.targets if est.targets != "auto" else est.max_targets
     while len(current.params) < wanted:
-        bigger = add_plate(problem, current, free, z0, est.final_nfev, passes=(
-            AUTO_RESEAT_PASSES if est.targets == "auto" else RESEAT_PASSES))
+        bigger = add_plate(problem, current, free, z0, est.final_nfev,
+                           AUTO_RESEAT_PASSES if est.targets == "auto" else RESEAT_PASSES)
         entry = {"targets": len(bigger.params), "cost": bigger.cost}
         if est.targets == "auto":
             ok, why = accepts(problem, current, bigger, free)
