@@ -78,3 +78,19 @@ def test_the_least_recently_used_binaries_go_first(tmp_path):
         os.utime(tmp_path / f"{name}.bin", (when, when))
     programs.evict(tmp_path, max_bytes=150)
     assert sorted(p.stem for p in tmp_path.glob("*.bin")) == ["new"]
+
+
+def test_a_loaded_binary_keeps_the_compiler_log_out_of_the_callers_warnings(runtime, folder,
+                                                                           monkeypatch):
+    """PoCL hands a loaded binary's build log back; pyopencl turned it into a CompilerWarning
+    that locate_capture then reported as a warning about the answer ('Non-empty compiler
+    output' in the draws' rows, on a warm cache only)."""
+    import warnings
+    text = f"// {secrets.token_hex(8)}\n#warning \"a note from the compiler\"\n{SOURCE}"
+    monkeypatch.setattr("nlos_cl.device.runtime.kernel_source", lambda name: text)
+    _twice(Runtime(runtime.device))  # built from source, stored
+    second = Runtime(runtime.device)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert programs.load(second.context, second.device, text, ("-DSCALE=2.0f",))
+    assert [str(w.message) for w in caught] == []

@@ -16,6 +16,7 @@ from __future__ import annotations
 import os
 import tempfile
 import time
+import warnings
 from pathlib import Path
 
 from .devices import cl
@@ -55,7 +56,9 @@ def load(context, device, text: str, options, folder: Path | None = None):
         return None
     try:
         program = cl.Program(context, [device], [binary])
-        program.build(options=list(options))
+        with warnings.catch_warnings():  # as runtime.build_program: the log is no user's news
+            warnings.simplefilter("ignore", cl.CompilerWarning)
+            program.build(options=list(options))
         return program
     except (cl.Error, ValueError):  # stale or damaged: build from source, store anew
         return None
