@@ -147,3 +147,31 @@ def test_curved_shapes_cover_their_surface_and_cull_what_no_spot_sees():
                                         np.zeros(3))
     assert 0 < seen.count < sphere.count  # the far side is dropped
     assert np.all(np.einsum("fk,fk->f", seen.normals, -seen.centres) > 0)  # faces the laser
+
+
+def test_an_ambient_offset_under_the_signal_does_not_move_the_fit():
+    """A constant level under every row (ambient light, dark counts: 2 % of each row's peak)
+    is measured outside the signal and taken off (model.data.row_floors). Left in the fit's
+    window, it was explained as a 0.76 m deep box 0.38 m off the plate (1 % of the peak)."""
+    truth = (3.0, 2.0, 0.3)
+    setup = nl.paper_setup(detector_spots=TRIANGLE)
+    mesh = nl.rectangle(0.3, 1.6, centre=truth, normal=(-1, 0, 0))
+    clean = nl.simulate(nl.Scene(setup, nl.Target(mesh), truth=truth)).histograms()
+    noisy = nl.add_noise(clean, 20, seed=1).histograms()
+    offset = noisy.with_data(noisy.data + 0.02 * clean.data.max(axis=1, keepdims=True))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        loc = nl.locate(nl.gauss_filter(offset), GRID, estimator="model", raw=offset)
+    assert loc.error_m < 0.01
+    assert loc.targets[0].extent_m[2] == 0.0  # a plate, not a box
+
+
+def test_row_floors_measure_the_level_outside_the_signal_only():
+    from nlos_cl.localization.model.data import MIN_FLOOR_BINS, row_floors
+    rng = np.random.default_rng(0)
+    rows = 0.5 + 0.01 * rng.standard_normal((2, 4000))
+    rows[:, 1000:3500] += 10.0  # a signal over most of the record: a plain median says 10.5
+    floors = row_floors(rows, np.array([[1000, 3499], [1000, 3499]]))
+    assert np.allclose(floors, 0.5, atol=0.01)
+    short = row_floors(rows[:, :MIN_FLOOR_BINS + 10], np.array([[5, MIN_FLOOR_BINS + 5]] * 2))
+    assert np.all(short == 0.0)  # too few bins outside: the level is unknown, nothing taken

@@ -102,6 +102,23 @@ def signal_windows(filtered, noise, margin_bins, frac=ONE_TARGET_FRAC, n_sigma=6
     return np.array(out)
 
 
+MIN_FLOOR_BINS = 64  # bins outside the signal a row needs for its floor to be estimated
+
+
+def row_floors(filtered, windows) -> np.ndarray:
+    """Per row, the level the signal sits on (ambient light, dark counts, an offset left by
+    processing): the median of the row's bins outside its signal window, which no target's
+    pulse reaches; 0 where fewer than MIN_FLOOR_BINS lie outside (the level is then unknown,
+    and data that fill their record were processed to sit on zero)."""
+    n_bins = filtered.shape[1]
+    out = np.zeros(len(filtered))
+    for d, (row, (lo, hi)) in enumerate(zip(filtered, windows)):
+        outside = np.concatenate([row[:max(lo, 0)], row[min(hi + 1, n_bins):]])
+        if outside.size >= MIN_FLOOR_BINS:
+            out[d] = float(np.median(outside))
+    return out
+
+
 def _filtered_at(raw, idx, taps) -> np.ndarray:
     """raw filtered with `taps` (centred, zero outside the record) at the bins idx (D, n,
     ascending), one detector at a time over the stretch it needs (a gather of every window at
@@ -144,6 +161,7 @@ def gaussian_observation(layout, filtered, raw, *, h_s=PAPER_H_S, pulse_sigma_s=
     idx = k0[:, None] + stride * np.arange(n)[None, :]
     valid = (idx >= 0) & (idx < axis.n_bins)
     idx = np.clip(idx, 0, axis.n_bins - 1)
+    floors = row_floors(filtered, wins)
     if raw is None:
         y, noise = np.take_along_axis(filtered, idx, axis=1), f_noise
     else:
@@ -156,7 +174,7 @@ def gaussian_observation(layout, filtered, raw, *, h_s=PAPER_H_S, pulse_sigma_s=
     dpath = paths.step_m * stride
     path0 = paths.centre0_m + paths.step_m * k0
     return Observation("gauss", layout.detector_spots, layout.laser_spot, path0 - 0.5 * dpath,
-                       dpath, np.where(valid, y, 0.0), valid,
+                       dpath, np.where(valid, y - floors[:, None], 0.0), valid,
                        math.hypot(a * pulse_sigma_s, sigma_f),
                        # noise-free data: float32 rounding is the floor
                        np.maximum(noise, 1e-5 * float(np.abs(y).max()) + 1e-300),
