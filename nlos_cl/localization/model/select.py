@@ -76,12 +76,12 @@ def add_plate(problem, current, free, z0, final_nfev, passes):
     return joint
 
 
-# Passes of reseat_each with K given. 'auto' runs none on the larger models it weighs (only the
-# dead plates' re-seating): there, a spare plate re-seated near the wall absorbed two squares'
-# unmodelled shadow (the search has no shadows) well enough to pass the BIC test
-# (tests/test_model_selection.py), with one pass as with three.
+# Passes of reseat_each, with K given and in 'auto' alike. 'auto' weighs each larger model
+# with the plates' shadows (`weigh`): weighed on the unshadowed search's costs, a spare
+# plate re-seated near the wall absorbed two squares' unmodelled shadow well enough to pass
+# the BIC test (tests/test_model_selection.py), so 'auto' had run no passes at all.
 RESEAT_PASSES = 3
-AUTO_RESEAT_PASSES = 0
+AUTO_RESEAT_PASSES = RESEAT_PASSES
 
 
 def reseat_each(problem, current, free, z0, final_nfev):
@@ -225,7 +225,7 @@ def fit_targets(problem, est, argmax_position, free, z0):
     shadows = bool(getattr(problem, "shadows", False))
     problem.shadows = False
     try:
-        current, history = _search(problem, est, argmax_position, free, z0)
+        current, history = _search(problem, est, argmax_position, free, z0, shadows)
     finally:
         problem.shadows = shadows
     if shadows and len(current.params) >= 2 and problem.occluders(current.params) is not None:
@@ -236,7 +236,7 @@ def fit_targets(problem, est, argmax_position, free, z0):
     return current, history
 
 
-def _search(problem, est, argmax_position, free, z0):
+def _search(problem, est, argmax_position, free, z0, shadows=False):
     current = one_plate(problem, argmax_position, free, z0, est.final_nfev)
     history = [{"targets": 1, "cost": current.cost}]
     wanted = est.targets if est.targets != "auto" else est.max_targets
@@ -245,7 +245,7 @@ def _search(problem, est, argmax_position, free, z0):
                            AUTO_RESEAT_PASSES if est.targets == "auto" else RESEAT_PASSES)
         entry = {"targets": len(bigger.params), "cost": bigger.cost}
         if est.targets == "auto":
-            ok, why = accepts(problem, current, bigger, free)
+            ok, why = weigh(problem, current, bigger, free, est.final_nfev, shadows)
             entry.update(why, accepted=ok)
             history.append(entry)
             if not ok:
@@ -254,6 +254,24 @@ def _search(problem, est, argmax_position, free, z0):
             history.append(entry)
         current = bigger
     return current, history
+
+
+def weigh(problem, current, bigger, free, final_nfev, shadows) -> tuple[bool, dict]:
+    """`accepts` for 'auto', on the plates' mutual shadows where the problem models them
+    (`fit_targets` has switched them off for the search): each model with two plates or more
+    is refitted with shadows from its search answer, and the test runs on that model. On the
+    search's unshadowed costs, one target's shadow on another counts as signal a plate more
+    could explain."""
+    if not shadows:
+        return accepts(problem, current, bigger, free)
+    problem.shadows = True
+    try:
+        pair = [fit(problem, r.params, free, final_nfev)
+                if len(r.params) >= 2 and problem.occluders(r.params) is not None else r
+                for r in (current, bigger)]
+        return accepts(problem, *pair, free)
+    finally:
+        problem.shadows = False
 
 
 def misfit(problem, result, free, cov_info) -> tuple[bool, float]:
