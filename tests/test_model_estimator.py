@@ -171,7 +171,11 @@ def test_row_floors_measure_the_level_outside_the_signal_only():
     rng = np.random.default_rng(0)
     rows = 0.5 + 0.01 * rng.standard_normal((2, 4000))
     rows[:, 1000:3500] += 10.0  # a signal over most of the record: a plain median says 10.5
-    floors = row_floors(rows, np.array([[1000, 3499], [1000, 3499]]))
+    floors = row_floors(rows, np.array([[1000, 3499], [1000, 3499]]), np.full(2, 0.01))
     assert np.allclose(floors, 0.5, atol=0.01)
-    short = row_floors(rows[:, :MIN_FLOOR_BINS + 10], np.array([[5, MIN_FLOOR_BINS + 5]] * 2))
+    short = row_floors(rows[:, :MIN_FLOOR_BINS + 10], np.array([[5, MIN_FLOOR_BINS + 5]] * 2),
+                       np.full(2, 0.01))
     assert np.all(short == 0.0)  # too few bins outside: the level is unknown, nothing taken
+    noise_only = 0.01 * rng.standard_normal((200, 4000))  # zero-mean: a level is noise's
+    assert np.count_nonzero(row_floors(noise_only, np.array([[1000, 3499]] * 200),
+                                       np.full(200, 0.01))) == 0

@@ -103,31 +103,29 @@ def signal_windows(filtered, noise, margin_bins, frac=ONE_TARGET_FRAC, n_sigma=6
 
 
 MIN_FLOOR_BINS = 64  # bins outside the signal a row needs for its floor to be estimated
-FLOOR_BLOCKS = 16  # the outside bins cut into this many runs: their medians' spread
 FLOOR_SIGNIFICANCE = 5.0  # standard errors a level must stand clear of 0 to be taken off
+MEDIAN_SE = 1.2533  # a median's standard error over a mean's, for Gaussian noise
 
 
-def row_floors(filtered, windows) -> np.ndarray:
+def row_floors(filtered, windows, noise, kappa=1.0) -> np.ndarray:
     """Per row, the level the signal sits on (ambient light, dark counts, an offset left by
-    processing): the median of FLOOR_BLOCKS runs' medians of the row's bins outside its signal
-    window, which no target's pulse reaches. 0 where the level is not told from 0 by
-    FLOOR_SIGNIFICANCE standard errors (from the runs' spread: the filtered noise is
-    correlated over ~h / dt bins, so the bins are not independent draws) or where fewer than
-    MIN_FLOOR_BINS lie outside. Untested, the level of zero-mean noise (0.01-0.26 noise sd on
-    a 60,000-bin multi draw) was taken off as a pedestal, and a two-plate fit that had found
-    both plates within 2 cm went 2.8 m off (the several-target search is that sensitive).
-    Tested, 3 of 545 rows of 40 noise-only draws (one, multi) lose a level, and every row of
-    the ambient draws (13-30 noise sd) does."""
+    processing): the median of the row's bins outside its signal window, which no target's
+    pulse reaches; taken as 0 where it does not stand FLOOR_SIGNIFICANCE standard errors clear
+    of 0, or where fewer than MIN_FLOOR_BINS lie outside. noise: each row's noise sd; kappa:
+    how many bins one independent sample spans ((sum of taps)^2 / sum of taps^2 for filtered
+    white noise), so the median of N bins has the standard error
+    MEDIAN_SE noise sqrt(kappa / N). Untested, the level of zero-mean noise (up to 0.45 noise
+    sd) was taken off as a pedestal, and fits of two plates went metres off (multi draw 60:
+    2.8 m; a crossing's track lost). Ambient rows stand 13-30 sd clear (mismatch draws)."""
     n_bins = filtered.shape[1]
     out = np.zeros(len(filtered))
     for d, (row, (lo, hi)) in enumerate(zip(filtered, windows)):
         outside = np.concatenate([row[:max(lo, 0)], row[min(hi + 1, n_bins):]])
         if outside.size < MIN_FLOOR_BINS:
             continue
-        blocks = np.array([np.median(b) for b in np.array_split(outside, FLOOR_BLOCKS)])
-        level = float(np.median(blocks))
-        spread = MAD * float(np.median(np.abs(blocks - level))) / math.sqrt(FLOOR_BLOCKS)
-        if abs(level) > FLOOR_SIGNIFICANCE * spread:
+        level = float(np.median(outside))
+        se = MEDIAN_SE * float(noise[d]) * math.sqrt(kappa / outside.size)
+        if abs(level) > FLOOR_SIGNIFICANCE * se:
             out[d] = level
     return out
 
@@ -174,7 +172,9 @@ def gaussian_observation(layout, filtered, raw, *, h_s=PAPER_H_S, pulse_sigma_s=
     idx = k0[:, None] + stride * np.arange(n)[None, :]
     valid = (idx >= 0) & (idx < axis.n_bins)
     idx = np.clip(idx, 0, axis.n_bins - 1)
-    floors = row_floors(filtered, wins)
+    paper_taps = gauss_taps(h_s, axis.dt_s)  # the filter the rows passed (raw: ours, alike)
+    floors = row_floors(filtered, wins, f_noise, float(paper_taps.sum() ** 2
+                                                       / np.sum(paper_taps ** 2)))
     if raw is None:
         y, noise = np.take_along_axis(filtered, idx, axis=1), f_noise
     else:
