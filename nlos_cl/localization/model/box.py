@@ -120,6 +120,15 @@ def from_plate(q, depth) -> np.ndarray:
     return np.array([c[0], c[1], c[2], w, h, depth, yaw])
 
 
+def front_of(p) -> np.ndarray:
+    """The front face of closed shape p (box, ellipsoid, cylinder: same parameters) as a plate
+    row (x, y, z, width, height, yaw): `from_plate`'s inverse."""
+    x, y, z, w, h, d, yaw = (float(v) for v in p)
+    n = np.array([math.cos(yaw), math.sin(yaw), 0.0])
+    c = np.array([x, y, z]) + 0.5 * d * n
+    return np.array([c[0], c[1], c[2], w, h, yaw])
+
+
 def extent(p) -> np.ndarray:
     """Size along the box's own axes: (across, up, along the normal) = (w, h, d)."""
     return np.array([float(p[WIDTH]), float(p[HEIGHT]), float(p[DEPTH])])
