@@ -167,20 +167,40 @@ def test_a_box_whose_plate_went_wide_is_found_from_the_other_closed_fits_front()
     the ellipsoid finds the front face. Refitted from that face (closed.cross_seeded) the box
     explains the data (Birge ~1) with the centre ~0.1 m off (the depth is shallow in the
     cost); before, the thin ellipsoid's centre was reported, on the front, 0.32 m off."""
-    centre, normal = np.array([-1.2843, 1.9553, -0.2060]), np.array([0.0436, -0.9990, 0.0])
-    solid = nl.box((0.66, 0.7755, 0.4451), centre=tuple(centre), cell_m=0.01)
-    angle = math.radians(math.degrees(math.atan2(normal[1], normal[0])) - 180.0)
+    centre = np.array([-1.2843, 1.9553, -0.2060])
+    found = _turned_box_seen_by_a_patch(centre, (0.0436, -0.9990), (0.66, 0.7755, 0.4451),
+                                        (-1.2197, -0.7688, 6), (-0.2819, 0.0789, 5),
+                                        4.06, 135717540)
+    assert found.fit.shape == "box" and found.fit.birge_ratio < 1.5, found.fit.as_dict()
+    assert np.linalg.norm(found.position - centre) < 0.15
+
+
+def test_a_shallow_box_behind_a_plate_that_fits_is_found_by_the_probe():
+    """A 0.77 x 0.35 m box 0.30 m deep, turned 22 degrees, seen by a 7 x 5 SPAD patch: the
+    plate on its front passes the misfit test (Birge 1.17) and the probe's boxes as deep as
+    0.5 and 1 x its width cost more than it; one 0.25 x its width deep (0.19 m) costs 12
+    kappa less (depth.PROBE_DEPTHS), so the closed shapes are fitted and the box's centre
+    is found. Before, the plate's front was reported, 0.15 m off, with no warning."""
+    centre = np.array([1.6662, 3.3600, -0.0789])
+    found = _turned_box_seen_by_a_patch(centre, (-0.2608, -0.9654), (0.3025, 0.7689, 0.3513),
+                                        (-1.1487, -0.5926, 7), (-0.4822, -0.1114, 5),
+                                        6.47, 163055656)
+    assert found.fit.shape == "box", found.fit.as_dict()
+    assert np.linalg.norm(found.position - centre) < 0.05
+
+
+def _turned_box_seen_by_a_patch(centre, normal, size, xs, zs, snr_db, seed):
+    """The default answer's target for a box (size: depth along `normal`, width, height)
+    facing the wall's patch of spots on linspace(*xs) x linspace(*zs) at y = 0."""
+    solid = nl.box(size, centre=tuple(centre), cell_m=0.01)
+    angle = math.atan2(normal[1], normal[0]) - math.pi  # nl.box faces the spots along -x
     rot = np.array([[math.cos(angle), -math.sin(angle), 0.0],
                     [math.sin(angle), math.cos(angle), 0.0], [0.0, 0.0, 1.0]])
     solid.vertices = (np.asarray(solid.vertices) - centre) @ rot.T + centre
-    x = np.linspace(-1.2197, -0.7688, 6)
-    z = np.linspace(-0.2819, 0.0789, 5)
-    patch = np.array([[a, 0.0, b] for a in x for b in z])
+    patch = np.array([[a, 0.0, b] for a in np.linspace(*xs) for b in np.linspace(*zs)])
     scene = nl.Scene(nl.paper_setup(detector_spots=patch), nl.Target(solid, 0.1284),
                      truth=tuple(centre))
-    noisy = nl.add_noise(nl.simulate(scene), 4.06, seed=135717540)
+    noisy = nl.add_noise(nl.simulate(scene), snr_db, seed=seed)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        found = nl.locate_capture(noisy.histograms()).points[0].location.targets[0]
-    assert found.fit.shape == "box" and found.fit.birge_ratio < 1.5, found.fit.as_dict()
-    assert np.linalg.norm(found.position - centre) < 0.15
+        return nl.locate_capture(noisy.histograms()).points[0].location.targets[0]
