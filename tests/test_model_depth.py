@@ -204,3 +204,14 @@ def _turned_box_seen_by_a_patch(centre, normal, size, xs, zs, snr_db, seed):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return nl.locate_capture(noisy.histograms()).points[0].location.targets[0]
+
+
+def test_front_of_is_from_plates_inverse():
+    """closed.cross_seeded restarts every closed family from the best one's front face."""
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        q = np.array([*rng.uniform(-2, 2, 3), *rng.uniform(0.1, 1.5, 2), rng.uniform(-4, 4)])
+        d = float(rng.uniform(0.0, 1.0))
+        assert np.allclose(box.front_of(box.from_plate(q, d)), q, atol=1e-12)
+        p = box.from_plate(q, d)  # the centre lies d / 2 behind the face, along -normal
+        assert np.allclose(q[:3] - p[:3], 0.5 * d * box.normal_of(p), atol=1e-12)
