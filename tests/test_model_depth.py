@@ -192,11 +192,10 @@ def test_a_shallow_box_behind_a_plate_that_fits_is_found_by_the_probe():
 def _turned_box_seen_by_a_patch(centre, normal, size, xs, zs, snr_db, seed):
     """The default answer's target for a box (size: depth along `normal`, width, height)
     facing the wall's patch of spots on linspace(*xs) x linspace(*zs) at y = 0."""
+    from trimesh.transformations import rotation_matrix
     solid = nl.box(size, centre=tuple(centre), cell_m=0.01)
     angle = math.atan2(normal[1], normal[0]) - math.pi  # nl.box faces the spots along -x
-    rot = np.array([[math.cos(angle), -math.sin(angle), 0.0],
-                    [math.sin(angle), math.cos(angle), 0.0], [0.0, 0.0, 1.0]])
-    solid.vertices = (np.asarray(solid.vertices) - centre) @ rot.T + centre
+    solid.apply_transform(rotation_matrix(angle, (0.0, 0.0, 1.0), point=centre))
     patch = np.array([[a, 0.0, b] for a in np.linspace(*xs) for b in np.linspace(*zs)])
     scene = nl.Scene(nl.paper_setup(detector_spots=patch), nl.Target(solid, 0.1284),
                      truth=tuple(centre))

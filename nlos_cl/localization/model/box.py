@@ -123,10 +123,9 @@ def from_plate(q, depth) -> np.ndarray:
 def front_of(p) -> np.ndarray:
     """The front face of closed shape p (box, ellipsoid, cylinder: same parameters) as a plate
     row (x, y, z, width, height, yaw): `from_plate`'s inverse."""
-    x, y, z, w, h, d, yaw = (float(v) for v in p)
-    n = np.array([math.cos(yaw), math.sin(yaw), 0.0])
-    c = np.array([x, y, z]) + 0.5 * d * n
-    return np.array([c[0], c[1], c[2], w, h, yaw])
+    p = np.asarray(p, float)
+    front = p[:3] + 0.5 * p[DEPTH] * normal_of(p)
+    return np.array([*front, p[WIDTH], p[HEIGHT], p[YAW]])
 
 
 def extent(p) -> np.ndarray:

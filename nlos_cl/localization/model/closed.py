@@ -66,16 +66,19 @@ def cross_seeded(fits, final_nfev):
     where it costs less."""
     best = min(fits, key=lambda f: f[1].cost)[1].params[0]
     front = box.front_of(best)
+    depths = (max(float(best[box.DEPTH]), MIN_CROSS_DEPTH_M), *CROSS_DEPTHS)
+    rows = np.array([box.from_plate(front, d) for d in depths])
     out = []
     for closed_problem, result, free_closed in fits:
-        rows = np.array([box.from_plate(front, d) for d in
-                         (max(float(best[box.DEPTH]), 0.05), *CROSS_DEPTHS)])
         again = best_of(closed_problem, rows, free_closed, CLOSED_NFEV * final_nfev, keep=2)
         out.append((closed_problem, again if again.cost < result.cost else result, free_closed))
     return out
 
 
 CROSS_DEPTHS = (0.3, 0.6)  # m behind the best closed fit's front face
+# The best fit's own depth as a start, at least this: a box of depth 0 is the plate, whose
+# starts every family has already had (the ellipsoid's lower bound is 0.04 m)
+MIN_CROSS_DEPTH_M = 0.05
 
 
 RESEAT_YAWS = np.radians([-40.0, -20.0, 20.0, 40.0])
