@@ -6,11 +6,13 @@ import numpy as np
 import pytest
 
 import nlos_cl as nl
-from nlos_cl.localization.model import batch, lm, starts
+from nlos_cl.localization.model import batch, lm, plate, starts
 from nlos_cl.localization.model.data import row_median
 from nlos_cl.ops.forward import facet_paths
 
 from conftest import model_observation, paper_frame
+
+ON_PLANE = plate.Held(2, (0.0, 0.0, 0.0))  # the paper's line: z held at 0
 
 TRUTH = (4.0, 2.0, 0.0)
 PLATE = np.array([4.0, 2.0, 0.0, 0.3, 1.6, np.pi])  # facing the wall
@@ -97,7 +99,7 @@ def test_candidate_costs_are_the_problems(obs):
 def test_coarse_candidates_pick_the_full_lattices_starts(obs):
     """The candidates ranked on START_LATTICE start the fits where the fit's lattice would."""
     problem = batch.HostProblem(obs)
-    rows = starts.candidates(starts.start_centres(obs, TRUTH, False, 0.0), obs.laser)
+    rows = starts.candidates(starts.start_centres(obs, TRUTH, ON_PLANE), obs.laser)
     coarse = starts.best_starts(problem, rows)
     assert problem.calls == len(rows)  # the coarse problem's evaluations are counted here
     assert problem.coarser(starts.START_LATTICE).lattice == starts.START_LATTICE
@@ -107,7 +109,7 @@ def test_coarse_candidates_pick_the_full_lattices_starts(obs):
 
 def test_ellipse_point_with_its_jacobian_is_the_finite_difference_answer(obs):
     paths = starts.mean_paths(obs)
-    point = starts.ellipse_point(obs, paths)
+    point = starts.ellipse_point(obs, paths, ON_PLANE)
 
     def res(v):
         c = np.array([v[0], v[1], 0.0])

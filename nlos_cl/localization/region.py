@@ -50,6 +50,19 @@ def line_direction(points) -> np.ndarray | None:
     return vt[0] if spread <= max(1e-3, 1e-3 * length) else None
 
 
+def unseen_axis(points) -> int | None:
+    """The axis collinear wall points (lasers and detectors) cannot see: 2 (z) for a line
+    along x, 0 (x) for a line along z (rotating a hidden point about their line changes no
+    path; the axis is held on the points' mean plane). None where they do not lie on one line
+    or their line is along neither axis (then no one axis is unseen)."""
+    line = line_direction(np.asarray(points, dtype=np.float64))
+    if line is not None and abs(line[0]) > ALONG_AXIS_COS:
+        return 2
+    if line is not None and abs(line[2]) > ALONG_AXIS_COS:
+        return 0
+    return None
+
+
 def _nice_step(step: float) -> float:
     """Round down to 1, 2 or 5 x 10^k."""
     k = math.floor(math.log10(step))
@@ -114,12 +127,7 @@ def default_region(histograms: HistogramSet, h_s: float = PAPER_H_S, *,
     lo, hi = visible_box(h, signal_reach([h] if reach_from is None else reach_from))
     lo[1] = max(lo[1], 0.0)
     spots = np.vstack([h.laser_spots, h.detector_spots])
-    line = line_direction(spots)
-    flat = None  # the internal axis collapsed to one plane, if height is unobservable
-    if line is not None and abs(line[0]) > ALONG_AXIS_COS:
-        flat = 2
-    elif line is not None and abs(line[2]) > ALONG_AXIS_COS:
-        flat = 0
+    flat = unseen_axis(spots)  # the internal axis collapsed to one plane, if unobservable
     if flat is not None:
         lo[flat] = hi[flat] = float(spots[:, flat].mean())
     require(hi[1] > 0 and bool(np.all(hi >= lo)), "time_axis", "the detectors' windows share "

@@ -35,14 +35,16 @@ class Measurement:
 
 
 def measurement(target, d: int, *, fallback_sigma_m: float, min_sigma_m: float,
-                height_observable: bool = True) -> Measurement:
-    """A LocatedTarget as a measurement of the first d axes (see the module docstring); with
-    height_observable=False (collinear wall spots) z is never measured."""
+                unseen_axis: int | None = None) -> Measurement:
+    """A LocatedTarget as a measurement of the first d axes (see the module docstring); the
+    axis collinear wall spots cannot see (unseen_axis: 2, z, for a line along x; 0, x, for a
+    line along z; region.unseen_axis) is never measured."""
     pos = np.asarray(target.position, dtype=np.float64).reshape(3)
     cov = None if target.covariance is None else np.asarray(target.covariance, np.float64)
-    if not height_observable and d == 3:
-        cov = np.diag([fallback_sigma_m ** 2] * 2 + [np.inf]) if cov is None else cov.copy()
-        cov[2, :], cov[:, 2], cov[2, 2] = 0.0, 0.0, np.inf
+    if unseen_axis is not None and unseen_axis < d:
+        cov = np.diag([fallback_sigma_m ** 2] * 3) if cov is None else cov.copy()
+        a = unseen_axis
+        cov[a, :], cov[:, a], cov[a, a] = 0.0, 0.0, np.inf
     if cov is None or cov.shape != (3, 3):
         axes = np.arange(d)
         R = fallback_sigma_m ** 2 * np.eye(d)

@@ -65,6 +65,7 @@ class Tracker:
         from ..localization.estimators import as_estimator
         from ..localization.filter import GaussFilter
         from ..localization.locator import Locator
+        from ..localization.region import unseen_axis
         from ..physics.layouts import height_observable
         layout = getattr(layout, "layout", layout)
         grid = Grid() if grid is None else grid
@@ -93,7 +94,8 @@ class Tracker:
         self._as_measurement = functools.partial(
             kalman.measurement, d=self.dims, fallback_sigma_m=float(fallback_sigma_m),
             min_sigma_m=float(min_sigma_m),
-            height_observable=height_observable(layout.laser_spot, layout.detector_spots))
+            unseen_axis=None if height_observable(layout.laser_spot, layout.detector_spots)
+            else unseen_axis(np.vstack([layout.laser_spot, layout.detector_spots])))
         self.tracks: list[Track] = []  # live
         self.finished: list[Track] = []  # deleted, most recent last (at most 100 kept)
         self.frame_index, self.t_s = -1, None

@@ -141,7 +141,8 @@ def page(rows, summ, cfg, s: Settings, options: str, seconds: float, seed: int) 
            "found target assigned to it (linear assignment), the worst of a draw's targets; a "
            f"target not found counts as an infinite error. A failure is an error above {fail:g} "
            "m; 'without a warning' counts failures whose answer carried no warning (the "
-           "collinear layouts' notice that z is unobservable is not counted: it is said for "
+           "collinear layouts' notice that z (a vertical line: x) is unobservable is not "
+           "counted: it is said for "
            "every answer; nor, where the truth is a plate, the notice that the spots cannot "
            "see a closed object's depth). Times are per call, on shared cores: noisy (with "
            "--jobs N, N draws share the cores: inflated).")

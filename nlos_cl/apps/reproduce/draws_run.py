@@ -15,9 +15,10 @@ import nlos_cl as nl
 from . import draws_scene
 from .common import Settings
 
-# Said for every collinear layout whatever the answer (z is held on the spots' plane, where
-# the draws put the truth): not a sign that this answer is off, so not counted as a warning.
-INFORMATIONAL = ("height (z) is unobservable",)
+# Said for every collinear layout whatever the answer (z, or x for a vertical line, is held on
+# the spots' plane, where the draws put the truth): not a sign that this answer is off, so
+# not counted as a warning.
+INFORMATIONAL = ("height (z) is unobservable", "x is unobservable")
 # Said where the spots cannot tell how deep one target is (model.depth): a warning about a
 # closed object's centre, which says nothing about a plate's, whose centre is its surface's.
 DEPTH_UNSEEN = ("the spots see only the front of target", "the depth of target")

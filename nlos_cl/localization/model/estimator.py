@@ -17,6 +17,7 @@ from ...core.tuning import SEARCH_DETECTORS
 from ..estimate import Capabilities, Estimate, LocatedTarget, Prior
 from ..fit_result import ModelFit, Parameter, WarmStart
 from ..paper import PaperArgmax
+from ..region import unseen_axis
 from . import data, plate
 from .fit import centre_covariance, covariance
 from .likelihood import Problem
@@ -25,8 +26,15 @@ from .sanity import checked, unfittable_line
 from .shape import MODELS, name_of
 
 HEIGHT_WARNING = ("height (z) is unobservable with collinear wall spots (rotating the target "
-                  "about their line changes no path): z is held at {z:.3f} m; use spots off "
+                  "about their line changes no path): z is held at {v:.3f} m; use spots off "
                   "one line to measure it")
+# spots on a vertical line: the azimuth about it is unseen, and x is held as z is for a line
+# along x (random one-target draws on vertical lines: p90 0.32 m from the paper's argmax,
+# which the fit had fallen back to)
+X_WARNING = ("x is unobservable with wall spots on a vertical line (rotating the target "
+             "about their line changes no path): x is held at {v:.3f} m; use spots off one "
+             "line to measure it")
+HELD_WARNINGS = {2: HEIGHT_WARNING, 0: X_WARNING}
 # Plate lattices (cells across x up). 16 x 24 for filtered AWGN data: a noise-free fit of
 # 1 cm-facet data from the truth is then off by <= 0.25 sd (Mahalanobis) on the
 # 0.3 x 1.6 m plate, a 0.7 m and a 1 m square (10 x 20 left the 0.7 m square 1 sd off).
@@ -107,17 +115,17 @@ class ModelEstimator:
         if isinstance(self.targets, int):  # before any fit: K the histograms can determine
             require_targets("targets", self.targets, len(obs.spots))
         clock["data"] = time.perf_counter()
-        observable = plate.height_observable(obs.spots, obs.laser)
-        if not observable and (why := unfittable_line(obs.spots, obs.laser)):
-            warnings.warn(why, stacklevel=3)  # the fit holds z: it cannot hold another axis
+        held = held_axis(obs, scored.grid)
+        if held is None:  # collinear spots on a tilted line: no one axis to hold
+            warnings.warn(unfittable_line(obs.spots, obs.laser), stacklevel=3)
             return Estimate(list(paper.targets), paper.cell_position, paper.score)
-        z0 = float(scored.grid.origin[2] + 0.5 * (scored.grid.shape[2] - 1) * scored.grid.step[2])
-        free = np.array([True, True, observable, True, True, True])
-        fitted, warm_info = _warm_or_cold(self, scored, obs, paper, free, z0, start, clock)
+        observable = held.axis != 2  # the height (ModelFit.height_observable)
+        free = held.free_mask()
+        fitted, warm_info = _warm_or_cold(self, scored, obs, paper, free, held, start, clock)
         problem, chosen, result, free, (cov_all, info), history = fitted
         if warm_info is not None:
             info = dict(info, warm_start=warm_info)
-        notes = _notes(observable, z0, chosen.shape, result, cov_all, info)
+        notes = _notes(held, chosen.shape, result, cov_all, info)
         for note in notes:
             warnings.warn(note, stacklevel=3)
         self.timings = _stages(clock, problem)
@@ -128,11 +136,11 @@ class ModelEstimator:
             located = checked(located, paper.targets[0].position, obs.spots, obs.laser)
         return Estimate(located, paper.cell_position, paper.score)
 
-    def _cold(self, scored, obs, paper, free, z0, clock):
+    def _cold(self, scored, obs, paper, free, held, clock):
         """The full fit: starts, short fits, final fit, covariance, plate or closed shape.
         (problem, chosen problem, result, free, (cov_all, info), history)."""
         problem = self.problem(obs, self.backend or scored.backend)
-        result, history = self._fit(problem, paper.targets[0].position, free, z0)
+        result, history = self._fit(problem, paper.targets[0].position, free, held)
         clock["fit"] = time.perf_counter()
         cov = covariance(problem, result, free)
         clock["covariance"] = time.perf_counter()
@@ -160,20 +168,20 @@ class ModelEstimator:
     def lattice_for(self, obs):
         return self.lattice or (GAUSS_LATTICE if obs.mode == "gauss" else POISSON_LATTICE)
 
-    def _fit(self, problem, argmax_position, free, z0):
+    def _fit(self, problem, argmax_position, free, held):
         """fit_targets, on a spread subset of the detectors when there are many, then the
         final fit on all of them (its answer and covariance use every detector)."""
         from .fit import fit
         from .select import fit_targets
         n_det = len(problem.obs.spots)
         if n_det <= SEARCH_DETECTORS:
-            return fit_targets(problem, self, argmax_position, free, z0)
+            return fit_targets(problem, self, argmax_position, free, held)
         obs = problem.obs  # spread over the wall (an index stride can pick one line of a raster)
         rows = farthest_points(np.hstack([obs.spots, np.broadcast_to(obs.laser, obs.spots.shape)]),
                                SEARCH_DETECTORS)
         search = Problem(problem.obs.detectors(rows), problem.backend, problem.lattice,
                          reflectance=problem.reflectance)
-        rough, history = fit_targets(search, self, argmax_position, free, z0)
+        rough, history = fit_targets(search, self, argmax_position, free, held)
         result = fit(problem, rough.params, free, self.final_nfev)
         problem.calls += search.calls
         problem.model_s += search.model_s
@@ -231,17 +239,17 @@ def _model_fit(shape, p, result, cov_all, k, info, notes, obs, history, observab
                     None if warm is None else WarmStart(**warm), diagnostics)
 
 
-def _warm_or_cold(est, scored, obs, paper, free, z0, start, clock):
+def _warm_or_cold(est, scored, obs, paper, free, held, start, clock):
     """(fitted, warm_info): the warm fit from `start` where it explains the data, else the cold
     fit, unless the cold fit costs more than the misfit warm one (same data, same K)."""
     fitted, warm_info, missed = None, None, None
     if start is not None:
         from .warm import warm_fit
-        fitted, warm_info, missed = warm_fit(est, obs, start_rows(est, start), free, z0,
+        fitted, warm_info, missed = warm_fit(est, obs, start_rows(est, start), free, held,
                                              scored.backend)
         clock["warm_fit"] = time.perf_counter()
     if fitted is None:
-        fitted = est._cold(scored, obs, paper, free, z0, clock)
+        fitted = est._cold(scored, obs, paper, free, held, clock)
         if missed is not None and missed[2].cost < fitted[2].cost:
             missed[0].calls += fitted[0].calls  # the timings count the cold fit's work too
             missed[0].model_s += fitted[0].model_s
@@ -251,10 +259,22 @@ def _warm_or_cold(est, scored, obs, paper, free, z0, start, clock):
     return fitted, warm_info
 
 
-def _notes(observable, z0, shape, result, cov_all, info) -> list[str]:
-    """What every answer of this fit says: z unobservable (collinear spots); one target's depth
-    not seen by these spots."""
-    notes = [] if observable else [HEIGHT_WARNING.format(z=z0)]
+def held_axis(obs, grid) -> plate.Held | None:
+    """The axis the fit holds (plate.Held: none, z for collinear spots along x, x for spots
+    along z) at the middle of the search region `grid` (which holds the same axis on the same
+    plane: region.unseen_axis); None for collinear spots on a line along neither axis."""
+    middle = tuple(float(o + 0.5 * (n - 1) * s) for o, n, s in
+                   zip(grid.origin, grid.shape, grid.step))
+    if plate.height_observable(obs.spots, obs.laser):
+        return plate.Held(None, middle)
+    axis = unseen_axis(np.vstack([np.reshape(obs.laser, (-1, 3)), obs.spots]))
+    return None if axis is None else plate.Held(axis, middle)
+
+
+def _notes(held, shape, result, cov_all, info) -> list[str]:
+    """What every answer of this fit says: an axis unobservable (collinear spots); one
+    target's depth not seen by these spots."""
+    notes = [] if held.axis is None else [HELD_WARNINGS[held.axis].format(v=held.value)]
     if len(result.params) == 1 and (why := unseen_note(shape, result, cov_all, info)):
         notes.append(why)
     return notes

@@ -16,6 +16,7 @@ leave no comb and no bias.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -143,6 +144,45 @@ def facing(centre, laser) -> float:
     layout's spots)."""
     d = np.asarray(laser, float).reshape(-1, 3).mean(axis=0) - np.asarray(centre, float)
     return math.atan2(d[1], d[0])
+
+
+@dataclass(frozen=True)
+class Held:
+    """The centre coordinate a fit holds because the spots cannot see it: `axis` 2 (z) for
+    spots and laser on a line along x, 0 (x) for a line along z, None where the spots see all
+    three (region.unseen_axis). `at`: the search region's middle; its coordinate on `axis` is
+    the value held, its others where the centroid search starts."""
+
+    axis: int | None = None
+    at: tuple = (0.0, 0.0, 0.0)
+
+    @property
+    def value(self) -> float:
+        return float(self.at[self.axis]) if self.axis is not None else math.nan
+
+    def free_axes(self) -> list[int]:
+        """The centre's axes (of x, y, z) the fit moves."""
+        return [i for i in range(3) if i != self.axis]
+
+    def put(self, point) -> np.ndarray:
+        """A copy of `point` (..., 3 or more) with the held axis at its value."""
+        out = np.array(point, dtype=np.float64)
+        if self.axis is not None:
+            out[..., self.axis] = self.value
+        return out
+
+    def free_mask(self) -> np.ndarray:
+        """The plate's free-parameter mask (N_PARAMS,): all but the held axis."""
+        free = np.ones(N_PARAMS, bool)
+        if self.axis is not None:
+            free[self.axis] = False
+        return free
+
+    @staticmethod
+    def of(free, at) -> "Held":
+        """The Held a fit's free mask implies (x or z fixed), with `at` as the point."""
+        axis = next((i for i in (2, 0) if not free[i]), None)
+        return Held(axis, tuple(float(v) for v in np.asarray(at, float)[:3]))
 
 
 def height_observable(spots, laser, tol=1e-6) -> bool:

@@ -24,7 +24,7 @@ import numpy as np
 
 from ...core.tuning import ARGMAX_MARGIN_M, MAX_EXTENT_M, MISFIT_BIRGE
 from ..estimate import LocatedTarget
-from ..region import ALONG_AXIS_COS, line_direction
+from ..region import line_direction, unseen_axis
 
 
 def doubt(target: LocatedTarget, paper_position, spots, lasers) -> str | None:
@@ -57,17 +57,16 @@ def misfit(target: LocatedTarget) -> str | None:
 
 
 def unfittable_line(spots, laser) -> str | None:
-    """Why the fit cannot take collinear spots whose line is not along x (a vertical line: the
-    unobservable axis is then x, the azimuth about the line, and the fit holds z; held-out
-    draws on vertical lines were 0.6-4.7 m off), or None. The region's own rule for a line
-    along an axis (region.line_direction, ALONG_AXIS_COS)."""
+    """Why the fit cannot take collinear spots whose line is along neither x nor z (the
+    unobservable azimuth about the line then mixes x and z: no one axis to hold, as z is for
+    a line along x and x for one along z), or None. The region's rule (region.unseen_axis)."""
     pts = np.vstack([np.asarray(laser, float).reshape(-1, 3), np.asarray(spots, float)])
-    line = line_direction(pts)
-    if line is None or abs(line[0]) > ALONG_AXIS_COS:
+    if line_direction(pts) is None or unseen_axis(pts) is not None:
         return None
-    return ("the wall spots lie on a line that is not along x: the rotation about it is "
-            "unobservable and the model fit (which holds the height z for spots along x) "
-            "cannot hold it; reporting the paper's argmax on the search region's plane")
+    return ("the wall spots lie on a line along neither x nor z: the rotation about it is "
+            "unobservable and the model fit (which holds z for spots along x, x for spots "
+            "along z) cannot hold it; reporting the paper's argmax on the search region's "
+            "plane")
 
 
 def _paths(point, spots, lasers) -> np.ndarray:

@@ -64,21 +64,21 @@ def _plausible(result) -> bool:
     return starts.plausible(result.linear, len(result.params))
 
 
-def one_plate(problem, argmax_position, free, z0, final_nfev):
-    centres = starts.start_centres(problem.obs, argmax_position, bool(free[2]), z0)
+def one_plate(problem, argmax_position, free, held, final_nfev):
+    centres = starts.start_centres(problem.obs, argmax_position, held)
     return best_of(problem, starts.candidates(centres, problem.obs.laser), free, final_nfev)
 
 
-def add_plate(problem, current, free, z0, final_nfev, passes):
+def add_plate(problem, current, free, held, final_nfev, passes):
     """current + one plate started where the residual signal is; a plate the joint fit left
     dead (`dead_plates`) is dropped and re-added from the residual of the live ones, then up
     to `passes` of `reseat_each` while the fit misses the data and a pass improves it."""
-    joint = _reseat_dead(problem, _add_one(problem, current, free, z0, final_nfev), free, z0,
+    joint = _reseat_dead(problem, _add_one(problem, current, free, held, final_nfev), free, held,
                          final_nfev)
     for _ in range(passes):
         if not misfit(problem, joint, free, {})[0]:
             break
-        again = reseat_each(problem, joint, free, z0, final_nfev)
+        again = reseat_each(problem, joint, free, held, final_nfev)
         if again is joint:
             break
         joint = again
@@ -93,14 +93,14 @@ RESEAT_PASSES = 3
 AUTO_RESEAT_PASSES = RESEAT_PASSES
 
 
-def reseat_each(problem, current, free, z0, final_nfev):
+def reseat_each(problem, current, free, held, final_nfev):
     """Each plate in turn dropped and re-added where the residual of the others is (the
     joint fit from there), the lowest cost kept: for a fit that still misses the data, where
     one plate had spread into a 2.8 x 0.04 m sliver over a target and its neighbour's ridge."""
     best, n = current, len(current.params)
     for k in range(n):
         others = _result_of(problem, np.delete(best.params, k, axis=0))
-        again = _add_one(problem, others, free, z0, final_nfev)
+        again = _add_one(problem, others, free, held, final_nfev)
         if again.cost < best.cost and _plausible(again):
             # the re-added plate (last) back in place k, so that k + 1 drops the next one
             order = [*range(k), n - 1, *range(k, n - 1)]
@@ -118,7 +118,7 @@ def _result_of(problem, params) -> FitResult:
     return FitResult(np.array(params, float), lin, float(r @ r), int(r.size), 0)
 
 
-def _reseat_dead(problem, joint, free, z0, final_nfev):
+def _reseat_dead(problem, joint, free, held, final_nfev):
     dead = dead_plates(problem, joint)
     if not dead.any() or dead.all():
         return joint
@@ -128,7 +128,7 @@ def _reseat_dead(problem, joint, free, z0, final_nfev):
     # (1/r^4 fainter, 1.9 m away) was never reached.
     again = fit(problem, joint.params[~dead], free, final_nfev)
     while len(again.params) < len(joint.params):
-        again = _add_one(problem, again, free, z0, final_nfev)
+        again = _add_one(problem, again, free, held, final_nfev)
     return again if again.cost < joint.cost else joint
 
 
@@ -150,17 +150,17 @@ def plate_energies(problem, result) -> np.ndarray:
     return np.einsum("k,kdn->k", lin ** 2, cols ** 2)
 
 
-def _add_one(problem, current, free, z0, final_nfev):
+def _add_one(problem, current, free, held, final_nfev):
     cols = problem.columns(current.params)
     rest = problem.obs.y - problem.mean(cols, current.linear)
     if problem.obs.mode == "poisson":
         rest = rest + problem.obs.y[:, :5].mean(axis=1, keepdims=True)
-    centres = starts.start_centres(problem.obs, None, bool(free[2]), z0, data=rest)
+    centres = starts.start_centres(problem.obs, None, held, data=rest)
     mu = problem.mean(cols, current.linear)
     z = ((problem.obs.y - mu) / problem.obs.noise[:, None] if problem.obs.mode == "gauss"
          else (problem.obs.y - mu) / np.sqrt(np.maximum(mu, 1.0)))  # counts: Poisson's sd
-    centres += starts.residual_centres(problem.obs, z, [p[:3] for p in current.params], z0,
-                                       bool(free[2]), count=RESIDUAL_STARTS)
+    centres += starts.residual_centres(problem.obs, z, [p[:3] for p in current.params], held,
+                                       count=RESIDUAL_STARTS)
     rows = starts.candidates(centres, problem.obs.laser)
     joint = best_of(problem, rows, free, final_nfev, fixed=current.params)
     for _ in range(2):
@@ -225,7 +225,7 @@ def separate(params) -> bool:
     return True
 
 
-def fit_targets(problem, est, argmax_position, free, z0):
+def fit_targets(problem, est, argmax_position, free, held):
     """The fit for est.targets plates (int or 'auto'), and what was tried. The search (starts,
     short fits, K) runs without the plates' mutual shadows; where the problem models them
     (batch.HostProblem) and one of K >= 2 plates can shadow another, a final fit with shadows
@@ -234,7 +234,7 @@ def fit_targets(problem, est, argmax_position, free, z0):
     shadows = bool(getattr(problem, "shadows", False))
     problem.shadows = False
     try:
-        current, history = _search(problem, est, argmax_position, free, z0, shadows)
+        current, history = _search(problem, est, argmax_position, free, held, shadows)
     finally:
         problem.shadows = shadows
     if shadows and len(current.params) >= 2 and problem.occluders(current.params) is not None:
@@ -245,12 +245,12 @@ def fit_targets(problem, est, argmax_position, free, z0):
     return current, history
 
 
-def _search(problem, est, argmax_position, free, z0, shadows=False):
-    current = one_plate(problem, argmax_position, free, z0, est.final_nfev)
+def _search(problem, est, argmax_position, free, held, shadows=False):
+    current = one_plate(problem, argmax_position, free, held, est.final_nfev)
     history = [{"targets": 1, "cost": current.cost}]
     wanted = est.targets if est.targets != "auto" else est.max_targets
     while len(current.params) < wanted:
-        bigger = add_plate(problem, current, free, z0, est.final_nfev,
+        bigger = add_plate(problem, current, free, held, est.final_nfev,
                            AUTO_RESEAT_PASSES if est.targets == "auto" else RESEAT_PASSES)
         entry = {"targets": len(bigger.params), "cost": bigger.cost}
         if est.targets == "auto":

@@ -1,6 +1,6 @@
 """Where the fit starts. The "centroid start": the signal-weighted mean hidden path per
 detector, then the point whose ellipse paths |c - O| + |c - spot| best match those means
-(on z = z0 when height is unobservable). The paper's argmax is a second candidate centre.
+(with the held axis on its plane where collinear spots cannot see it: plate.Held). The paper's argmax is a second candidate centre.
 Around each centre, a small lattice of yaws and sizes is scored with one forward call each;
 the best few start the short fits."""
 from __future__ import annotations
@@ -33,16 +33,21 @@ def mean_paths(obs, data=None) -> np.ndarray:
     return (w * obs.centres()).sum(axis=1) / total
 
 
-def ellipse_point(obs, paths, z0=0.0, free_z=False) -> np.ndarray:
-    """The point (y > 0) whose paths to the laser and each spot best match `paths`."""
+def ellipse_point(obs, paths, held=plate.Held()) -> np.ndarray:
+    """The point (y > 0) whose paths to the laser and each spot best match `paths` (its held
+    axis, if any, on the held plane)."""
     from .lm import least_squares  # not SciPy's: its import costs a one-shot locate ~0.25 s
     spots, laser = obs.spots, obs.laser
     x0 = float(np.reshape(laser, (-1, 3))[:, 0].mean())  # a paired layout: its lasers' middle
+    axes = held.free_axes()
 
-    n_free = 3 if free_z else 2
+    def point(v):
+        c = held.put(held.at)
+        c[axes] = v
+        return c
 
     def legs(v):  # from the laser and from each spot to c, and their lengths
-        c = np.array([v[0], v[1], v[2] if free_z else z0])
+        c = point(v)
         to_laser, to_spots = c - laser, c - spots
         return (to_laser, np.sqrt(np.sum(to_laser * to_laser, axis=-1)), to_spots,
                 np.sqrt(np.sum(to_spots * to_spots, axis=1)))
@@ -53,18 +58,17 @@ def ellipse_point(obs, paths, z0=0.0, free_z=False) -> np.ndarray:
 
     def jac(v):  # the unit vectors along both legs (y >= 0.05: c is never on the wall)
         d1, r1, d2, r2 = legs(v)
-        return (d1 / np.expand_dims(r1, -1) + d2 / r2[:, None])[:, :n_free]
+        return (d1 / np.expand_dims(r1, -1) + d2 / r2[:, None])[:, axes]
 
     best = None
     reach = float(np.median(paths)) / 2
+    lo = np.array([-np.inf, 0.05, -np.inf])[axes]
     for gx, gy in ((0.5, 0.7), (0.9, 0.3), (0.2, 0.9)):
-        v0 = [x0 + gx * reach, max(gy * reach, 0.1)] + ([z0] if free_z else [])
-        lo = [-np.inf, 0.05] + ([-np.inf] if free_z else [])
+        v0 = np.array([x0 + gx * reach, max(gy * reach, 0.1), held.at[2]])[axes]
         sol = least_squares(res, v0, jac=jac, bounds=(lo, np.inf))
         if best is None or sol.cost < best.cost:
             best = sol
-    v = best.x
-    return np.array([v[0], v[1], v[2] if free_z else z0])
+    return point(best.x)
 
 
 def candidates(centres, laser, sizes=SIZES, yaw_offsets=YAW_OFFSETS) -> np.ndarray:
@@ -143,14 +147,12 @@ def plausible(lin, k: int) -> bool:
     return len(a) < 2 or float(a.max()) <= MAX_AMPLITUDE_RATIO * float(a.min())
 
 
-def start_centres(obs, argmax_position, free_z, z0, data=None) -> list[np.ndarray]:
+def start_centres(obs, argmax_position, held, data=None) -> list[np.ndarray]:
     """The centroid start and (where it differs by more than 5 cm) the paper's argmax."""
-    centroid = ellipse_point(obs, mean_paths(obs, data), z0, free_z)
+    centroid = ellipse_point(obs, mean_paths(obs, data), held)
     out = [centroid]
     if argmax_position is not None:
-        a = np.array(argmax_position, dtype=np.float64)
-        if not free_z:
-            a[2] = z0
+        a = held.put(argmax_position)
         if np.linalg.norm(a - centroid) > 0.05 and a[1] > 0.05:
             out.append(a)
     return out
@@ -164,17 +166,21 @@ RESIDUAL_CELLS_X = 48
 RESIDUAL_APART_M = 0.4
 
 
-def _reach_box(obs, z0, free_z):
+def _reach_box(obs, held):
     """Axis ranges (x, y, z) that hold every point whose ellipse path to some detector lies
-    inside its sample window: half the longest path around the wall spots."""
+    inside its sample window: half the longest path around the wall spots (the held axis: its
+    value)."""
     top = float(np.max(obs.path0 + obs.dpath * (obs.n - 1)))
     wall = np.vstack([obs.spots, np.reshape(obs.laser, (-1, 3))])
     half = 0.5 * top
-    zr = (wall[:, 2].min() - half, wall[:, 2].max() + half) if free_z else (z0, z0)
-    return (wall[:, 0].min() - half, wall[:, 0].max() + half), (0.05, half), zr
+    out = [(wall[:, 0].min() - half, wall[:, 0].max() + half), (0.05, half),
+           (wall[:, 2].min() - half, wall[:, 2].max() + half)]
+    if held.axis is not None:
+        out[held.axis] = (held.value, held.value)
+    return out
 
 
-def residual_centres(obs, z, existing, z0, free_z, count=3) -> list[np.ndarray]:
+def residual_centres(obs, z, existing, held, count=3) -> list[np.ndarray]:
     """Up to `count` centres where the residual `z` (D, n, in noise units) holds a target the
     fit has not explained: on a coarse grid over the region the windows reach, each cell sums
     over the detectors log(max(z, 1)), z at the cell's ellipse path (max-
@@ -183,8 +189,9 @@ def residual_centres(obs, z, existing, z0, free_z, count=3) -> list[np.ndarray]:
     target cannot fake. Cells within RESIDUAL_APART_M of `existing` centres are skipped.
     With many targets, the weak one 4x farther carried 1/400 of the signal energy: the
     centroid of the residual (start_centres) sat between the misfits, this finds it."""
-    xr, yr, zr = _reach_box(obs, z0, free_z)
-    step = (xr[1] - xr[0]) / RESIDUAL_CELLS_X
+    xr, yr, zr = _reach_box(obs, held)
+    across = zr if held.axis == 0 else xr  # the wall's long way: x, or z where x is held
+    step = (across[1] - across[0]) / RESIDUAL_CELLS_X
     axes = [np.arange(lo + 0.5 * step, hi, step) if hi - lo > step else np.array([lo])
             for lo, hi in (xr, yr, zr)]
     cells = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)

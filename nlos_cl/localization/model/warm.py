@@ -35,16 +35,15 @@ WARM_ATOL = 0.05
 WARM_TAU = 1e-6
 
 
-def warm_fit(est, obs, rows, free, z0, backend=None):
+def warm_fit(est, obs, rows, free, held, backend=None):
     """(fitted, info, missed): fitted as ModelEstimator._cold returns it, or None where the
     warm fit misses the data (the caller then fits cold, and keeps `missed`, the same tuple of
     the misfit warm fit, if the cold fit costs more); info: what was tried
     (details['warm_start'])."""
     from .closed import closed_or_plate
     from .select import misfit
-    rows = np.array(rows, dtype=np.float64)
-    if not free[2]:
-        rows[:, 2] = z0  # height unobservable: held on the search plane, as a cold fit holds it
+    # an axis the spots cannot see: held on the search plane, as a cold fit holds it
+    rows = held.put(rows)
     problem = est.problem(obs, est.backend or backend)
     result = fit(problem, rows, free, est.warm_nfev, tau=WARM_TAU, atol=WARM_ATOL)
     cov = covariance(problem, result, free)
