@@ -58,6 +58,17 @@ def test_unobservable_height_is_not_updated():
     assert np.isfinite(track.covariance).all()
 
 
+def test_the_axis_a_vertical_line_cannot_see_is_not_measured():
+    """Spots on a vertical line see no x (region.unseen_axis = 0): x is left out, z kept."""
+    m = measurement(_target([3, 2, 0.4], 0.01, z_known=True), 3, fallback_sigma_m=0.05,
+                    min_sigma_m=0.002, unseen_axis=0)
+    assert list(m.axes) == [1, 2]
+    np.testing.assert_allclose(m.z, [2.0, 0.4])
+    m = measurement(_target([3, 2, 0.4]), 3, fallback_sigma_m=0.05, min_sigma_m=0.002,
+                    unseen_axis=2)  # no covariance (the paper's argmax): the fallback's
+    assert list(m.axes) == [0, 1]
+
+
 def test_gate_rejects_an_outlier_and_tracks_are_deleted():
     tr = Tracker(_layout(), estimator="paper", max_misses=3)
     for k in range(10):

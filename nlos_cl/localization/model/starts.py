@@ -1,6 +1,7 @@
 """Where the fit starts. The "centroid start": the signal-weighted mean hidden path per
 detector, then the point whose ellipse paths |c - O| + |c - spot| best match those means
-(with the held axis on its plane where collinear spots cannot see it: plate.Held). The paper's argmax is a second candidate centre.
+(the held axis on its plane where collinear spots cannot see it: plate.Held). The paper's
+argmax is a second candidate centre.
 Around each centre, a small lattice of yaws and sizes is scored with one forward call each;
 the best few start the short fits."""
 from __future__ import annotations
