@@ -65,8 +65,6 @@ class Tracker:
         from ..localization.estimators import as_estimator
         from ..localization.filter import GaussFilter
         from ..localization.locator import Locator
-        from ..localization.region import unseen_axis
-        from ..physics.layouts import height_observable
         layout = getattr(layout, "layout", layout)
         grid = Grid() if grid is None else grid
         motion = ConstantVelocity() if motion is None else motion
@@ -94,8 +92,7 @@ class Tracker:
         self._as_measurement = functools.partial(
             kalman.measurement, d=self.dims, fallback_sigma_m=float(fallback_sigma_m),
             min_sigma_m=float(min_sigma_m),
-            unseen_axis=None if height_observable(layout.laser_spot, layout.detector_spots)
-            else unseen_axis(np.vstack([layout.laser_spot, layout.detector_spots])))
+            unseen_axis=_unseen_axis(layout))
         self.tracks: list[Track] = []  # live
         self.finished: list[Track] = []  # deleted, most recent last (at most 100 kept)
         self.frame_index, self.t_s = -1, None
@@ -232,3 +229,13 @@ def _check_options(max_tracks, gate_probability, fallback_sigma_m, min_sigma_m, 
         positive(max_birge_ratio, "max_birge_ratio", 2.0)
     require(isinstance(gate_probability, float) and 0 < gate_probability < 1,
             "gate_probability", f"must be in (0, 1), got {gate_probability!r}", "pass 0.999")
+
+
+def _unseen_axis(layout) -> int | None:
+    """The axis the layout's wall spots cannot see (z for a line along x, x for one along z:
+    region.unseen_axis), never measured; None where they see all three."""
+    from ..localization.region import unseen_axis
+    from ..physics.layouts import height_observable
+    if height_observable(layout.laser_spot, layout.detector_spots):
+        return None
+    return unseen_axis(np.vstack([layout.laser_spot, layout.detector_spots]))
