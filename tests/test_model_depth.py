@@ -7,7 +7,7 @@ import numpy as np
 
 import nlos_cl as nl
 from nlos_cl.core.geometry import Facets
-from nlos_cl.localization.model import box, plate
+from nlos_cl.localization.model import box, depth, plate
 from nlos_cl.localization.model.depth import DEPTH_WARNING
 from nlos_cl.ops import forward
 from nlos_cl.physics import layouts
@@ -165,14 +165,18 @@ def test_a_box_whose_plate_went_wide_is_found_from_the_other_closed_fits_front()
     and seen by a few spots), 4 dB: the plate goes 1.1 x 1.5 m wide to take up the side (Birge
     ~100) and every closed start around it misses the box (its best cost that plate's), while
     the ellipsoid finds the front face. Refitted from that face (closed.cross_seeded) the box
-    explains the data (Birge ~1) with the centre ~0.1 m off (the depth is shallow in the
-    cost); before, the thin ellipsoid's centre was reported, on the front, 0.32 m off."""
+    explains the data (Birge ~1) at depth 0.44 m (truth 0.66), 0.11 m off, with a Laplace sd
+    of 0.07 m; its depth profile (closed.depth_profile) costs only ~25 more at 0.74 m (secant
+    sd 0.24 m): the depth is poorly determined, and the answer now says so. Before, the thin
+    ellipsoid's centre was reported, on the front, 0.32 m off."""
     centre = np.array([-1.2843, 1.9553, -0.2060])
     found = _turned_box_seen_by_a_patch(centre, (0.0436, -0.9990), (0.66, 0.7755, 0.4451),
                                         (-1.2197, -0.7688, 6), (-0.2819, 0.0789, 5),
                                         4.06, 135717540)
     assert found.fit.shape == "box" and found.fit.birge_ratio < 1.5, found.fit.as_dict()
     assert np.linalg.norm(found.position - centre) < 0.15
+    assert found.fit.diagnostics["depth_profile_sd_m"] > depth.DEPTH_SD_LIMIT_M
+    assert any("poorly determined" in w for w in found.fit.warnings)
 
 
 def test_a_shallow_box_behind_a_plate_that_fits_is_found_by_the_probe():

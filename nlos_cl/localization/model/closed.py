@@ -9,7 +9,7 @@ import math
 import numpy as np
 
 from . import box, cylinder, depth, ellipsoid, plate, starts
-from .fit import covariance
+from .fit import covariance, fit
 from .select import best_of, kappa, misfit
 from .shape import name_of
 
@@ -121,6 +121,42 @@ def rounded(fits, final_nfev):
     return out
 
 
+# Depths the closed fit is profiled at (its own depth d: d / 2, 2 d, d -/+ PROFILE_STEP_M),
+# each an LM fit with the depth held and the front face as the start.
+PROFILE_STEP_M = 0.3
+
+
+def depth_profile(closed_problem, result, free_closed, final_nfev, kappa_) -> dict:
+    """The closed fit's depth profiled (`PROFILE_STEP_M`): {depth_profile_sd_m: the depth's
+    sd from the profile's secants, max |d_i - d| / sqrt(max(dchi2_i, 1)) in the BIC's noise
+    units (times the Birge ratio where the fit misses the data; a point within one unit, or
+    cheaper, bounds the sd below by its distance), depth_profile: (depth, cost) pairs}. The
+    Laplace sd holds where the cost is quadratic, and a closed object's depth seen from one
+    side is not: a box fitted 0.44 m deep (truth 0.66, Laplace sd 0.07, centre 0.11 m off)
+    costs 1.6 units more at 0.74 m (secant sd 0.24 m), and a cylinder seen by a vertical line
+    of spots, fitted 0.20 m deep (sd 0.06, 0.16 m off, unwarned), 0.2 units more at 0.50 m.
+    The answer keeps the fit: moving to a cheaper profile point made 2 of 40 closed draws
+    better (0.10 -> 0.05, 0.06 -> 0.01 m) and 3 worse (0.01 -> 0.32 m): where the profile is
+    this flat its minimum is the noise's."""
+    p = result.params[0]
+    fitted = float(p[box.DEPTH])
+    lowest = max(float(closed_problem.shape.LOWER[box.DEPTH]), MIN_CROSS_DEPTH_M)
+    depths = sorted({round(max(lowest, v), 6) for v in (
+        0.5 * fitted, 2.0 * fitted, fitted - PROFILE_STEP_M, fitted + PROFILE_STEP_M)})
+    front, held = box.front_of(p), np.array(free_closed, bool)
+    held[box.DEPTH] = False
+    birge = result.cost / max(result.n_residuals, 1)  # ~ RSS / E[RSS] (fit.covariance)
+    unit = kappa_ * max(1.0, birge)
+    sd, profile = 0.0, []
+    for d in depths:
+        if abs(d - fitted) <= 1e-3:
+            continue
+        r = fit(closed_problem, box.from_plate(front, d)[None], held, final_nfev)
+        profile.append((d, float(r.cost)))
+        sd = max(sd, abs(d - fitted) / math.sqrt(max((r.cost - result.cost) / unit, 1.0)))
+    return {"depth_profile_sd_m": sd, "depth_profile": profile}
+
+
 RESEAT_YAWS = np.radians([-40.0, -20.0, 20.0, 40.0])
 RESEAT_WIDTHS = (0.6, 1.0, 1.6)  # times the fitted width
 
@@ -171,8 +207,9 @@ def closed_or_plate(problem, plate_result, free, final_nfev, plate_cov, closed="
         problem.calls += closed_problem.calls
         problem.model_s += closed_problem.model_s
     shaped, result, free_shaped = min(fits, key=lambda f: f[1].cost)
-    shaped_cov = covariance(shaped, result, free_shaped)
     k = kappa(problem.obs)
+    shaped_cov = covariance(shaped, result, free_shaped)
+    shaped_cov[1].update(depth_profile(shaped, result, free_shaped, final_nfev, k))
     log_n = math.log(max(result.n_residuals / k, 2.0))
     scale = max(1.0, misfit(shaped, result, free_shaped, shaped_cov[1])[1])
     gain = (plate_result.cost - result.cost) / (k * scale)

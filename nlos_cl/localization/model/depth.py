@@ -100,7 +100,7 @@ CLOSED_WARNING = ("the depth of target {k} is poorly determined (sd {sd:.2f} m):
 def unseen_note(shape, result, cov_all, info, k: int = 0) -> str | None:
     """The answer's notice where these spots cannot tell how deep target k is, else None: a
     plate whose probe predicts a depth sd above DEPTH_SD_LIMIT_M, or a closed shape whose
-    fitted depth has such an sd."""
+    fitted depth has such an sd (the larger of the Laplace one and the depth profile's)."""
     if shape is plate:
         sd = info.get("depth_sd_m")
         if sd is None or not sd > DEPTH_SD_LIMIT_M:
@@ -108,6 +108,7 @@ def unseen_note(shape, result, cov_all, info, k: int = 0) -> str | None:
         return DEPTH_WARNING.format(k=k + 1, sd=_metres(sd))
     n = shape.N_PARAMS
     sd = math.sqrt(max(float(cov_all[k * n + box.DEPTH, k * n + box.DEPTH]), 0.0))
+    sd = max(sd, float(info.get("depth_profile_sd_m", 0.0)))  # closed.depth_profile's secants
     return CLOSED_WARNING.format(k=k + 1, sd=sd) if sd > DEPTH_SD_LIMIT_M else None
 
 
