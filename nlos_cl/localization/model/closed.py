@@ -135,9 +135,10 @@ def depth_profile(closed_problem, result, free_closed, final_nfev, kappa_) -> di
     side is not: a box fitted 0.44 m deep (truth 0.66, Laplace sd 0.07, centre 0.11 m off)
     costs 1.6 units more at 0.74 m (secant sd 0.24 m), and a cylinder seen by a vertical line
     of spots, fitted 0.20 m deep (sd 0.06, 0.16 m off, unwarned), 0.2 units more at 0.50 m.
-    The answer keeps the fit: moving to a cheaper profile point made 2 of 40 closed draws
-    better (0.10 -> 0.05, 0.06 -> 0.01 m) and 3 worse (0.01 -> 0.32 m): where the profile is
-    this flat its minimum is the noise's."""
+    The answer keeps the fit: refitting from a cheaper profile point helped one-target draws
+    116 and 108 (0.10 -> 0.05, 0.06 -> 0.01 m) but made closed draws 97, 73 and 92 worse
+    (0.01 -> 0.32, 0.29 -> 0.47, 0.06 -> 0.09 m) and none of closed 60-99 better: where the
+    profile is this flat, its minimum is the noise's."""
     p = result.params[0]
     fitted = float(p[box.DEPTH])
     lowest = max(float(closed_problem.shape.LOWER[box.DEPTH]), MIN_CROSS_DEPTH_M)
