@@ -233,9 +233,8 @@ def _check_options(max_tracks, gate_probability, fallback_sigma_m, min_sigma_m, 
 
 def _unseen_axis(layout) -> int | None:
     """The axis the layout's wall spots cannot see (z for a line along x, x for one along z:
-    region.unseen_axis), never measured; None where they see all three."""
+    region.unseen_axis, the rule the search region and the model fit hold it by), never
+    measured; None where they see all three."""
     from ..localization.region import unseen_axis
-    from ..physics.layouts import height_observable
-    if height_observable(layout.laser_spot, layout.detector_spots):
-        return None
-    return unseen_axis(np.vstack([layout.laser_spot, layout.detector_spots]))
+    return unseen_axis(np.vstack([np.reshape(layout.laser_spot, (-1, 3)),
+                                  layout.detector_spots]))

@@ -68,11 +68,16 @@ def cross_seeded(fits, final_nfev):
     front = box.front_of(best)
     depths = (max(float(best[box.DEPTH]), MIN_CROSS_DEPTH_M), *CROSS_DEPTHS)
     rows = np.array([box.from_plate(front, d) for d in depths])
-    out = []
-    for closed_problem, result, free_closed in fits:
-        again = best_of(closed_problem, rows, free_closed, CLOSED_NFEV * final_nfev, keep=2)
-        out.append((closed_problem, again if again.cost < result.cost else result, free_closed))
-    return out
+    return [_refit(f, rows, final_nfev) for f in fits]
+
+
+def _refit(closed_fit, rows, final_nfev):
+    """closed_fit (problem, result, free) refitted from start `rows` (best_of), the cheaper
+    result kept."""
+    closed_problem, result, free_closed = closed_fit
+    again = best_of(closed_problem, np.asarray(rows), free_closed, CLOSED_NFEV * final_nfev,
+                    keep=2)
+    return closed_problem, again if again.cost < result.cost else result, free_closed
 
 
 CROSS_DEPTHS = (0.3, 0.6)  # m behind the best closed fit's front face
@@ -107,17 +112,11 @@ def rounded(fits, final_nfev):
     off (one-target draws 160, 190, 140, 110)."""
     best = min(fits, key=lambda f: f[1].cost)[1].params[0]
     out = []
-    for closed_problem, result, free_closed in fits:
-        shape = closed_problem.shape
-        rows = round_rows(result.params[0], shape)
-        if rows and not np.array_equal(best, result.params[0]):
-            rows += round_rows(best, shape)
-        if not rows:
-            out.append((closed_problem, result, free_closed))
-            continue
-        again = best_of(closed_problem, np.array(rows), free_closed, CLOSED_NFEV * final_nfev,
-                        keep=2)
-        out.append((closed_problem, again if again.cost < result.cost else result, free_closed))
+    for closed_fit in fits:
+        own, shape = closed_fit[1].params[0], closed_fit[0].shape
+        rows = round_rows(own, shape) + ([] if np.array_equal(best, own) else
+                                         round_rows(best, shape))
+        out.append(_refit(closed_fit, rows, final_nfev) if rows else closed_fit)
     return out
 
 
@@ -126,11 +125,12 @@ def rounded(fits, final_nfev):
 PROFILE_STEP_M = 0.3
 
 
-def depth_profile(closed_problem, result, free_closed, final_nfev, kappa_) -> dict:
+def depth_profile(closed_problem, result, free_closed, final_nfev, unit) -> dict:
     """The closed fit's depth profiled (`PROFILE_STEP_M`): {depth_profile_sd_m: the depth's
-    sd from the profile's secants, max |d_i - d| / sqrt(max(dchi2_i, 1)) in the BIC's noise
-    units (times the Birge ratio where the fit misses the data; a point within one unit, or
-    cheaper, bounds the sd below by its distance), depth_profile: (depth, cost) pairs}. The
+    sd from the profile's secants, max |d_i - d| / sqrt(max(dchi2_i, 1)), dchi2 in `unit`s of
+    cost (the BIC's: kappa times the fit's Birge ratio where it misses the data; a point
+    within one unit, or cheaper, bounds the sd below by its distance), depth_profile: (depth,
+    cost) pairs}. The
     Laplace sd holds where the cost is quadratic, and a closed object's depth seen from one
     side is not: a box fitted 0.44 m deep (truth 0.66, Laplace sd 0.07, centre 0.11 m off)
     costs 1.6 units more at 0.74 m (secant sd 0.24 m), and a cylinder seen by a vertical line
@@ -146,8 +146,6 @@ def depth_profile(closed_problem, result, free_closed, final_nfev, kappa_) -> di
         0.5 * fitted, 2.0 * fitted, fitted - PROFILE_STEP_M, fitted + PROFILE_STEP_M)})
     front, held = box.front_of(p), np.array(free_closed, bool)
     held[box.DEPTH] = False
-    birge = result.cost / max(result.n_residuals, 1)  # ~ RSS / E[RSS] (fit.covariance)
-    unit = kappa_ * max(1.0, birge)
     sd, profile = 0.0, []
     for d in depths:
         if abs(d - fitted) <= 1e-3:
@@ -210,9 +208,9 @@ def closed_or_plate(problem, plate_result, free, final_nfev, plate_cov, closed="
     shaped, result, free_shaped = min(fits, key=lambda f: f[1].cost)
     k = kappa(problem.obs)
     shaped_cov = covariance(shaped, result, free_shaped)
-    shaped_cov[1].update(depth_profile(shaped, result, free_shaped, final_nfev, k))
     log_n = math.log(max(result.n_residuals / k, 2.0))
     scale = max(1.0, misfit(shaped, result, free_shaped, shaped_cov[1])[1])
+    shaped_cov[1].update(depth_profile(shaped, result, free_shaped, final_nfev, k * scale))
     gain = (plate_result.cost - result.cost) / (k * scale)
     why = {"plate_birge_ratio": birge, "closed_tried": True, "closed_bic_gain": gain - log_n,
            "closed_costs": {name_of(f[0].shape): f[1].cost for f in fits}}
