@@ -233,7 +233,14 @@ def _track_args(p):
                    metavar="ALPHA", help="subtract a running mean of past frames (weight ALPHA)")
     p.add_argument("--accel", type=_number("accel", "pass m/s^2, e.g. 0.5", positive=True,
                                            maximum=MAX_ACCEL),
-                   default=0.5, help="motion noise of the constant-velocity model (m/s^2)")
+                   default=0.5, help="motion noise (m/s^2) of the constant-velocity model, "
+                   "or of the manoeuvring mode with --motion imm")
+    p.add_argument("--steady-accel", type=_number("steady_accel", "pass m/s^2 below --accel, "
+                                                  "e.g. 0.05", positive=True, maximum=MAX_ACCEL),
+                   default=0.05, help="motion noise (m/s^2) of the steady mode with --motion imm")
+    p.add_argument("--motion", choices=["imm", "cv"], default="cv",
+                   help="imm: a steady and a manoeuvring constant-velocity mode, mixed "
+                   "(interacting multiple model); cv: one constant-velocity model (--accel)")
     p.add_argument("--max-frames", type=_number("max_frames", "pass a count", minimum=1,
                                                 integer=True), default=None,
                    help="track the first N frames")

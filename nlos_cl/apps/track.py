@@ -27,7 +27,7 @@ def make_tracker(args, seq, backend):
     """A Tracker on the search region `nlos-cl locate` would use for the first frame."""
     from ..io.ytal.capture import read_capture
     from ..localization.capture import search_region
-    from ..tracking import BackgroundRemover, ConstantVelocity, Tracker
+    from ..tracking import BackgroundRemover, Tracker
     h_s = args.h_ns * 1e-9
     region = None if args.region is None else list(zip(args.region[::2], args.region[1::2]))
     grid, _ = search_region(seq[0].histograms, seq.frame, region, args.step, h_s,
@@ -44,8 +44,21 @@ def make_tracker(args, seq, backend):
         from ..tracking.scatter import sequence_scatter
         sigma = sequence_scatter(seq, grid, h_s=h_s, backend=backend)
     return Tracker(seq, grid, estimator=estimator, h_s=h_s, background=background,
-                   motion=ConstantVelocity(accel_sigma=args.accel), max_tracks=args.targets,
+                   motion=motion_model(args), max_tracks=args.targets,
                    frame_interval_s=interval, backend=backend, fallback_sigma_m=sigma)
+
+
+def motion_model(args):
+    """--motion: the IMM of a steady (--steady-accel) and a manoeuvring (--accel) mode, or one
+    constant-velocity model (--accel)."""
+    from ..core.errors import require
+    from ..tracking import ConstantVelocity, Interacting
+    if args.motion == "cv":
+        return ConstantVelocity(accel_sigma=args.accel)
+    require(args.steady_accel < args.accel, "--steady-accel", f"must be below --accel "
+            f"({args.accel}), got {args.steady_accel}", "pass e.g. --steady-accel 0.05 "
+            "--accel 0.5, or --motion cv")
+    return Interacting(accel_sigmas=(args.steady_accel, args.accel))
 
 
 REACH_FRAMES = 32  # frames spread over the sequence whose signal bounds the search region

@@ -15,10 +15,10 @@ from ..physics.noise import SensorNoise
 from ..physics.trajectory import MovingTarget, Trajectory
 from ..simulation.sequence import SimFrame, frame_seed, simulate_sequence
 from .kalman import Measurement
-from .motion import ConstantVelocity
+from .motion import ConstantVelocity, Interacting
 from .track import Track
 from .tracker import Tracker
 
-__all__ = ["BackgroundRemover", "ConstantVelocity", "Measurement", "MovingTarget", "SensorNoise",
-           "Sequence", "SequenceFrame", "SimFrame", "Track", "Tracker", "Trajectory", "frame_seed",
+__all__ = ["BackgroundRemover", "ConstantVelocity", "Interacting", "Measurement", "MovingTarget",
+           "SensorNoise", "Sequence", "SequenceFrame", "SimFrame", "Track", "Tracker", "Trajectory", "frame_seed",
            "read_sequence", "simulate_sequence", "write_sequence"]

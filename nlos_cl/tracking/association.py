@@ -85,7 +85,7 @@ def associate(tracks, measurements, gate_probability):
     cost = np.full((len(tracks), len(measurements)), BIG)
     for i, tr in enumerate(tracks):
         for j, m in enumerate(measurements):
-            d2 = kalman.mahalanobis2(tr.state, tr.covariance, m)
+            d2 = kalman.gate_distance2(tr.state, tr.covariance, tr.predicted_modes, m)
             if d2 <= kalman.gate_threshold(gate_probability, len(m.axes)):
                 cost[i, j] = d2
     empty = np.array([], int)

@@ -62,12 +62,30 @@ def predict(x, P, F, Q):
     return F @ x, F @ P @ F.T + Q
 
 
+class Modes(NamedTuple):
+    """An interacting multiple model's state (motion.Interacting): each mode's probability,
+    state and covariance; `combined` is what the rest of the tracker sees."""
+
+    mu: np.ndarray  # (M,)
+    x: np.ndarray  # (M, n)
+    P: np.ndarray  # (M, n, n)
+
+    def combined(self):
+        """(x, P): the mixture's mean and covariance (the modes' spread included)."""
+        x = self.mu @ self.x
+        d = self.x - x
+        P = np.einsum("j,jab->ab", self.mu, self.P + d[:, :, None] * d[:, None, :])
+        return x, 0.5 * (P + P.T)
+
+
 class Prediction(NamedTuple):
-    """A live track predicted to a frame's time."""
+    """A live track predicted to a frame's time (modes: each IMM mode's prediction, with the
+    predicted mode probabilities; None under a single motion model)."""
 
     track: object
     x: np.ndarray
     P: np.ndarray
+    modes: Modes | None = None
 
 
 def predict_tracks(tracks, t: float, motion) -> list[Prediction]:
@@ -76,9 +94,68 @@ def predict_tracks(tracks, t: float, motion) -> list[Prediction]:
     out = []
     for tr in tracks:
         dt, d = t - tr.t_s, tr.dims
-        out.append(Prediction(tr, *predict(tr.state, tr.covariance, motion.transition(dt, d),
-                                           motion.process_noise(dt, d))))
+        F = motion.transition(dt, d)
+        if not hasattr(motion, "switching"):
+            out.append(Prediction(tr, *predict(tr.state, tr.covariance, F,
+                                               motion.process_noise(dt, d))))
+            continue
+        modes = predict_modes(track_modes(tr, motion), F, motion.mode_noises(dt, d),
+                              motion.switching(dt))
+        out.append(Prediction(tr, *modes.combined(), modes))
     return out
+
+
+def track_modes(track, motion) -> Modes:
+    """The track's IMM modes, or, where its state was set otherwise (a birth, a re-acquired
+    track: nlos_cl.tracking.recovery), every mode at its state with the initial probabilities."""
+    modes = getattr(track, "modes", None)
+    if modes is not None and np.array_equal(modes.combined()[0], track.state):
+        return modes
+    mu = np.asarray(motion.initial_modes, float)
+    return Modes(mu, np.repeat(track.state[None], len(mu), axis=0),
+                 np.repeat(track.covariance[None], len(mu), axis=0))
+
+
+def predict_modes(modes: Modes, F, Q, switching) -> Modes:
+    """The IMM's mixing and per-mode prediction: Q (M, n, n) each mode's process noise,
+    switching (M, M) Pi[i, j] = P(j next | i now). Returns the predicted modes, whose mu are
+    the predicted mode probabilities c_j = sum_i Pi[i, j] mu_i."""
+    c = switching.T @ modes.mu
+    w = switching * modes.mu[:, None] / c[None, :]  # w[i, j] = P(i now | j next)
+    x0 = w.T @ modes.x
+    d = modes.x[None, :, :] - x0[:, None, :]  # [j, i, :]
+    P0 = np.einsum("ij,iab->jab", w, modes.P) + np.einsum("ij,jia,jib->jab", w, d, d)
+    return Modes(c, x0 @ F.T, F @ P0 @ F.T + Q)
+
+
+MODE_FLOOR = 1e-9  # no mode's probability falls to exactly 0 (it could never come back)
+
+
+def update_modes(pred: Modes, m: Measurement) -> Modes:
+    """Each mode updated with m; the mode probabilities by each mode's innovation likelihood."""
+    if len(m.axes) == 0:
+        return pred
+    xs, Ps, logl = [], [], []
+    for x, P in zip(pred.x, pred.P):
+        y, S, _ = innovation(x, P, m)
+        _, logdet = np.linalg.slogdet(S)
+        logl.append(-0.5 * (float(y @ np.linalg.solve(S, y)) + logdet))
+        x, P = update(x, P, m)
+        xs.append(x)
+        Ps.append(P)
+    logl = np.array(logl)
+    mu = pred.mu * np.exp(logl - logl.max())
+    mu = np.maximum(mu / mu.sum(), MODE_FLOOR)
+    return Modes(mu / mu.sum(), np.array(xs), np.array(Ps))
+
+
+def gate_distance2(x, P, modes: Modes | None, m: Measurement) -> float:
+    """The squared Mahalanobis distance gates and assignments use: under an IMM (modes: the
+    predicted ones), the nearest mode's (a turn is gated by the manoeuvring mode, not by the
+    steady one that dominates the mixture); else the state's (x, P)."""
+    if modes is None:
+        return mahalanobis2(x, P, m)
+    return min(mahalanobis2(xj, Pj, m) for xj, Pj in zip(modes.x, modes.P))
 
 
 def innovation(x, P, m: Measurement):

@@ -1,7 +1,16 @@
 """Motion models: how a track's state (p, v) in R^2d moves between frames. `MotionModel` is
 what the Tracker needs of one; `ConstantVelocity` (white acceleration of spectral density
 q = accel_sigma^2, m^2/s^3) gives over dt F = [[I, dt I], [0, I]] and
-Q = q [[dt^3/3 I, dt^2/2 I], [dt^2/2 I, dt I]]."""
+Q = q [[dt^3/3 I, dt^2/2 I], [dt^2/2 I, dt I]].
+
+`Interacting` (the Tracker's default) is an interacting multiple model (IMM; Blom &
+Bar-Shalom 1988; Bar-Shalom, Li & Kirubarajan 2001, sec. 11.6) of constant-velocity modes that
+differ only in their process noise: a steady mode (0.05 m/s^2: a walker between turns) and a
+manoeuvring one (0.5 m/s^2, the single model's default), with Markov switching between them.
+One process noise cannot serve both: on white 8 mm errors the filter's RMS over the per-frame
+RMS is 0.47 on a straight path at accel_sigma 0.005 but 3.0 on a curve, whose best, 0.75, needs
+0.07-0.1 (docs/tracking.md). The filter itself is nlos_cl.tracking.kalman (predict_modes,
+update_modes)."""
 from __future__ import annotations
 
 import math
@@ -27,6 +36,12 @@ class MotionModel(Protocol):
 MEMBERS = ("dims", "initial_speed_sigma", "transition", "process_noise")
 
 
+def _positive(owner: str, name: str, v, example) -> None:
+    require(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+            and v > 0, f"{owner}.{name}", f"must be a positive number, got {v!r}",
+            f"pass e.g. {example}")
+
+
 @dataclass(frozen=True)
 class ConstantVelocity:
     """The motion model. accel_sigma (m/s^2): how hard targets may change velocity (a walking
@@ -39,10 +54,7 @@ class ConstantVelocity:
 
     def __post_init__(self):
         for name in ("accel_sigma", "initial_speed_sigma"):
-            v = getattr(self, name)
-            require(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-                    and v > 0, f"motion.{name}", f"must be a positive number, got {v!r}",
-                    "pass e.g. 0.5")
+            _positive("motion", name, getattr(self, name), 0.5)
         require(self.dims in (None, 2, 3), "motion.dims", f"must be 2, 3 or None, got "
                 f"{self.dims!r}", "pass 2 (the search plane) or 3")
 
@@ -56,3 +68,63 @@ class ConstantVelocity:
         q, eye = self.accel_sigma ** 2, np.eye(d)
         return q * np.block([[dt ** 3 / 3 * eye, dt ** 2 / 2 * eye],
                              [dt ** 2 / 2 * eye, dt * eye]])
+
+
+@dataclass(frozen=True)
+class Interacting:
+    """An IMM of constant-velocity modes (see the module docstring). accel_sigmas (m/s^2): each
+    mode's white acceleration, steady first; stay_s (s): how long a target stays in each mode on
+    average (the Markov switching: over dt a mode is left with probability 1 - exp(-dt / stay),
+    into the others evenly); dims and initial_speed_sigma as ConstantVelocity's. A new track
+    starts with the mode probabilities stay_s / sum(stay_s) (the switching's stationary ones
+    as dt -> 0).
+
+    Defaults: steady 0.05 m/s^2 for 10 s, manoeuvring 0.5 m/s^2 for 0.5 s. On simulated 1-D
+    tracks at 14 frames/s, 0.05-0.2 m white errors (/tmp study, 500 frames): a still or slowly
+    walking target as smooth as a single model at 0.1 m/s^2 (RMS 0.060-0.074 m, 0.5 m/s^2:
+    0.092-0.102 at 0.2 m errors), and a 1 m/s reversal followed better than either single
+    model (RMS 0.066 m against 0.080 at 0.1 and 0.5 m/s^2)."""
+
+    accel_sigmas: tuple = (0.05, 0.5)
+    stay_s: tuple = (10.0, 0.5)
+    dims: int | None = None
+    initial_speed_sigma: float = 1.0
+
+    def __post_init__(self):
+        for name in ("accel_sigmas", "stay_s"):
+            v = getattr(self, name)
+            require(isinstance(v, (tuple, list)) and len(v) >= 2, f"motion.{name}",
+                    f"must be a tuple of one value per mode (2 or more), got {v!r}",
+                    "pass e.g. (0.05, 0.5)")
+            for x in v:
+                _positive("motion", name, x, "(0.05, 0.5)")
+        require(len(self.accel_sigmas) == len(self.stay_s), "motion.stay_s",
+                f"must have one value per mode ({len(self.accel_sigmas)}), got "
+                f"{len(self.stay_s)}", "pass as many stay_s as accel_sigmas")
+        _positive("motion", "initial_speed_sigma", self.initial_speed_sigma, 1.0)
+        require(self.dims in (None, 2, 3), "motion.dims", f"must be 2, 3 or None, got "
+                f"{self.dims!r}", "pass 2 (the search plane) or 3")
+
+    transition = staticmethod(ConstantVelocity.transition)
+
+    def process_noise(self, dt: float, d: int) -> np.ndarray:
+        """The manoeuvring mode's Q: where one model stands for all (a re-acquisition
+        candidate's filter, nlos_cl.tracking.recovery), the loosest."""
+        return ConstantVelocity(max(self.accel_sigmas)).process_noise(dt, d)
+
+    def mode_noises(self, dt: float, d: int) -> np.ndarray:
+        """(M, 2d, 2d): each mode's Q over dt."""
+        return np.stack([ConstantVelocity(a).process_noise(dt, d) for a in self.accel_sigmas])
+
+    def switching(self, dt: float) -> np.ndarray:
+        """(M, M): Pi[i, j] = P(mode j after dt | mode i now)."""
+        m = len(self.stay_s)
+        leave = np.array([-math.expm1(-dt / s) for s in self.stay_s])
+        pi = np.repeat((leave / (m - 1))[:, None], m, axis=1)
+        np.fill_diagonal(pi, 1.0 - leave)
+        return pi
+
+    @property
+    def initial_modes(self) -> np.ndarray:
+        stay = np.asarray(self.stay_s, float)
+        return stay / stay.sum()

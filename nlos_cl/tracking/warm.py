@@ -51,7 +51,8 @@ def prior(starters) -> Prior:
     """The start tracks' last plates, their centres moved to the predicted positions (z too
     where the track is 3D; a 2D track keeps the plate's own height)."""
     rows = []
-    for tr, x, _ in starters:
+    for p in starters:
+        tr, x = p.track, p.x
         row = tr.plate.copy()
         row[:tr.dims] = x[:tr.dims]
         rows.append(row)
@@ -65,7 +66,7 @@ def outside_gates(measurements, predictions, gate_probability) -> bool:
         if fit is None or fit.warm_start is None or not fit.warm_start.used or not len(m.axes):
             continue  # (no measured axis: a plate held at amplitude 0 says nothing of where)
         gate = kalman.gate_threshold(gate_probability, len(m.axes))
-        if all(kalman.mahalanobis2(x, P, m) > gate for _, x, P in predictions):
+        if all(kalman.gate_distance2(p.x, p.P, p.modes, m) > gate for p in predictions):
             return True
     return False
 
