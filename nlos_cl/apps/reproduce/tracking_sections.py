@@ -11,9 +11,9 @@ import numpy as np
 
 import nlos_cl as nl
 from nlos_cl.localization.model import ModelEstimator
-from nlos_cl.tracking import (BackgroundRemover, ConstantVelocity, MovingTarget, SensorNoise,
-                              Tracker, Trajectory, kalman, read_sequence, simulate_sequence,
-                              write_sequence)
+from nlos_cl.tracking import (BackgroundRemover, ConstantVelocity, Interacting, MovingTarget,
+                              SensorNoise, Tracker, Trajectory, kalman, read_sequence,
+                              simulate_sequence, write_sequence)
 
 from . import tracking_cases as tc
 from . import tracking_report as report
@@ -43,19 +43,21 @@ def lines(cfg, c):
 
 def synthetic(cfg, c):
     """The constant-velocity filter alone (Tracker.step, no estimator) on the bound's paths
-    measured with white errors of sigma_m, seeds x process noises: what the motion model
-    allows. Ratio: filter RMS / per-frame RMS from frame c.first on, pooled over the seeds."""
+    measured with white errors of sigma_m, seeds x process noises (and the IMM of a steady and
+    a manoeuvring one: imm_accel_sigmas): what the motion model allows. Ratio: filter RMS / per-frame RMS from frame c.first on, pooled over the seeds."""
     sec, rows = cfg["synthetic"], []
     sigma, t = sec["sigma_m"], np.arange(sec["frames"]) / c.fps
     layout = nl.simulate(nl.paper_scene(facet_size_m=0.05)).layout  # (only its geometry)
-    for accel in sec["accel_sigmas"]:
+    motions = {a: ConstantVelocity(accel_sigma=a) for a in sec["accel_sigmas"]}
+    steady, turning = sec["imm_accel_sigmas"]  # and the IMM of two of them
+    motions[f"IMM {steady:g} / {turning:g}"] = Interacting(accel_sigmas=(steady, turning))
+    for accel, motion in motions.items():
         for pname in sec["paths"]:
             family, params = tc.bound_path(cfg, pname)
             truth, filtered, measured = family(params, t), [], []
             for seed in range(sec["seeds"]):
                 rng = np.random.default_rng(seed)
-                tracker = Tracker(layout, c.grid, frame_interval_s=1 / c.fps,
-                                  motion=ConstantVelocity(accel_sigma=accel))
+                tracker = Tracker(layout, c.grid, frame_interval_s=1 / c.fps, motion=motion)
                 for k, tk in enumerate(t):
                     z = truth[k] + sigma * rng.standard_normal(2)
                     m = kalman.Measurement(np.arange(2), z, sigma ** 2 * np.eye(2), np.r_[z, 0])
