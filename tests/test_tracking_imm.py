@@ -106,3 +106,15 @@ def test_manoeuvre_mode_takes_over_at_the_turn():
 def test_bad_interacting_options(kw, field):
     with pytest.raises(nl.InputError, match=field):
         Interacting(**kw)
+
+
+def test_track_command_motion_options():
+    from nlos_cl.apps.cli import parser
+    from nlos_cl.apps.track import motion_model
+    parse = lambda *a: parser("track").parse_args(["track", "walk.h5", *a])  # noqa: E731
+    assert motion_model(parse()) == Interacting(accel_sigmas=(0.05, 0.5))
+    assert motion_model(parse("--motion", "cv", "--accel", "0.3")) == ConstantVelocity(0.3)
+    assert motion_model(parse("--steady-accel", "0.02", "--accel", "1")) == Interacting(
+        accel_sigmas=(0.02, 1.0))
+    with pytest.raises(nl.InputError, match="--steady-accel"):
+        motion_model(parse("--steady-accel", "1"))

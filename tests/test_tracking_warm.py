@@ -179,8 +179,8 @@ def test_gate_fallback_sees_a_warm_fit_outside_every_gate():
                        warm_start=WarmStart(True, 1.0, 5, 5, 0.01))
         src = nl.LocatedTarget(np.array(pos), np.diag([1e-5, 1e-5, np.inf]), fit=fit)
         return kalman.measurement(src, 2, fallback_sigma_m=0.05, min_sigma_m=0.002)
-    assert not warm.outside_gates([measured(near)], [(track, x, P)], 0.999)
-    assert warm.outside_gates([measured(far)], [(track, x, P)], 0.999)
+    assert not warm.outside_gates([measured(near)], [kalman.Prediction(track, x, P)], 0.999)
+    assert warm.outside_gates([measured(far)], [kalman.Prediction(track, x, P)], 0.999)
 
 
 def test_a_plate_the_data_want_none_of_has_no_information(scored, cold):

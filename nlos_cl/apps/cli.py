@@ -238,7 +238,7 @@ def _track_args(p):
     p.add_argument("--steady-accel", type=_number("steady_accel", "pass m/s^2 below --accel, "
                                                   "e.g. 0.05", positive=True, maximum=MAX_ACCEL),
                    default=0.05, help="motion noise (m/s^2) of the steady mode with --motion imm")
-    p.add_argument("--motion", choices=["imm", "cv"], default="cv",
+    p.add_argument("--motion", choices=["imm", "cv"], default="imm",
                    help="imm: a steady and a manoeuvring constant-velocity mode, mixed "
                    "(interacting multiple model); cv: one constant-velocity model (--accel)")
     p.add_argument("--max-frames", type=_number("max_frames", "pass a count", minimum=1,

@@ -1,5 +1,5 @@
 """`Tracker`: hidden targets followed over frames, with identities; a short composition of the
-roles next to it: motion (the constant-velocity model), kalman (predict, update, gate,
+roles next to it: motion (constant-velocity models, one or an IMM of two), kalman (predict, update, gate,
 smooth), association (screening, gating, assignment), lifecycle (births, confirmation,
 deletion, the record), warm (the prior that starts a model fit from the predictions), track.
 
@@ -33,14 +33,14 @@ from ..core.tuning import auto_log_mode
 from . import association, kalman, warm
 from .lifecycle import Lifecycle
 from .recovery import Recovery
-from .motion import MEMBERS as MOTION_MEMBERS, ConstantVelocity
+from .motion import MEMBERS as MOTION_MEMBERS, Interacting
 from .track import Smoothed, Track  # noqa: F401  (Smoothed: what Track.smoothed() returns)
 
 NO_SIGNAL = "no cell has a non-zero likelihood"
 
 
 class Tracker:
-    """`Tracker(layout, grid, estimator='paper'|'model'|object, motion=ConstantVelocity())`;
+    """`Tracker(layout, grid, estimator='paper'|'model'|object, motion=Interacting())`;
     `update(frame, t_s=None) -> list[Track]` (the live tracks, confirmed and tentative).
 
     layout: a nl.Layout or anything with `.layout` (HistogramSet, Signals, a read Sequence).
@@ -67,10 +67,10 @@ class Tracker:
         from ..localization.locator import Locator
         layout = getattr(layout, "layout", layout)
         grid = Grid() if grid is None else grid
-        motion = ConstantVelocity() if motion is None else motion
+        motion = Interacting() if motion is None else motion
         require(all(hasattr(motion, m) for m in MOTION_MEMBERS), "motion", f"expected a motion "
                 f"model ({', '.join(MOTION_MEMBERS)}), got {type(motion).__name__}",
-                "pass ConstantVelocity(accel_sigma=0.5)")
+                "pass Interacting() or ConstantVelocity(accel_sigma=0.5)")
         _check_options(max_tracks, gate_probability, fallback_sigma_m, min_sigma_m,
                        max_misses, frame_interval_s, max_sigma_m, max_birge_ratio)
         log_mode = auto_log_mode(layout.n_detectors) if log_mode is None else bool(log_mode)
