@@ -109,7 +109,7 @@ def track_modes(track, motion) -> Modes:
     """The track's IMM modes, or, where its state was set otherwise (a birth, a re-acquired
     track: nlos_cl.tracking.recovery), every mode at its state with the initial probabilities."""
     modes = getattr(track, "modes", None)
-    if modes is not None and np.array_equal(modes.combined()[0], track.state):
+    if modes is not None and track.modes_of is track.state:
         return modes
     mu = np.asarray(motion.initial_modes, float)
     return Modes(mu, np.repeat(track.state[None], len(mu), axis=0),
@@ -131,22 +131,35 @@ def predict_modes(modes: Modes, F, Q, switching) -> Modes:
 MODE_FLOOR = 1e-9  # no mode's probability falls to exactly 0 (it could never come back)
 
 
+def _mode_innovations(modes: Modes, m: Measurement):
+    """(y (M, k), S (M, k, k), S^-1 y (M, k)) of every mode at once: the measured axes are a
+    selection, so H P H^T is P's (axes, axes) block (batched: one solve for all the modes)."""
+    ax = m.axes
+    y = m.z[None, :] - modes.x[:, ax]
+    S = modes.P[:, ax[:, None], ax[None, :]] + m.R[None]
+    return y, S, np.linalg.solve(S, y[..., None])[..., 0]
+
+
 def update_modes(pred: Modes, m: Measurement) -> Modes:
-    """Each mode updated with m; the mode probabilities by each mode's innovation likelihood."""
+    """Each mode updated with m (the Kalman update in Joseph form, as `update`, batched over the
+    modes); the mode probabilities by each mode's innovation likelihood."""
     if len(m.axes) == 0:
         return pred
-    xs, Ps, logl = [], [], []
-    for x, P in zip(pred.x, pred.P):
-        y, S, _ = innovation(x, P, m)
-        _, logdet = np.linalg.slogdet(S)
-        logl.append(-0.5 * (float(y @ np.linalg.solve(S, y)) + logdet))
-        x, P = update(x, P, m)
-        xs.append(x)
-        Ps.append(P)
-    logl = np.array(logl)
+    ax = m.axes
+    y = m.z[None, :] - pred.x[:, ax]
+    S = pred.P[:, ax[:, None], ax[None, :]] + m.R[None]
+    PHt = pred.P[:, :, ax]  # (M, n, k)
+    # one batched solve: S^-1 y and S^-1 H P (= K^T, S and P symmetric)
+    both = np.linalg.solve(S, np.concatenate([y[..., None], PHt.transpose(0, 2, 1)], axis=2))
+    w, K = both[..., 0], both[..., 1:].transpose(0, 2, 1)  # K = P H^T S^-1
+    logl = -0.5 * (np.einsum("ja,ja->j", y, w) + np.linalg.slogdet(S)[1])
+    A = np.broadcast_to(np.eye(pred.x.shape[1]), pred.P.shape).copy()
+    A[:, :, ax] -= K  # I - K H
+    P = A @ pred.P @ A.transpose(0, 2, 1) + K @ m.R @ K.transpose(0, 2, 1)
+    x = pred.x + np.einsum("jab,jb->ja", K, y)
     mu = pred.mu * np.exp(logl - logl.max())
     mu = np.maximum(mu / mu.sum(), MODE_FLOOR)
-    return Modes(mu / mu.sum(), np.array(xs), np.array(Ps))
+    return Modes(mu / mu.sum(), x, 0.5 * (P + P.transpose(0, 2, 1)))
 
 
 def gate_distance2(x, P, modes: Modes | None, m: Measurement) -> float:
@@ -155,7 +168,10 @@ def gate_distance2(x, P, modes: Modes | None, m: Measurement) -> float:
     steady one that dominates the mixture); else the state's (x, P)."""
     if modes is None:
         return mahalanobis2(x, P, m)
-    return min(mahalanobis2(xj, Pj, m) for xj, Pj in zip(modes.x, modes.P))
+    if len(m.axes) == 0:
+        return math.inf
+    y, _, w = _mode_innovations(modes, m)
+    return float(np.min(np.einsum("ja,ja->j", y, w)))
 
 
 def innovation(x, P, m: Measurement):
