@@ -132,12 +132,10 @@ MODE_FLOOR = 1e-9  # no mode's probability falls to exactly 0 (it could never co
 
 
 def _mode_innovations(modes: Modes, m: Measurement):
-    """(y (M, k), S (M, k, k), S^-1 y (M, k)) of every mode at once: the measured axes are a
-    selection, so H P H^T is P's (axes, axes) block (batched: one solve for all the modes)."""
+    """(y (M, k), S (M, k, k)) of every mode at once: the measured axes are a selection, so
+    H P H^T is P's (axes, axes) block."""
     ax = m.axes
-    y = m.z[None, :] - modes.x[:, ax]
-    S = modes.P[:, ax[:, None], ax[None, :]] + m.R[None]
-    return y, S, np.linalg.solve(S, y[..., None])[..., 0]
+    return m.z[None, :] - modes.x[:, ax], modes.P[:, ax[:, None], ax[None, :]] + m.R[None]
 
 
 def update_modes(pred: Modes, m: Measurement) -> Modes:
@@ -146,8 +144,7 @@ def update_modes(pred: Modes, m: Measurement) -> Modes:
     if len(m.axes) == 0:
         return pred
     ax = m.axes
-    y = m.z[None, :] - pred.x[:, ax]
-    S = pred.P[:, ax[:, None], ax[None, :]] + m.R[None]
+    y, S = _mode_innovations(pred, m)
     PHt = pred.P[:, :, ax]  # (M, n, k)
     # one batched solve: S^-1 y and S^-1 H P (= K^T, S and P symmetric)
     both = np.linalg.solve(S, np.concatenate([y[..., None], PHt.transpose(0, 2, 1)], axis=2))
@@ -170,7 +167,8 @@ def gate_distance2(x, P, modes: Modes | None, m: Measurement) -> float:
         return mahalanobis2(x, P, m)
     if len(m.axes) == 0:
         return math.inf
-    y, _, w = _mode_innovations(modes, m)
+    y, S = _mode_innovations(modes, m)
+    w = np.linalg.solve(S, y[..., None])[..., 0]  # batched: one solve for all the modes
     return float(np.min(np.einsum("ja,ja->j", y, w)))
 
 
