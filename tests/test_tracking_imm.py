@@ -118,3 +118,18 @@ def test_track_command_motion_options():
         accel_sigmas=(0.02, 1.0))
     with pytest.raises(nl.InputError, match="--steady-accel"):
         motion_model(parse("--steady-accel", "1"))
+
+
+def test_a_state_set_from_outside_restarts_the_modes():
+    motion = Interacting()
+    t = 0.1 * np.arange(40)
+    tr = Tracker(_layout(), estimator="paper", motion=motion)
+    for k in range(40):
+        (track,) = tr.step([LocatedTarget(np.r_[_u_turn(t)[k], 1.0, 0.0],
+                                          np.diag([1e-4, 1e-4, np.inf]))], t[k])
+    assert kalman.track_modes(track, motion) is track.modes  # the filter's own state
+    track.state[:2] += (0.4, 0.45)  # edited in place (a re-acquisition replaces it whole)
+    fresh = kalman.track_modes(track, motion)
+    assert fresh is not track.modes
+    np.testing.assert_array_equal(fresh.mu, motion.initial_modes)
+    np.testing.assert_array_equal(fresh.x, [track.state, track.state])

@@ -108,8 +108,9 @@ def predict_tracks(tracks, t: float, motion) -> list[Prediction]:
 def track_modes(track, motion) -> Modes:
     """The track's IMM modes, or, where its state was set otherwise (a birth, a re-acquired
     track: nlos_cl.tracking.recovery), every mode at its state with the initial probabilities."""
-    modes = getattr(track, "modes", None)
-    if modes is not None and track.modes_of is track.state:
+    modes, made = getattr(track, "modes", None), getattr(track, "modes_of", None)
+    if modes is not None and made is not None and np.array_equal(made[0], track.state) \
+            and np.array_equal(made[1], track.covariance):
         return modes
     mu = np.asarray(motion.initial_modes, float)
     return Modes(mu, np.repeat(track.state[None], len(mu), axis=0),

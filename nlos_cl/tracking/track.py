@@ -37,8 +37,9 @@ class Track:
     pending: tuple | None = None  # (dt, x, P) of the last prediction, until it is recorded
     plate: np.ndarray | None = None  # the last paired fit's plate row (warm starts)
     # under an IMM (motion.Interacting): the modes whose mixture is state/covariance (valid
-    # while `state` is the very array modes_of: one set otherwise, e.g. by a re-acquisition,
-    # restarts the modes), and this frame's predicted modes (the gate's); None under one model
+    # while those equal modes_of, copies of the mixture's: a state set or edited otherwise,
+    # e.g. by a re-acquisition, restarts the modes), and this frame's predicted modes (the
+    # gate's); None under one model
     modes: object = None
     modes_of: object = None
     predicted_modes: object = None

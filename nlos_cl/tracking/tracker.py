@@ -174,7 +174,7 @@ class Tracker:
             tr.pending = (t - tr.t_s, x, P)
             tr.state, tr.covariance, tr.t_s = x, P, t
             tr.modes = tr.predicted_modes = modes  # a coasting track keeps the predicted modes
-            tr.modes_of = x
+            tr.modes_of = (x.copy(), P.copy())
         measurements = association.screen(
             measurements, max_sigma_m=self.max_sigma_m, max_birge_ratio=self.max_birge_ratio,
             gate_probability=self.gate_probability)
@@ -185,7 +185,7 @@ class Tracker:
             else:
                 track.modes = kalman.update_modes(track.modes, m)
                 track.state, track.covariance = track.modes.combined()
-                track.modes_of = track.state
+                track.modes_of = (track.state.copy(), track.covariance.copy())
             track.plate = warm.plate_of(m)
         paired = {id(tr) for tr, _ in pairs}
         if self.recovery is not None:  # a lost target re-found continues its track
