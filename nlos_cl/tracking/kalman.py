@@ -105,6 +105,27 @@ def predict_tracks(tracks, t: float, motion) -> list[Prediction]:
     return out
 
 
+def apply_prediction(p: Prediction, t: float) -> None:
+    """The track moved to its prediction at time t (what a coasting track keeps, the predicted
+    modes included), the prediction remembered for the smoother (`pending`)."""
+    tr = p.track
+    tr.pending = (t - tr.t_s, p.x, p.P)
+    tr.state, tr.covariance, tr.t_s = p.x, p.P, t
+    tr.modes = tr.predicted_modes = p.modes
+    tr.modes_of = (p.x.copy(), p.P.copy())
+
+
+def update_track(track, m: Measurement) -> None:
+    """The track updated with m: its modes under an IMM (the state is their mixture), else
+    its state."""
+    if track.modes is None:
+        track.state, track.covariance = update(track.state, track.covariance, m)
+        return
+    track.modes = update_modes(track.modes, m)
+    track.state, track.covariance = track.modes.combined()
+    track.modes_of = (track.state.copy(), track.covariance.copy())
+
+
 def track_modes(track, motion) -> Modes:
     """The track's IMM modes, or, where its state was set otherwise (a birth, a re-acquired
     track: nlos_cl.tracking.recovery), every mode at its state with the initial probabilities."""

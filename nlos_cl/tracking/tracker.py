@@ -170,22 +170,14 @@ class Tracker:
     def _advance(self, measurements, t: float, predictions) -> list[Track]:
         """Apply the predictions, pair the measurements, update, count, bury and give birth."""
         self.frame_index += 1
-        for tr, x, P, modes in predictions:
-            tr.pending = (t - tr.t_s, x, P)
-            tr.state, tr.covariance, tr.t_s = x, P, t
-            tr.modes = tr.predicted_modes = modes  # a coasting track keeps the predicted modes
-            tr.modes_of = (x.copy(), P.copy())
+        for prediction in predictions:
+            kalman.apply_prediction(prediction, t)
         measurements = association.screen(
             measurements, max_sigma_m=self.max_sigma_m, max_birge_ratio=self.max_birge_ratio,
             gate_probability=self.gate_probability)
         pairs, free = association.associate(self.tracks, measurements, self.gate_probability)
         for track, m in pairs:
-            if track.modes is None:
-                track.state, track.covariance = kalman.update(track.state, track.covariance, m)
-            else:
-                track.modes = kalman.update_modes(track.modes, m)
-                track.state, track.covariance = track.modes.combined()
-                track.modes_of = (track.state.copy(), track.covariance.copy())
+            kalman.update_track(track, m)
             track.plate = warm.plate_of(m)
         paired = {id(tr) for tr, _ in pairs}
         if self.recovery is not None:  # a lost target re-found continues its track
