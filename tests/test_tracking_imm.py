@@ -30,7 +30,8 @@ def test_mixing_matches_a_loop_reference():
     A = rng.normal(size=(M, n, n))
     P = A @ A.transpose(0, 2, 1) + np.eye(n)
     pi = rng.dirichlet(np.ones(M), size=M)  # rows sum to 1
-    F, Q = ConstantVelocity.transition(0.1, 2), rng.uniform(0.1, 1) * np.eye(n)[None] * [[[1]], [[2]], [[3]]]
+    F = ConstantVelocity.transition(0.1, 2)
+    Q = rng.uniform(0.1, 1) * np.eye(n)[None] * np.array([1.0, 2.0, 3.0])[:, None, None]
     got = kalman.predict_modes(kalman.Modes(mu, x, P), F, Q, pi)
     for j in range(M):  # Bar-Shalom, Li & Kirubarajan (2001) eq. 11.6.6-11.6.10, term by term
         c = sum(pi[i, j] * mu[i] for i in range(M))
@@ -50,7 +51,8 @@ def test_mixing_matches_a_loop_reference():
 def test_identical_modes_are_the_single_model():
     # modes that do not differ cannot be told apart: the IMM is the Kalman filter (to rounding)
     rng = np.random.default_rng(0)
-    path = np.c_[2 + 0.05 * np.arange(40), 1 + 0.02 * np.arange(40)] + 0.02 * rng.normal(size=(40, 2))
+    k = np.arange(40)
+    path = np.c_[2 + 0.05 * k, 1 + 0.02 * k] + 0.02 * rng.normal(size=(40, 2))
     one, _ = _step_all(ConstantVelocity(accel_sigma=0.3), path, 0.02)
     motion = Interacting(accel_sigmas=(0.3, 0.3), stay_s=(5.0, 1.0))
     two, track = _step_all(motion, path, 0.02)

@@ -20,5 +20,5 @@ from .track import Track
 from .tracker import Tracker
 
 __all__ = ["BackgroundRemover", "ConstantVelocity", "Interacting", "Measurement", "MovingTarget",
-           "SensorNoise", "Sequence", "SequenceFrame", "SimFrame", "Track", "Tracker", "Trajectory", "frame_seed",
-           "read_sequence", "simulate_sequence", "write_sequence"]
+           "SensorNoise", "Sequence", "SequenceFrame", "SimFrame", "Track", "Tracker", "Trajectory",
+           "frame_seed", "read_sequence", "simulate_sequence", "write_sequence"]

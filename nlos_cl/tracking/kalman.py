@@ -112,7 +112,7 @@ def apply_prediction(p: Prediction, t: float) -> None:
     tr.pending = (t - tr.t_s, p.x, p.P)
     tr.state, tr.covariance, tr.t_s = p.x, p.P, t
     tr.modes = tr.predicted_modes = p.modes
-    tr.modes_of = (p.x.copy(), p.P.copy())
+    tr.modes_of = None if p.modes is None else (p.x.copy(), p.P.copy())
 
 
 def update_track(track, m: Measurement) -> None:
@@ -129,8 +129,8 @@ def update_track(track, m: Measurement) -> None:
 def track_modes(track, motion) -> Modes:
     """The track's IMM modes, or, where its state was set otherwise (a birth, a re-acquired
     track: nlos_cl.tracking.recovery), every mode at its state with the initial probabilities."""
-    modes, made = getattr(track, "modes", None), getattr(track, "modes_of", None)
-    if modes is not None and made is not None and np.array_equal(made[0], track.state) \
+    modes, made = track.modes, track.modes_of
+    if modes is not None and np.array_equal(made[0], track.state) \
             and np.array_equal(made[1], track.covariance):
         return modes
     mu = np.asarray(motion.initial_modes, float)

@@ -8,9 +8,9 @@ Bar-Shalom 1988; Bar-Shalom, Li & Kirubarajan 2001, sec. 11.6) of constant-veloc
 differ only in their process noise: a steady mode (0.05 m/s^2: a walker between turns) and a
 manoeuvring one (0.5 m/s^2, the single model's default), with Markov switching between them.
 One process noise cannot serve both: on white 8 mm errors the filter's RMS over the per-frame
-RMS is 0.47 on a straight path at accel_sigma 0.005 but 3.0 on a curve, whose best, 0.75, needs
-0.07-0.1 (docs/tracking.md). The filter itself is nlos_cl.tracking.kalman (predict_modes,
-update_modes)."""
+RMS is 0.47 on a straight path at accel_sigma 0.005 but 1.45 on a curve, whose best, 0.75,
+needs 0.07-0.1 (docs/tracking.md, whose synthetic table has the IMM's 0.52 / 0.83). The
+filter itself is nlos_cl.tracking.kalman (predict_modes, update_modes)."""
 from __future__ import annotations
 
 import functools
@@ -37,6 +37,11 @@ class MotionModel(Protocol):
 MEMBERS = ("dims", "initial_speed_sigma", "transition", "process_noise")
 
 
+def _check_dims(dims) -> None:
+    require(dims in (None, 2, 3), "motion.dims", f"must be 2, 3 or None, got {dims!r}",
+            "pass 2 (the search plane) or 3")
+
+
 def _positive(owner: str, name: str, v, example) -> None:
     require(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
             and v > 0, f"{owner}.{name}", f"must be a positive number, got {v!r}",
@@ -56,8 +61,7 @@ class ConstantVelocity:
     def __post_init__(self):
         for name in ("accel_sigma", "initial_speed_sigma"):
             _positive("motion", name, getattr(self, name), 0.5)
-        require(self.dims in (None, 2, 3), "motion.dims", f"must be 2, 3 or None, got "
-                f"{self.dims!r}", "pass 2 (the search plane) or 3")
+        _check_dims(self.dims)
 
     @staticmethod
     def transition(dt: float, d: int) -> np.ndarray:
@@ -101,15 +105,14 @@ class Interacting:
                 f"must have one value per mode ({len(self.accel_sigmas)}), got "
                 f"{len(self.stay_s)}", "pass as many stay_s as accel_sigmas")
         _positive("motion", "initial_speed_sigma", self.initial_speed_sigma, 1.0)
-        require(self.dims in (None, 2, 3), "motion.dims", f"must be 2, 3 or None, got "
-                f"{self.dims!r}", "pass 2 (the search plane) or 3")
+        _check_dims(self.dims)
 
     transition = staticmethod(ConstantVelocity.transition)
 
     def process_noise(self, dt: float, d: int) -> np.ndarray:
         """The manoeuvring mode's Q: where one model stands for all (a re-acquisition
         candidate's filter, nlos_cl.tracking.recovery), the loosest."""
-        return ConstantVelocity(max(self.accel_sigmas)).process_noise(dt, d)
+        return _white_acceleration(max(self.accel_sigmas) ** 2, float(dt), int(d))
 
     def mode_noises(self, dt: float, d: int) -> np.ndarray:
         """(M, 2d, 2d): each mode's Q over dt (read-only: cached, frames share their dt)."""

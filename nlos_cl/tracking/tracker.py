@@ -1,6 +1,6 @@
 """`Tracker`: hidden targets followed over frames, with identities; a short composition of the
-roles next to it: motion (constant-velocity models, one or an IMM of two), kalman (predict, update, gate,
-smooth), association (screening, gating, assignment), lifecycle (births, confirmation,
+roles next to it: motion (constant-velocity models, one or an IMM of two), kalman (predict,
+update, gate, smooth), association (screening, gating, assignment), lifecycle (births, confirmation,
 deletion, the record), warm (the prior that starts a model fit from the predictions), track.
 
 Per frame: every live track is predicted to the frame's time, once -> (background removal) ->

@@ -44,7 +44,8 @@ def lines(cfg, c):
 def synthetic(cfg, c):
     """The constant-velocity filter alone (Tracker.step, no estimator) on the bound's paths
     measured with white errors of sigma_m, seeds x process noises (and the IMM of a steady and
-    a manoeuvring one: imm_accel_sigmas): what the motion model allows. Ratio: filter RMS / per-frame RMS from frame c.first on, pooled over the seeds."""
+    a manoeuvring one: imm_accel_sigmas): what the motion model allows. Ratio: filter RMS /
+    per-frame RMS from frame c.first on, pooled over the seeds."""
     sec, rows = cfg["synthetic"], []
     sigma, t = sec["sigma_m"], np.arange(sec["frames"]) / c.fps
     layout = nl.simulate(nl.paper_scene(facet_size_m=0.05)).layout  # (only its geometry)
