@@ -88,6 +88,12 @@ def face_cells(p, lattice, spots=None, laser=None) -> list:
     return parts
 
 
+def pieces(p, lattice):
+    """Every face of box p, none culled, each a piece with its own pulse blur: (Facets,
+    edges, blur share) per face (model.host_shapes culls them itself; see model_facets)."""
+    return [(cells, edges, plate.BLUR_SHARE) for cells, edges in face_cells(p, lattice)]
+
+
 def box_cells(p, lattice, spots=None, laser=None):
     """Cells of the faces of box p (only those lit and seen, when spots and laser are given):
     Facets of the cell centres, and the cells' two edge vectors (each (F, 3))."""

@@ -42,9 +42,8 @@ def box_rows(q, centres=(), laser=None) -> np.ndarray:
 def fit_closed(problem, plate_result, free, final_nfev, shape):
     """A closed shape's fit (box or ellipsoid) started from the plate's, on the same data;
     (problem, result, free)."""
-    from .likelihood import Problem
-    closed = Problem(problem.obs, problem.backend, problem.lattice, shape=shape,
-                     reflectance=problem.reflectance)
+    from .host_shapes import shape_problem
+    closed = shape_problem(problem, shape)
     free_closed = np.insert(np.asarray(free, bool), 5, True)  # + depth
     q = plate_result.params[0]
     centres = starts.start_centres(problem.obs, None, plate.Held.of(free, q))

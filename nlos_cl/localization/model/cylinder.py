@@ -50,6 +50,18 @@ def _cap(c, n, a, sa, sb, up, n_az, n_r):
 def cylinder_cells(p, spots=None, laser=None):
     """Cells of cylinder p (only those lit and seen, when spots and laser are given): Facets
     of the cell centres and the cells' two edge vectors (each (F, 3))."""
+    return ellipsoid.lit_cells(*_surface(p), spots, laser)
+
+
+def pieces(p, lattice=None):
+    """Every cell of cylinder p, none culled, as the pieces that share one pulse blur (one):
+    as ellipsoid.pieces."""
+    cells, edges = ellipsoid.unit_cells(*_surface(p))
+    return [(cells, edges, ellipsoid.CURVED_BLUR_SHARE)]
+
+
+def _surface(p):
+    """Cell centres, normals and the two edge vectors of cylinder p (side, top, bottom)."""
     x, y, z, w, h, d, yaw = (float(v) for v in p)
     c = np.array([x, y, z])
     n = np.array([math.cos(yaw), math.sin(yaw), 0.0])
@@ -58,8 +70,7 @@ def cylinder_cells(p, spots=None, laser=None):
     parts = [_side(c, n, a, sa, sb, h, *SIDE_CELLS),
              _cap(c + 0.5 * h * plate.UP, n, a, sa, sb, plate.UP, *CAP_CELLS),
              _cap(c - 0.5 * h * plate.UP, n, a, sa, sb, -plate.UP, *CAP_CELLS)]
-    centres, normals, e_u, e_v = (np.concatenate([q[i] for q in parts]) for i in range(4))
-    return ellipsoid.lit_cells(centres, normals, e_u, e_v, spots, laser)
+    return tuple(np.concatenate([q[i] for q in parts]) for i in range(4))
 
 
 def cylinder_facets(p):

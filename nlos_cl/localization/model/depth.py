@@ -39,6 +39,7 @@ def probe(problem, plate_result, kappa: float) -> dict:
     the time), depth_sd_m: the depth's sd predicted at a box as deep as the plate is wide,
     depth_probe_m: that depth}. The sd holds the plate's other parameters fixed, so it is a
     lower bound: a plate's position and yaw can absorb part of a side's signal."""
+    from .host_shapes import shape_problem
     from .likelihood import Problem
     q = np.asarray(plate_result.params[0], float)
     width = max(float(q[plate.WIDTH]), MIN_PROBE_M)
@@ -48,8 +49,7 @@ def probe(problem, plate_result, kappa: float) -> dict:
     if len(faces) == 1:
         return {"box_better": False, "depth_sd_m": math.inf, "depth_probe_m": width,
                 "probe_box_cost": plate_result.cost}
-    boxes = Problem(problem.obs, problem.backend, problem.lattice, shape=box,
-                    reflectance=problem.reflectance)
+    boxes = shape_problem(problem, box)
     on_host = hasattr(problem, "coarser") and all(abs(f[3][2]) < 1e-12 for f in faces)
     # the plate and the boxes through one model (host plates, or the device's box model, whose
     # depth-0 box is the plate): the comparison must not carry the two models' difference

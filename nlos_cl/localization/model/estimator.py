@@ -45,7 +45,9 @@ WARM_NFEV = 10
 # (model.batch, a Jacobian's plates in one call), larger ones with the forward op on
 # the device. On the paper's scene a forward call costs ~2 ms of launches and read-backs for
 # ~240 samples a detector; the host's batched float64 model gives the same fit (costs within
-# 1e-4) 3-5x faster (one-shot `nlos-cl locate`: docs/performance.md).
+# 1e-4) 3-5x faster (one-shot `nlos-cl locate`: docs/performance.md). The closed shapes too
+# (model.host_shapes; any laser layout): a Jacobian's 8 columns 40-70 -> 10-13 ms on 6 spots,
+# 140-220 -> 40-65 ms on 42 (one-target draws 1 and 173).
 HOST_DETECTORS = 64
 MODEL_ON = ("auto", "host", "device")
 
@@ -57,7 +59,7 @@ class ModelEstimator:
     holds non-negative whole numbers). `backend`: where the forward model runs while fitting
     (default: the scored frame's backend). model_on: 'device' (the forward op on `backend`),
     'host' (plates evaluated in float64 NumPy, many per call: model.batch) or 'auto'
-    (host for up to HOST_DETECTORS detectors; closed shapes always on the device). warm_nfev:
+    (host for up to HOST_DETECTORS detectors, plates and closed shapes). warm_nfev:
     the evaluation budget of a warm-started fit (`estimate(scored, start=...)`). sanity: check
     each fit's size, misfit and place against the paper's argmax and, for one target, report
     the argmax instead of a fit that fails (model.sanity; False: report every fit as is).
@@ -155,15 +157,20 @@ class ModelEstimator:
     def problem(self, obs, backend):
         """The plates' Problem: the model on the host or with the forward op on `backend`
         (model_on); a HostProblem keeps `backend` for the closed shapes."""
+        from .host_shapes import host_can
         lattice = self.lattice_for(obs)
         refl = self.reflectance
-        host_can = obs.laser.ndim == 1 and (refl is None or hasattr(refl, "factor_of_cosine"))
-        # paired: the host's batched model knows one laser spot; GGX: only the kernel has it
-        if host_can and (self.model_on == "host" or (self.model_on == "auto"
-                                                     and len(obs.spots) <= HOST_DETECTORS)):
+        on_host = host_can(refl) and (self.model_on == "host" or (
+            self.model_on == "auto" and len(obs.spots) <= HOST_DETECTORS))
+        # paired: the host's batched plates know one laser spot (its closed shapes know
+        # any); GGX: only the kernel has it
+        if on_host and obs.laser.ndim == 1:
             from .batch import HostProblem
-            return HostProblem(obs, lattice, backend=backend, reflectance=refl)
-        return Problem(obs, backend, lattice, reflectance=refl)
+            problem = HostProblem(obs, lattice, backend=backend, reflectance=refl)
+        else:
+            problem = Problem(obs, backend, lattice, reflectance=refl)
+        problem.closed_on_host = on_host  # model.host_shapes.shape_problem
+        return problem
 
     def lattice_for(self, obs):
         return self.lattice or (GAUSS_LATTICE if obs.mode == "gauss" else POISSON_LATTICE)

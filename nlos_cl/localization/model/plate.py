@@ -102,6 +102,13 @@ def cell_model(cells, edges, spots, laser, blur_share=None):
     large); each cell is then 4 points at its Gauss points pulled in by s_f = sqrt(1 - blur^2
     / v_f) so that points + blur have the cell's own variance; the shift restores the part
     (1 - s_f^2) of the cell's mean-path offset that the pulled-in points no longer carry."""
+    keep, blur2, shift = cell_statistics(cells, edges, spots, laser, blur_share)
+    return _gauss_points(cells, edges, keep), math.sqrt(blur2), shift
+
+
+def cell_statistics(cells, edges, spots, laser, blur_share=None):
+    """`cell_model`'s numbers: per cell how far its Gauss points are pulled in, keep (F,);
+    the shared blur^2 (m^2 of path); the path shift per detector (D,)."""
     spots, laser = np.asarray(spots, float), np.asarray(laser, float)
     some = np.unique(np.linspace(0, len(spots) - 1, min(len(spots), STAT_SPOTS)).round()
                      ).astype(int)
@@ -120,7 +127,7 @@ def cell_model(cells, edges, spots, laser, blur_share=None):
                           + ([laser - laser.mean(axis=0)] if paired else []))
         coef, *_ = np.linalg.lstsq(basis[some], shift, rcond=None)
         shift = basis @ coef
-    return _gauss_points(cells, edges, keep), math.sqrt(blur2), shift
+    return keep, blur2, shift
 
 
 def _cell_stats(cells, edges, spots, laser):
