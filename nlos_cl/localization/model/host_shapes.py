@@ -179,21 +179,37 @@ def point_paths(points, normals, areas, spots, laser, factor=None):
     """Hidden path r1 + r2 and weight per (detector, piece, point) (D, G, M): the forward
     twin's (ops.forward.facet_paths: four cosines, area / (r1^2 r2^2), 0 where the point faces
     away from the laser spot or the detector spot) with a normal per point, component by
-    component (no (D, G, M, 3) temporaries). points, normals (G, M, 3), areas (G, M); laser
-    (3,) or (D, 3) (each detector its own); factor: the reflectance's factor of l.v, or None."""
+    component and in place (no (D, G, M, 3) temporaries). points, normals (G, M, 3), areas
+    (G, M); laser (3,) or (D, 3) (each detector its own); factor: the reflectance's factor of
+    l.v, or None."""
     laser = np.asarray(laser, float)
     lasers = laser.reshape(-1, 1, 1, 3)  # (1 or D, 1, 1, 3)
     px, py, pz = (points[None, ..., k] for k in range(3))
     nx, ny, nz = (normals[None, ..., k] for k in range(3))
     v1x, v1y, v1z = px - lasers[..., 0], py - lasers[..., 1], pz - lasers[..., 2]
-    r1 = np.sqrt(v1x * v1x + v1y * v1y + v1z * v1z)
-    cos_b1 = -(nx * v1x + ny * v1y + nz * v1z) / r1
-    front = np.abs(v1y) / r1 * np.maximum(cos_b1, 0.0) * areas[None] / (r1 * r1)
+    r1sq = v1x * v1x + v1y * v1y + v1z * v1z
+    # cos_a1 cos_b1 area / r1^2 = |v1y| max(-n.v1, 0) area / r1^4
+    front = np.maximum(-(nx * v1x + ny * v1y + nz * v1z), 0.0)
+    front *= np.abs(v1y)
+    front *= areas[None]
+    front /= r1sq
+    front /= r1sq
     sx, sy, sz = (spots[:, k, None, None] for k in range(3))
     v2x, v2y, v2z = sx - px, sy - py, sz - pz
-    r2 = np.sqrt(v2x * v2x + v2y * v2y + v2z * v2z)
-    cos_a2 = (nx * v2x + ny * v2y + nz * v2z) / r2
-    weight = np.abs(v2y) / r2 * np.maximum(cos_a2, 0.0) * front / (r2 * r2)
+    r2sq = v2x * v2x
+    r2sq += v2y * v2y
+    r2sq += v2z * v2z
+    weight = nx * v2x  # -> max(n.v2, 0) |v2y| / r2^4 x front
+    weight += ny * v2y
+    weight += nz * v2z
+    np.maximum(weight, 0.0, out=weight)
+    weight *= np.abs(v2y)
+    weight *= front
+    weight /= r2sq
+    weight /= r2sq
     if factor is not None:
-        weight = weight * factor(-(v1x * v2x + v1y * v2y + v1z * v2z) / (r1 * r2))
-    return r1 + r2, weight
+        dot = v1x * v2x + v1y * v2y + v1z * v2z
+        weight *= factor(-dot / np.sqrt(r1sq * r2sq))
+    path = np.sqrt(r2sq, out=r2sq)
+    path += np.sqrt(r1sq)
+    return path, weight
