@@ -68,13 +68,16 @@ def test_a_batch_in_chunks_is_the_batch_evaluated_row_by_row(scored, cold):
         np.testing.assert_array_equal(col, host.column(row))
 
 
-def test_jacobian_plates_borrow_the_base_plate_statistics(scored, cold):
+def test_jacobian_plates_borrow_the_base_plate_statistics(scored, cold, monkeypatch):
     """column_batch(rows, like): each row with `like`'s cell statistics. Borrowing a row's own
     statistics changes nothing (bit for bit); the fit's Jacobian and covariance made that way
     (frozen blur, shift, pull-in) stay within 0.5 % of the exact ones per column, per sd
     (measured 0.16 % and 0.22 % on the stream bench's frame; this 2 mm / 4 mrad step moves the
-    statistics by that much, what the exact derivative adds)."""
+    statistics by that much, what the exact derivative adds). Finite differences throughout
+    (the covariance's analytic derivatives freeze the statistics too:
+    tests/test_model_derivatives.py)."""
     from nlos_cl.localization.model import fit as model_fit
+    monkeypatch.setattr(model_fit, "ANALYTIC", ())
     est = ModelEstimator()
     obs = est.observation(scored)
     p = np.array(list(cold.details["params"].values()))
@@ -88,7 +91,7 @@ def test_jacobian_plates_borrow_the_base_plate_statistics(scored, cold):
     result = model_fit.fit(host, p[None], free, 10)
     cov_borrowed = model_fit.covariance(host, result, free)[0]
     own = HostProblem.column_batch  # the exact derivatives: every moved plate its own
-    host.column_batch = lambda rows, like=None: own(host, rows)
+    host.column_batch = lambda rows, like=None, **kw: own(host, rows, **kw)
     exact = objective.jac(theta)
     cov_exact = model_fit.covariance(host, result, free)[0]
     err = np.linalg.norm(borrowed - exact, axis=0) / np.linalg.norm(exact, axis=0)

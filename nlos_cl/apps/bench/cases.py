@@ -14,7 +14,7 @@ import nlos_cl as nl
 
 from ...ops import OPERATIONS
 from ...ops.backend import NumpyBackend
-from .harness import fraction_of_limit, measure_limits, spread, time_pair
+from .harness import fraction_of_limit, measure_limits, spread, time_pair, timed
 
 
 @dataclass
@@ -104,6 +104,53 @@ def pipeline_row(rt, smoke):
                k_spread)
 
 
+def closed_shapes_row(rt, smoke):
+    """One Jacobian's columns (a row and its 7 steps) of each closed shape (box, ellipsoid,
+    cylinder) on the paper's 3 spots: the forward op on the device, one launch per lit face and
+    row (likelihood.Problem), against the host's batched float64 model (model.host_shapes),
+    which model_on='auto' uses here: on such small problems launches and read-backs cost more
+    than the arithmetic."""
+    from ...localization.estimate import Scored
+    from ...localization.model import ModelEstimator, box, cylinder, ellipsoid
+    from ...localization.model.host_shapes import HostShapeProblem
+    from ...localization.model.likelihood import Problem
+    from ...physics.scene import Scene, Target, paper_setup
+    truth = (4.0, 2.0, 0.0)
+    scene = Scene(paper_setup(), Target(nl.rectangle(0.3, 1.6, centre=truth)), truth=truth)
+    raw = nl.add_noise(nl.simulate(scene, backend=rt), 10.0, seed=3)
+    filtered = nl.gauss_filter(raw)
+    obs = ModelEstimator().observation(Scored(filtered.backend, None, nl.Grid(), False,
+                                              filtered.n_detectors, filtered, raw))
+    row = np.array([4.0, 2.0, -0.45, 0.5, 0.7, 0.4, np.pi + 0.6])  # front, side, top lit
+    rows = row + np.vstack([np.zeros(7), np.diag(box.STEPS)])
+    like = np.repeat(row[None], len(rows), axis=0)
+    shapes = (box, ellipsoid, cylinder)
+    device = [Problem(obs, filtered.backend, shape=shape) for shape in shapes]
+    host = [HostShapeProblem(obs, shape) for shape in shapes]
+    for h in host:  # the unmoved row's statistics, as a fit has them from its residual
+        h.column(row)
+
+    def on_device():
+        return [[d.column(r) for r in rows] for d in device]
+
+    def on_host():
+        return [h.column_batch(rows, like) for h in host]
+    start = time.perf_counter()
+    on_device()
+    build = time.perf_counter() - start
+    on_host()
+    kernel, twin = [], []
+    for _ in range(3 if smoke else 7):  # interleaved, untraced (time_pair traces the twin)
+        kernel += timed(on_device, 1, rt.finish)
+        twin += timed(on_host, 1, lambda: None)
+    k, k_spread = spread(kernel)
+    return Row("model", "closed shapes: one Jacobian (8 rows) of a box, an ellipsoid and a "
+               "cylinder, 3 spots; device launches vs the host batch (the default here)",
+               len(rows) * len(shapes), k, statistics.median(twin), max(build - k, 0.0),
+               len(rows) * len(shapes) / k, "columns", math.nan, "-", math.nan, k_spread,
+               note="twin = model.host_shapes, what model_on='auto' runs for <= 64 spots")
+
+
 def all_rows(rt, smoke=False, say=print):
     say("operations")
     rows = list(operation_rows(rt, smoke, say))
@@ -112,6 +159,8 @@ def all_rows(rt, smoke=False, say=print):
     rows.extend(scoring_rows(rt, smoke, Row))
     say("pipeline")
     rows.append(pipeline_row(rt, smoke))
+    say("model: closed shapes, device against the host batch")
+    rows.append(closed_shapes_row(rt, smoke))
     say("stream: plans and the tracker, host frames to track states")
     from .stream import stream_rows
     rows.extend(stream_rows(rt, smoke, Row))
