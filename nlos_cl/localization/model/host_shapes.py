@@ -26,6 +26,7 @@ import time
 
 import numpy as np
 
+from ...core.allocator import keep_freed_memory
 from ...ops.forward import SUB_BINS_PER_SIGMA
 from . import plate
 from .batch import _deposit_bins
@@ -61,6 +62,7 @@ class HostShapeProblem(Problem):
 
     def __init__(self, obs, shape, lattice=(16, 24), backend=None, reflectance=None):
         super().__init__(obs, backend, lattice, shape=shape, reflectance=reflectance)
+        keep_freed_memory()  # core.allocator
         if not host_can(reflectance):
             raise ValueError("reflectance: the host model takes a factor of l.v alone "
                              "(Retroreflective); use likelihood.Problem for this one")
