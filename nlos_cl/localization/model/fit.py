@@ -198,7 +198,9 @@ def fit(problem, params0, free, max_nfev=30, tau=None, atol=None) -> FitResult:
 
 
 def _mean_jacobian(problem, params, lin, free):
-    """d mu / d (free target parameters, linear factors), central differences: (D, n, P)."""
+    """d mu / d (free target parameters, linear factors): (D, n, P). Analytic where
+    `analytic_derivatives` has them (host plates that cannot shadow each other), else central
+    differences."""
     steps = shape_of(problem).STEPS
     which = [(k, i) for k in range(len(params)) for i in np.flatnonzero(free)]
     slopes = analytic_derivatives(problem, params, "covariance")
