@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import nlos_cl as nl
-from nlos_cl.localization.model import batch, derivatives, fit, plate
+from nlos_cl.localization.model import deposit, derivatives, fit, plate
 from nlos_cl.localization.model.batch import HostProblem
 
 from conftest import model_observation
@@ -49,7 +49,7 @@ def test_slope_taps_are_the_taps_derivative():
     point by delta shifts every tap's argument by -delta / dsub sub-bins."""
     dsub, sigma, pad, os_ = np.array([0.004]), np.array([0.03]), 12, 5
     delta = 1e-6
-    taps = batch._taps(dsub, sigma, pad, os_, {})
+    taps = deposit.taps_of(dsub, sigma, pad, os_, {})
     from nlos_cl.core.erf import erf  # the tap's argument m = (edge - s) / dsub, directly
     m = (pad - np.arange(2 * pad + 1))[None, :] * os_ - np.arange(os_)[:, None]
     c = dsub[0] / (np.sqrt(2.0) * sigma[0])
@@ -69,9 +69,9 @@ def test_covariance_from_analytic_derivatives_is_the_differences(obs, monkeypatc
     host = HostProblem(obs)
     free = np.ones(plate.N_PARAMS, bool)
     result = fit.fit(host, ROW[None], free, 30)
-    monkeypatch.setattr(fit, "ANALYTIC", ("covariance",))
+    monkeypatch.setattr(fit, "ANALYTIC", True)
     analytic = np.sqrt(np.diag(fit.covariance(host, result, free)[0]))
-    monkeypatch.setattr(fit, "ANALYTIC", ())
+    monkeypatch.setattr(fit, "ANALYTIC", False)
     differences = np.sqrt(np.diag(fit.covariance(host, result, free)[0]))
     assert np.all(np.isfinite(analytic))
     assert np.allclose(analytic, differences, rtol=0.01, atol=0), (analytic, differences)

@@ -77,7 +77,7 @@ def test_jacobian_plates_borrow_the_base_plate_statistics(scored, cold, monkeypa
     (the covariance's analytic derivatives freeze the statistics too:
     tests/test_model_derivatives.py)."""
     from nlos_cl.localization.model import fit as model_fit
-    monkeypatch.setattr(model_fit, "ANALYTIC", ())
+    monkeypatch.setattr(model_fit, "ANALYTIC", False)
     est = ModelEstimator()
     obs = est.observation(scored)
     p = np.array(list(cold.details["params"].values()))

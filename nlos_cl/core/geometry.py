@@ -49,6 +49,11 @@ class Facets:
     def count(self) -> int:
         return self.areas.shape[0]
 
+    def take(self, which) -> "Facets":
+        """The facets `which` selects (a bool mask or indices), in that order, contiguous."""
+        return Facets(*(np.ascontiguousarray(v[which])
+                        for v in (self.centres, self.normals, self.areas)))
+
 
 def morton_order(points: np.ndarray) -> np.ndarray:
     """Indices that sort points along a Z-order curve (10 bits per axis): neighbours in space

@@ -11,10 +11,10 @@ uses it for plate fits (cold and warm) with up to HOST_DETECTORS detectors.
 
 Same model as `Problem.column`: each plate's own cell statistics (`plate.cell_model`: Gauss
 points pulled in, shared blur, per-detector shift), its own pulse width, bins integrated over
-their width. The deposit splits each point's weight linearly between the two sub-bins around
-its path (sub-bins of at most sigma / SUB_BINS_PER_SIGMA, as the kernel), then correlates with
-the bin-integrated pulse per sub-bin phase; the split errs by <= (dsub / sigma)^2 / 8 = 2e-4 of
-the peak (the kernel's bound), and float64 has no float32 path rounding.
+their width. The deposit (model.deposit) splits each point's weight linearly between the two
+sub-bins around its path (sub-bins of at most sigma / SUB_BINS_PER_SIGMA, as the kernel), then
+correlates with the bin-integrated pulse per sub-bin phase; the split errs by <= (dsub /
+sigma)^2 / 8 = 2e-4 of the peak (the kernel's bound), and float64 has no float32 path rounding.
 
 Half a plate's cost is its cell statistics (the Gauss points' paths to STAT_SPOTS spots). A
 Jacobian's or a covariance's moved plates borrow their unmoved plate's statistics
@@ -29,8 +29,9 @@ import time
 import numpy as np
 
 from ...core.allocator import keep_freed_memory
-from ...ops.forward import REACH_SIGMAS, SUB_BINS_PER_SIGMA
+from ...ops.forward import SUB_BINS_PER_SIGMA
 from . import plate
+from .deposit import deposit_bins
 from .likelihood import Problem
 from .shadow import occluders_of, shade
 
@@ -64,7 +65,7 @@ class HostProblem(Problem):
         self._stats = {}  # row bytes -> its cell statistics (_remember, _statistics_of)
         self._hists = {}  # row bytes -> its histograms, evaluated with its own statistics
         self._keep_hists = int(min(64, HISTS_BYTES // max(8 * obs.y.size, 1)))
-        self._taps = {}  # (pad, scale) -> the deposit's taps (_deposit_bins)
+        self._taps = {}  # (pad, scale) -> the deposit's taps (model.deposit.taps_of)
         some = np.unique(np.linspace(0, len(obs.spots) - 1, min(len(obs.spots),
                                                                  plate.STAT_SPOTS)).round())
         self._stat_spots = obs.spots[some.astype(int)]  # the cell statistics' spots
@@ -130,7 +131,7 @@ class HostProblem(Problem):
         points = points.reshape(len(rows), -1, 3)
         path, weight = _paths(points, normal, area / 4.0, obs.spots, obs.laser, self._factor)
         weight = shade(weight, points, rows, occluders, self.lattice, obs.laser, obs.spots)
-        hist = _deposit_bins(path, weight, obs.edge0[None] - shift, obs.dpath, sigma, obs.n,
+        hist = deposit_bins(path, weight, obs.edge0[None] - shift, obs.dpath, sigma, obs.n,
                              self.os, self._taps)
         self.calls += len(rows)
         self.model_s += time.perf_counter() - t
@@ -273,68 +274,28 @@ def _paths(points, normal, area, spots, laser, factor=None):
     front *= (front_o * area)[:, None]
     front /= r1sq
     front /= r1sq
-    sx, sy, sz = (spots[:, k, None, None] for k in range(3))
-    v2x, v2y, v2z = sx - px, sy - py, sz - pz
-    r2sq = v2x * v2x
-    r2sq += v2y * v2y
-    r2sq += v2z * v2z
+    v2x, v2y, v2z, r2sq = spot_legs(px, py, pz, spots)
+    if factor is not None:  # before v2y is overwritten
+        dot = v1x * v2x + v1y * v2y + v1z * v2z
     weight = np.abs(v2y, out=v2y)  # -> cos_a2 cos_b2 / r2^2 x front
     weight *= faces[:, :, None]
     weight *= front
     weight /= r2sq
     weight /= r2sq
     if factor is not None:
-        dot = v1x * v2x + v1y * (sy - py) + v1z * v2z
         weight *= factor(-dot / np.sqrt(r1sq * r2sq))
     path = np.sqrt(r2sq, out=r2sq)
     path += np.sqrt(r1sq)
     return path, weight
 
 
-def _deposit_bins(path, weight, edge0, dpath, sigma, n_bins, os_, cache=None):
-    """hist (B, D, n): bin k of detector d covers paths edge0[b, d] + [k, k + 1) dpath[d] and
-    receives w (erf(z_hi) - erf(z_lo)) from each point (path, weight: (D, B, N)). cache: a
-    dict the problem keeps the taps in (they depend only on the pulse width)."""
-    n_det, n_b = path.shape[:2]
-    reach = REACH_SIGMAS * float(np.max(sigma))
-    pad = int(math.ceil(reach / float(np.min(dpath)))) + 1  # bins each side of the window
-    span, length = 2 * pad + 1, (n_bins + 2 * pad) * os_
-    base = (edge0.T - pad * dpath[:, None])[:, :, None]  # (D, B, 1): sub-bin 0's lower edge
-    u = (path - base) * (os_ / dpath)[:, None, None] - 0.5  # from sub-bin centres
-    j = np.floor(u)
-    t = u - j
-    ok = (weight > 0) & (j >= 0) & (j < length - 1)
-    row = (np.arange(n_det * n_b).reshape(n_det, n_b, 1) * length + j.astype(np.int64))[ok]
-    w = weight[ok]
-    upper = w * t[ok]
-    size = n_det * n_b * length
-    dep = np.bincount(row, w - upper, minlength=size)  # the lower sub-bin's share
-    dep[1:] += np.bincount(row, upper, minlength=size)[:-1]  # the upper's (row + 1)
-    dep = dep.reshape(n_det, n_b, n_bins + 2 * pad, os_)
-    taps = _taps(dpath / os_, sigma, pad, os_, {} if cache is None else cache)
-    # hist[k] = sum over i, p of dep[k + i, p] taps[p, i] (sub-bin j = (k + i) os + p)
-    windows = np.lib.stride_tricks.sliding_window_view(dep, span, axis=2)[:, :, :n_bins]
-    return np.einsum("dbkpi,dbpi->bdk", windows, taps)
-
-
-def _taps(dsub, sigma, pad, os_, cache):
-    """(D, B, os, 2 pad + 1): what a unit weight at the centre of phase p of the sub-bins i
-    bins after bin k's window start puts into bin k: erf((m + os - 1/2) s) - erf((m - 1/2) s),
-    m = (pad - i) os - p, s = dsub / (sqrt 2 sigma); erf evaluated once per distinct m, and
-    once per distinct s: a Jacobian's plates share their unmoved plate's pulse width, so
-    `cache` ((pad, s) -> taps) has them from the residual call before."""
-    from ...core.erf import erf  # not SciPy's: its import is a seventh of a one-shot locate
-    scale = dsub[:, None] / (math.sqrt(2.0) * sigma[None, :])  # (D, B)
-    values, which = np.unique(scale, return_inverse=True)
-    if len(cache) > 256:  # before the look-up: clearing after it lost taps this call reads
-        cache.clear()
-    new = [float(v) for v in values if (pad, float(v)) not in cache]
-    if new:
-        m = (pad - np.arange(2 * pad + 1))[None, :] * os_ - np.arange(os_)[:, None]  # (os, span)
-        lowest = int(m.min())
-        grid = np.arange(lowest, int(m.max()) + os_ + 1) - 0.5
-        e = erf(np.array(new)[:, None] * grid)
-        cache.update(((pad, v), taps) for v, taps in zip(new, e[:, m - lowest + os_]
-                                                          - e[:, m - lowest]))
-    table = np.stack([cache[(pad, float(v))] for v in values])
-    return table[which.reshape(scale.shape)]
+def spot_legs(px, py, pz, spots):
+    """The legs from points to every wall spot, component by component (spots (D, 3); the
+    points' coordinates broadcast against (D, 1, 1)): v2 = S - P as (v2x, v2y, v2z) and
+    |v2|^2, each (D, ...)."""
+    sx, sy, sz = (spots[:, k, None, None] for k in range(3))
+    v2x, v2y, v2z = sx - px, sy - py, sz - pz
+    r2sq = v2x * v2x
+    r2sq += v2y * v2y
+    r2sq += v2z * v2z
+    return v2x, v2y, v2z, r2sq

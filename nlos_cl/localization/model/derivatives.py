@@ -2,8 +2,8 @@
 d(x, y, z, width, height, yaw) of each plate at its frozen cell statistics (pull-in, blur,
 shift), what model.fit's forward differences with borrowed statistics approximate with a 2 mm
 step. Within 0.1 % of central differences (tests/test_model_derivatives.py). The covariance
-uses them; the LM's Jacobian does not, being cheaper as differences on the host (model.fit's
-ANALYTIC says what was measured).
+uses them; the LM's Jacobian does not, being cheaper as differences on the host (the comment
+at model.fit.ANALYTIC says what was measured).
 """
 from __future__ import annotations
 
@@ -13,8 +13,8 @@ import time
 import numpy as np
 
 from . import plate
-from ...ops.forward import REACH_SIGMAS
-from .batch import _paths, _plate_points, _taps
+from .batch import _paths, _plate_points
+from .deposit import correlate, deposit, split, taps_of
 
 
 def column_derivatives(problem, rows):
@@ -106,41 +106,21 @@ def plate_derivatives(rows, points, normal, area, spots, laser):
 def _deposit_derivatives(path, weight, dpath, dweight, edge0, dpath_m, sigma, n_bins, os_,
                          cache=None):
     """(P, B, D, n): d hist / d theta = sum over points of dweight K(s) + weight dpath K'(s),
-    K the bin-integrated pulse (`_deposit_bins`' taps) and K' its derivative in the point's
-    path; both terms deposited by the same linear split and correlated per phase."""
-    n_det, n_b = path.shape[:2]
-    reach = REACH_SIGMAS * float(np.max(sigma))
-    pad = int(math.ceil(reach / float(np.min(dpath_m)))) + 1
-    span, length = 2 * pad + 1, (n_bins + 2 * pad) * os_
-    base = (edge0.T - pad * dpath_m[:, None])[:, :, None]
-    u = (path - base) * (os_ / dpath_m)[:, None, None] - 0.5
-    j = np.floor(u)
-    t = u - j
-    ok = (weight > 0) & (j >= 0) & (j < length - 1)
-    row = (np.arange(n_det * n_b).reshape(n_det, n_b, 1) * length + j.astype(np.int64))[ok]
-    t = t[ok]
-    size = n_det * n_b * length
+    K the bin-integrated pulse (deposit.taps_of) and K' its derivative in the point's
+    path; both terms deposited by the same linear split (deposit.split) and correlated per
+    phase."""
+    plan = split(path, weight, edge0, dpath_m, sigma, n_bins, os_)
     n_p = len(dpath)
-    # entries: the P dweight deposits, then the P (weight x dpath) deposits
-    values = np.concatenate([dweight[:, ok], (weight[ok] * dpath[:, ok])])  # (2P, N)
-    offsets = (np.arange(2 * n_p) * size)[:, None]
-    rows_all = (row[None] + offsets).reshape(-1)
-    upper = values * t[None]
-    dep = np.bincount(rows_all, (values - upper).reshape(-1), minlength=2 * n_p * size)
-    up = np.bincount(rows_all, upper.reshape(-1), minlength=2 * n_p * size)
-    dep[1:] += up[:-1]  # a row's last sub-bin never has an upper share (j < length - 1)
-    dep = dep.reshape(2 * n_p, n_det, n_b, n_bins + 2 * pad, os_)
+    # the P dweight deposits, then the P (weight x dpath) ones, in one pair of bincounts
+    dep = deposit(plan, np.concatenate([dweight[:, plan.ok], weight[plan.ok] * dpath[:, plan.ok]]))
     dsub = dpath_m / os_
-    taps = _taps(dsub, sigma, pad, os_, {} if cache is None else cache)  # (D, B, os, span)
-    slopes = _slope_taps(dsub, sigma, pad, os_)
-    windows = np.lib.stride_tricks.sliding_window_view(dep, span, axis=3)[:, :, :, :n_bins]
-    value_part = np.einsum("edbkpi,dbpi->ebdk", windows[:n_p], taps)
-    slope_part = np.einsum("edbkpi,dbpi->ebdk", windows[n_p:], slopes)
-    return value_part + slope_part
+    taps = taps_of(dsub, sigma, plan.pad, os_, {} if cache is None else cache)
+    return (correlate(dep[:n_p], taps, n_bins)
+            + correlate(dep[n_p:], _slope_taps(dsub, sigma, plan.pad, os_), n_bins))
 
 
 def _slope_taps(dsub, sigma, pad, os_):
-    """(D, B, os, 2 pad + 1): d/ds of `_taps`' values for a point at path s: the tap is
+    """(D, B, os, 2 pad + 1): d/ds of `taps_of`' values for a point at path s: the tap is
     erf((m + os - 1/2) c) - erf((m - 1/2) c) with m = (edge - s) / dsub, c = dsub / (sqrt 2
     sigma), so its slope is -(c / dsub) (2 / sqrt pi) (exp(-((m + os - 1/2) c)^2) -
     exp(-((m - 1/2) c)^2))."""

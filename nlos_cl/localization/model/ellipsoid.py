@@ -101,15 +101,18 @@ def _angles(cells):
 def lit_cells(centres, normals, e_u, e_v, spots=None, laser=None):
     """Facets (unit normals, area |e_u x e_v|) and edges of the cells that the laser spot
     lights and at least one wall spot sees (all cells when spots is None)."""
-    normals = normals / np.linalg.norm(normals, axis=1, keepdims=True)
-    areas = np.linalg.norm(np.cross(e_u, e_v), axis=1)
-    keep = np.ones(len(centres), bool)
-    if spots is not None:
-        keep = lit_mask(centres, normals, spots, laser)
-        if not keep.any():
-            keep[0] = True  # one cell keeps the shapes valid (its weight is zero)
-    return (Facets(centres[keep], np.ascontiguousarray(normals[keep]), areas[keep]),
-            (np.ascontiguousarray(e_u[keep]), np.ascontiguousarray(e_v[keep])))
+    cells, edges = unit_cells(centres, normals, e_u, e_v)
+    if spots is None:
+        return cells, edges
+    keep = lit_mask(cells.centres, cells.normals, spots, laser)
+    if not keep.any():
+        keep[0] = True  # one cell keeps the shapes valid (its weight is zero)
+    return culled(cells, edges, keep)
+
+
+def culled(cells, edges, keep):
+    """(cells, edges) of the cells `keep` selects."""
+    return cells.take(keep), tuple(np.ascontiguousarray(e[keep]) for e in edges)
 
 
 def lit_mask(centres, normals, spots, laser) -> np.ndarray:

@@ -85,20 +85,13 @@ class _Objective:
         of the targets each moved one can shadow (`stepped_columns`)."""
         cols, lin = self._eval(theta)
         full = self.full(theta)
-        moves, which = [], []
+        moves = []
         for f, step in zip(np.flatnonzero(self.free), self.steps):
             k, i = divmod(int(f), self.shape.N_PARAMS)
             row = full[k].copy()
             row[i] += step
             moves.append((k, row))
-            which.append((k, i))
-        slopes = analytic_derivatives(self.problem, full, "fit")
-        if slopes is not None:  # the moved columns to first order: no model evaluation
-            stepped = np.repeat(np.asarray(cols)[None], len(moves), axis=0)
-            for m, ((k, i), step) in enumerate(zip(which, self.steps)):
-                stepped[m, k] = cols[k] + step * slopes[k, i]
-        else:
-            stepped = stepped_columns(self.problem, full, cols, moves)
+        stepped = stepped_columns(self.problem, full, cols, moves)
         base = self.problem.residual(cols, lin)
         out = [(self.problem.residual(moved, self.problem.linear(moved, lin)) - base) / step
                for moved, step in zip(stepped, self.steps)]
@@ -121,27 +114,27 @@ class _Objective:
         return (r - self.problem.residual(cols, lin)) / self.steps[j]
 
 
-def analytic_derivatives(problem, params, use):
+def analytic_derivatives(problem, params):
     """(K, N_PARAMS, D, n) d(column)/d(parameter) of each target, analytic
     (model.derivatives, host plates only), or None: another problem, targets that can shadow
-    each other (their derivatives are finite differences, `stepped_columns`), or `use`
-    ("fit", "covariance") not in ANALYTIC."""
+    each other (their derivatives are finite differences, `stepped_columns`), or ANALYTIC
+    off."""
     from .batch import HostProblem
-    if use not in ANALYTIC or type(problem) is not HostProblem or \
+    if not ANALYTIC or type(problem) is not HostProblem or \
             shadowed_by(problem, params) is not None:
         return None
     from .derivatives import column_derivatives
     return column_derivatives(problem, np.asarray(params, np.float64))
 
 
-# Where analytic derivatives are used when the problem has them (host plates; within 0.1 % of
-# central differences: tests/test_model_derivatives.py): "covariance" (exact derivatives, in
-# the time of the central differences they replace: tracker 17.5 vs 17.6 ms a frame, positions
-# within 0.014 mm) and/or "fit" (the LM's Jacobian). Not "fit": there the forward differences
-# borrow the unmoved plate's statistics, one deposit per parameter (5 plates 0.59 ms), where
-# the analytic derivative needs two (value and slope: 1.33 ms); the tracker went 17.5 -> 24.9 ms
-# a frame (paper's scene, 3 spots, interleaved in one run).
-ANALYTIC = ("covariance",)
+# The covariance from analytic derivatives where the problem has them (host plates; within
+# 0.1 % of central differences: tests/test_model_derivatives.py): exact, in the time of the
+# central differences they replace (tracker 17.5 vs 17.6 ms a frame, positions within
+# 0.014 mm). The LM's Jacobian keeps forward differences: borrowing the unmoved plate's
+# statistics they cost one deposit per parameter (5 plates 0.59 ms), the analytic derivative
+# two (value and slope: 1.33 ms); with it the tracker went 17.5 -> 24.9 ms a frame (paper's
+# scene, 3 spots, interleaved in one run).
+ANALYTIC = True
 
 
 def shadowed_by(problem, params):
@@ -203,7 +196,7 @@ def _mean_jacobian(problem, params, lin, free):
     differences."""
     steps = shape_of(problem).STEPS
     which = [(k, i) for k in range(len(params)) for i in np.flatnonzero(free)]
-    slopes = analytic_derivatives(problem, params, "covariance")
+    slopes = analytic_derivatives(problem, params)
     if slopes is not None:
         cols = problem.columns(params)
         blocks = [lin[k] * slopes[k, i] for k, i in which]

@@ -29,8 +29,9 @@ import numpy as np
 from ...core.allocator import keep_freed_memory
 from ...ops.forward import SUB_BINS_PER_SIGMA
 from . import plate
-from .batch import _deposit_bins
-from .ellipsoid import lit_mask
+from .batch import spot_legs
+from .deposit import deposit_bins
+from .ellipsoid import culled, lit_mask
 from .likelihood import Problem
 
 # point-detector pairs per NumPy pass (each temporary ~8 bytes a pair): bounds the memory
@@ -42,7 +43,7 @@ def shape_problem(problem, shape):
     """The closed shape's Problem for the data of plate problem `problem`: on the host where
     the estimator put it there (`problem.closed_on_host`, model.estimator), else the forward
     op on the device (one launch per lit face and column)."""
-    if getattr(problem, "closed_on_host", False):
+    if problem.closed_on_host:
         return HostShapeProblem(problem.obs, shape, problem.lattice, problem.backend,
                                 problem.reflectance)
     return Problem(problem.obs, problem.backend, problem.lattice, shape=shape,
@@ -87,13 +88,12 @@ class HostShapeProblem(Problem):
         pieces = []  # (row index, points (M, 3), normals (M, 3), areas (M,), blur2, shift)
         for i, row in enumerate(rows):
             own = self.shape.pieces(row, self.lattice)
-            stats = self._statistics(row if like is None else like[i], None if like is not None
-                                     and not np.array_equal(like[i], row) else own)
+            source = row if like is None else like[i]  # whose culling and statistics
+            stats = self._statistics(source, own if np.array_equal(source, row) else None)
             for (cells, edges, _), (mask, keep, blur2, shift) in zip(own, stats):
                 if not mask.any():
                     continue
-                pts = plate._gauss_points(_take(cells, mask), tuple(e[mask] for e in edges),
-                                          keep)
+                pts = plate._gauss_points(*culled(cells, edges, mask), keep)
                 pieces.append((i, pts.centres, pts.normals, pts.areas, blur2, shift))
         out = np.zeros((len(rows),) + obs.y.shape)
         for group in _groups(pieces, len(obs.spots)):
@@ -120,8 +120,8 @@ class HostShapeProblem(Problem):
         for cells, edges, share in pieces:
             mask = lit_mask(cells.centres, cells.normals, obs.spots, obs.laser)
             if mask.any():
-                stats = plate.cell_statistics(_take(cells, mask), tuple(e[mask] for e in edges),
-                                              obs.spots, obs.laser, share)
+                stats = plate.cell_statistics(*culled(cells, edges, mask), obs.spots, obs.laser,
+                                              share)
             else:
                 stats = (np.zeros(0), 0.0, np.zeros(len(obs.spots)))
             got.append((mask, *stats))
@@ -151,14 +151,9 @@ class HostShapeProblem(Problem):
             part = slice(d, d + step)
             path, weight = point_paths(points, normals, areas, obs.spots[part],
                                        laser[part] if laser.ndim == 2 else laser, self._factor)
-            out[:, part] = _deposit_bins(path, weight, edge0[:, part], obs.dpath[part], sigma,
+            out[:, part] = deposit_bins(path, weight, edge0[:, part], obs.dpath[part], sigma,
                                          obs.n, self.os, self._taps)
         return out
-
-
-def _take(cells, mask):
-    from ...core.geometry import Facets
-    return Facets(cells.centres[mask], cells.normals[mask], cells.areas[mask])
 
 
 def _groups(pieces, n_det):
@@ -183,7 +178,9 @@ def point_paths(points, normals, areas, spots, laser, factor=None):
     away from the laser spot or the detector spot) with a normal per point, component by
     component and in place (no (D, G, M, 3) temporaries). points, normals (G, M, 3), areas
     (G, M); laser (3,) or (D, 3) (each detector its own); factor: the reflectance's factor of
-    l.v, or None."""
+    l.v, or None. (batch._paths is its special case for upright plates, one normal and one
+    laser spot: the facing factors one number per plate and spot, 10-40 % faster on the
+    plates' problems, within 1e-15 of this.)"""
     laser = np.asarray(laser, float)
     lasers = laser.reshape(-1, 1, 1, 3)  # (1 or D, 1, 1, 3)
     px, py, pz = (points[None, ..., k] for k in range(3))
@@ -196,11 +193,7 @@ def point_paths(points, normals, areas, spots, laser, factor=None):
     front *= areas[None]
     front /= r1sq
     front /= r1sq
-    sx, sy, sz = (spots[:, k, None, None] for k in range(3))
-    v2x, v2y, v2z = sx - px, sy - py, sz - pz
-    r2sq = v2x * v2x
-    r2sq += v2y * v2y
-    r2sq += v2z * v2z
+    v2x, v2y, v2z, r2sq = spot_legs(px, py, pz, spots)
     weight = nx * v2x  # -> max(n.v2, 0) |v2y| / r2^4 x front
     weight += ny * v2y
     weight += nz * v2z

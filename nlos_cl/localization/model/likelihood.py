@@ -63,6 +63,9 @@ class Problem:
     smoothly (model.shadow) and is the problem to use where K >= 2 plates may shadow."""
 
     shadows = False  # HostProblem: True
+    # the closed shapes' model on the host (model.host_shapes.shape_problem): the estimator
+    # sets it where its model_on and the layout allow
+    closed_on_host = False
 
     def __init__(self, obs, backend, lattice=(16, 24), shape=plate, reflectance=None):
         self.obs, self.backend, self.lattice = obs, backend, tuple(lattice)
