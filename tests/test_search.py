@@ -149,6 +149,40 @@ def test_auto_keeps_one_search_after_its_trials(runtime):
     assert plan.chosen in ("coarse_to_fine", "exhaustive")
 
 
+class _SlowFromPaper:
+    """An estimator that needs only the paper's estimate and takes 0.1 s over it (as a model
+    fit takes tens of ms)."""
+    name = "slow"
+    capabilities = Capabilities(from_paper=True)
+
+    def estimate(self, scored):
+        import time
+        time.sleep(0.1)
+        return scored.paper
+
+
+def test_auto_times_the_search_alone_for_an_estimator_from_the_paper(runtime):
+    """search="auto" is open to estimators that need only the paper's estimate (the model fit:
+    it had been held to "exhaustive", 4x the coarse-to-fine search on the tracker's 512^2
+    region), and its trials time the search, not the estimator's work after it (with the fit
+    in them, the fit's noise chose the search)."""
+    from nlos_cl.localization.locator import AUTO_TRIALS
+    hist = histograms([(4.0, 2.0, 0.0)], [1.0], 3, 0.065, 0.02, 5)
+    grid = nl.Grid.from_ranges(x=(2.5, 5.0), y=(1.0, 3.5), step_m=0.01)
+    plan = Locator(hist.layout, grid, backend=runtime, estimator=_SlowFromPaper())
+    assert plan.search == "auto"
+    expected = Locator(hist.layout, grid, backend=runtime, search="exhaustive",
+                       estimator="paper")(hist, detect=False)
+    for _ in range(2 * (AUTO_TRIALS + 1)):
+        found = plan(hist, detect=False)
+        assert np.array_equal(found.cell_position, expected.cell_position)
+    trials = plan._choice._trials
+    assert len(trials) == 2 * (AUTO_TRIALS + 1) and {m for m, _ in trials} == {
+        "coarse_to_fine", "exhaustive"}
+    assert max(t for _, t in trials) < 0.1  # the estimator's 0.1 s is in none of them
+    assert plan.chosen in ("coarse_to_fine", "exhaustive")
+
+
 @pytest.mark.parametrize("grid", [nl.Grid((2.0, 0.5, 0.0), (0.01, 0.01, 0.01), (601, 60, 1)),
                                   nl.Grid((3.0, 1.0, -0.3), (0.03, 0.03, 0.03), (30, 30, 20))],
                          ids=["rows", "planes"])

@@ -66,8 +66,9 @@ class Locator:
     cell, score and 3 x 3 x 3 neighbourhood as "exhaustive", which scores every cell. "auto"
     (default) times both on the first frames (AUTO_TRIALS each, after a warm-up) and keeps the
     faster for this grid: the answer is the same either way. It applies to the paper's estimator
-    (and to estimators with `local = True`, which read only the best cell's neighbourhood);
-    others, and return_map=True, score every cell. With the paper's estimator a frame costs
+    and to estimators with `local = True` (which read only the best cell's neighbourhood) or
+    `from_paper = True` (only the paper's estimate: the model fit); others, and
+    return_map=True, score every cell. With the paper's estimator a frame costs
     one small read: the search (or the argmax) and the neighbourhood stay on the device.
     signal_width_m: the filtered signal's width in hidden-path metres (default: the paper's
     filter, c h / 3 = 6.5 cm); it sets the coarse grid's step, i.e. only the speed.
@@ -101,7 +102,11 @@ class Locator:
                 f"{self.estimator.name!r} fits layouts with one laser spot for every histogram, "
                 "and this one gives each histogram its own (a paired or confocal capture)",
                 "pass estimator='paper' (its argmax locates paired and confocal captures)")
-        self.search = search if self.capabilities.local else "exhaustive"
+        # the search matters to estimators that read the best cell's neighbourhood (local)
+        # or only the paper's estimate (from_paper: the model fit's second start, its sanity
+        # check); the others score every cell
+        can = self.capabilities
+        self.search = search if can.local or can.from_paper else "exhaustive"
         self._search = CoarseToFine(grid, self._inv_dpath, float(width))
         self._choice = SearchChoice(self.search if self._search.useful else "exhaustive")
         self.last_search = None  # what the last frame's search did (search.Found)
@@ -165,17 +170,21 @@ class Locator:
         fusable = not return_map and (mode == "exhaustive"
                                       or self._search.fusable(sig.n_detectors))
         can, raw = self.capabilities, _raw_for(self.estimator, raw, sig.backend)
+        timed = not return_map  # search="auto" learns from this frame's search time
         if fusable and can.is_paper:
             estimate, full = self._fused(sig, mode), None
         elif fusable and can.from_paper:  # a model fit starts from the fused search's one read
+            paper = self._fused(sig, mode)
+            self._choice.learn(mode, time.perf_counter() - start)  # the search alone: with
+            timed = False  # the fit's time in it, the fit's noise chose the search
             scored = Scored(sig.backend, None, self.grid, self.log_mode, sig.n_detectors, sig,
-                            raw, paper=self._fused(sig, mode))
+                            raw, paper=paper)
             estimate, full = _estimate(self.estimator, scored, prior), None
         else:
             scored = self._scored(sig, raw, return_map, mode)
             estimate = _in_grid(_estimate(self.estimator, scored, prior), self.grid, self.last_search)
             full = sig.backend.to_numpy(scored.scores) if return_map else None
-        if not return_map:
+        if timed:
             self._choice.learn(mode, time.perf_counter() - start)
         if detection is not None and not detection.detected:  # a map was asked for
             return Location.undetected(estimate, self.grid, sig.layout.truth, detection,
