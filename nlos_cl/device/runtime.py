@@ -278,6 +278,8 @@ class Runtime:
         return score.rows(self.queue, iz, iy0, iy1)
 
     def to_numpy(self, handle):
-        if isinstance(handle, np.ndarray):
-            return handle.astype(np.float64)
-        return handle.get(self.queue).astype(np.float64)
+        return self.read(handle).astype(np.float64)
+
+    def read(self, handle):
+        """As stored (float32 from the device; a host array itself): for reading only."""
+        return handle if isinstance(handle, np.ndarray) else handle.get(self.queue)

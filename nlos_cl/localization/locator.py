@@ -16,6 +16,8 @@ from ..core.errors import require
 from ..core.grid import Grid
 from ..core.tuning import AUTO_TRIALS
 from ..ops.argmax_patch import decode
+from ..core.histograms import HistogramSet
+from ..ops.backend import NumpyBackend, read_values
 from ..ops.signals import Signals, as_signals
 from .estimate import Location, Scored, capabilities_of
 from .detection import detect, reachable_bins
@@ -65,10 +67,9 @@ class Locator:
     scores only the blocks that can hold the best cell (nlos_cl/search.py): the same argmax
     cell, score and 3 x 3 x 3 neighbourhood as "exhaustive", which scores every cell. "auto"
     (default) times both on the first frames (AUTO_TRIALS each, after a warm-up) and keeps the
-    faster for this grid: the answer is the same either way. It applies to the paper's estimator
-    and to estimators with `local = True` (which read only the best cell's neighbourhood) or
-    `from_paper = True` (only the paper's estimate: the model fit); others, and
-    return_map=True, score every cell. With the paper's estimator a frame costs
+    faster for this grid: the answer is the same either way. It applies to estimators with
+    `local = True` (the paper's: the best cell's neighbourhood) or `from_paper = True` (the
+    paper's estimate: the model fit); others, and return_map=True, score every cell. With the paper's estimator a frame costs
     one small read: the search (or the argmax) and the neighbourhood stay on the device.
     signal_width_m: the filtered signal's width in hidden-path metres (default: the paper's
     filter, c h / 3 = 6.5 cm); it sets the coarse grid's step, i.e. only the speed.
@@ -102,10 +103,7 @@ class Locator:
                 f"{self.estimator.name!r} fits layouts with one laser spot for every histogram, "
                 "and this one gives each histogram its own (a paired or confocal capture)",
                 "pass estimator='paper' (its argmax locates paired and confocal captures)")
-        # the search matters to estimators that read the best cell's neighbourhood (local)
-        # or only the paper's estimate (from_paper: the model fit's second start, its sanity
-        # check); the others score every cell
-        can = self.capabilities
+        can = self.capabilities  # a search for those that need the neighbourhood or argmax
         self.search = search if can.local or can.from_paper else "exhaustive"
         self._search = CoarseToFine(grid, self._inv_dpath, float(width))
         self._choice = SearchChoice(self.search if self._search.useful else "exhaustive")
@@ -162,7 +160,7 @@ class Locator:
         mode = self._choice.mode() if self._search.useful else "exhaustive"
         if detect and self._window is None:
             self._window = reachable_bins(self.layout, self.grid)
-        detection = detected_in(sig, self._window) if detect else None
+        rows, detection = detected_in(sig, self._window) if detect else (None, None)
         if detection is not None and not detection.detected and not return_map:
             return Location.undetected(self._fused(sig, mode), self.grid, sig.layout.truth,
                                        detection, self.estimator.name)
@@ -174,11 +172,10 @@ class Locator:
         if fusable and can.is_paper:
             estimate, full = self._fused(sig, mode), None
         elif fusable and can.from_paper:  # a model fit starts from the fused search's one read
-            paper = self._fused(sig, mode)
-            self._choice.learn(mode, time.perf_counter() - start)  # the search alone: with
-            timed = False  # the fit's time in it, the fit's noise chose the search
+            paper, timed = self._fused(sig, mode), False  # the search timed alone (the fit's
+            self._choice.learn(mode, time.perf_counter() - start)  # noise had chosen it)
             scored = Scored(sig.backend, None, self.grid, self.log_mode, sig.n_detectors, sig,
-                            raw, paper=paper)
+                            raw, paper=paper, host_rows=rows)
             estimate, full = _estimate(self.estimator, scored, prior), None
         else:
             scored = self._scored(sig, raw, return_map, mode)
@@ -230,9 +227,11 @@ def _checked(sig: Signals, layout) -> Signals:
 
 
 def detected_in(signals: Signals, window):
-    """Whether the filtered frame holds target signal in each row's reachable bins `window`
-    (localization.detection.detect, on the host: one read of the rows)."""
-    return detect(signals.backend.to_numpy(signals.handle), window)
+    """(the filtered rows on the host as stored, whether they hold target signal in each row's
+    reachable bins `window`: localization.detection.detect): one read, which the model fit's
+    observation reads too (Scored.host_rows)."""
+    rows = read_values(signals.backend, signals.handle)
+    return rows, detect(rows, window)
 
 
 def _in_grid(estimate, grid: Grid, found):
@@ -251,4 +250,9 @@ def _raw_for(estimator, raw, backend):
     """The unfiltered frame, for estimators that fit it (no upload for the others); one that
     declares no capabilities gets it, as before capabilities were declared."""
     wants = capabilities_of(estimator).needs_raw or not hasattr(estimator, "capabilities")
-    return as_signals(raw, backend) if raw is not None and wants else None
+    if raw is None or not wants:
+        return None
+    if isinstance(raw, HistogramSet):  # read on the host (the model fit): not uploaded and read
+        # back (a SPAD record of 1,024 x 60,000 bins: ~1 s), nor copied
+        return Signals(NumpyBackend(), raw.data, 1.0, raw.layout)
+    return as_signals(raw, backend)

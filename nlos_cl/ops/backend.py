@@ -16,7 +16,8 @@ class Backend(Protocol):
     name: str
 
     def from_numpy(self, array): ...
-    def to_numpy(self, handle) -> np.ndarray: ...
+    def to_numpy(self, handle) -> np.ndarray: ...  # a float64 copy
+    def read(self, handle) -> np.ndarray: ...  # as stored (float32 from a device): read only
     def finish(self) -> None: ...
     def standard_normal(self, shape, seed: int): ...
     def read_rows(self, score, iz: int, iy0: int, iy1: int) -> np.ndarray: ...
@@ -34,6 +35,10 @@ class NumpyBackend(OperationCalls):
     def to_numpy(self, handle):
         return np.array(handle, dtype=np.float64)
 
+    def read(self, handle):
+        """The values as they are (no copy): the caller only reads them."""
+        return np.asarray(handle)
+
     def finish(self):
         """Nothing is queued: NumPy runs synchronously."""
 
@@ -45,6 +50,14 @@ class NumpyBackend(OperationCalls):
 
     def call(self, op, *args, out=None):
         return operation(op).numpy(*args)
+
+
+def read_values(backend, handle) -> np.ndarray:
+    """A handle's values on the host for reading, in the dtype they are stored in (a float64
+    copy of a SPAD record, 1,024 x 60,000 bins, costs ~1 s; backends without `read`
+    give to_numpy's copy)."""
+    read = getattr(backend, "read", None)
+    return backend.to_numpy(handle) if read is None else read(handle)
 
 
 def resolve_backend(backend=None):

@@ -18,6 +18,7 @@ import numpy as np
 from ...core.constants import PAPER_H_S
 from ...core.errors import require
 from ...core.stats import row_median
+from ...ops.backend import read_values
 from ...ops.gauss_filter import gauss_taps
 
 MAD = 1.4826  # MAD -> standard deviation for Gaussian noise
@@ -58,6 +59,31 @@ class Observation:
         return self.path0[:, None] + self.dpath[:, None] * np.arange(self.n)[None, :]
 
 
+# The rows' medians and MADs (floors, noise) are taken over at most ~this many samples in
+# all, every k-th bin of each row beyond it: a 1,024 x 60,000-bin SPAD record's full-row
+# medians cost ~3 s, and 4,000 samples a row put a MAD within ~2 % of the row's noise level.
+# Every frame of up to 64 detectors x 60,000 bins (the draws, the paper's scene, the captures
+# read so far) uses every bin, as before: their answers are unchanged.
+MEDIAN_BUDGET = 4_000_000
+WINDOW_ROWS = 64  # rows per pass of signal_windows (bounded temporaries)
+
+
+def _stride(rows) -> int:
+    return max(1, -(-int(np.size(rows)) // MEDIAN_BUDGET))  # the ceiling: within the budget
+
+
+def _every(rows) -> np.ndarray:
+    """Every k-th bin of each row: at most ~MEDIAN_BUDGET samples in all (a view)."""
+    return rows[:, ::_stride(rows)]
+
+
+def _adjacent_steps(rows) -> np.ndarray:
+    """Differences of adjacent bins, at most ~MEDIAN_BUDGET in all: np.diff(rows, axis=1),
+    or, beyond the budget, the pairs (k, k + 1) every k-th bin."""
+    step = _stride(rows)
+    return rows[:, 1::step] - rows[:, :-1:step]
+
+
 def _mad_std(rows) -> np.ndarray:
     med = row_median(rows)
     return MAD * row_median(np.abs(rows - med[:, None]), overwrite=True)
@@ -91,15 +117,18 @@ def window_frac(targets) -> float:
 def signal_windows(filtered, noise, margin_bins, frac=ONE_TARGET_FRAC, n_sigma=6.0):
     """Per detector (first, last) bin of the signal: where the filtered row exceeds both
     n_sigma noise and `frac` of its peak, widened by margin_bins."""
-    out = []
-    floors = row_median(filtered)  # photon counts sit on a dark/ambient floor
-    for row, s, floor in zip(filtered, noise, floors):
-        row = row - floor
-        above = np.flatnonzero(row > max(n_sigma * s, frac * row.max()))
-        if above.size == 0:
-            above = np.array([int(np.argmax(row))])
-        out.append((int(above[0]) - margin_bins, int(above[-1]) + margin_bins))
-    return np.array(out)
+    floors = row_median(_every(filtered))  # photon counts sit on a dark/ambient floor
+    out = np.empty((len(filtered), 2), np.int64)
+    for at in range(0, len(filtered), WINDOW_ROWS):
+        rows = filtered[at:at + WINDOW_ROWS] - floors[at:at + WINDOW_ROWS, None]
+        above = rows > np.maximum(n_sigma * np.asarray(noise[at:at + WINDOW_ROWS]),
+                                  frac * rows.max(axis=1))[:, None]
+        found = above.any(axis=1)
+        first = np.where(found, above.argmax(axis=1), rows.argmax(axis=1))  # none: the peak
+        last = np.where(found, rows.shape[1] - 1 - above[:, ::-1].argmax(axis=1), first)
+        out[at:at + WINDOW_ROWS, 0], out[at:at + WINDOW_ROWS, 1] = first - margin_bins, \
+            last + margin_bins
+    return out
 
 
 MIN_FLOOR_BINS = 64  # bins outside the signal a row needs for its floor to be estimated
@@ -118,9 +147,10 @@ def row_floors(filtered, windows, noise, kappa=1.0) -> np.ndarray:
     sd) was taken off as a pedestal, and fits of two plates went metres off (multi draw 60:
     2.8 m; a crossing's track lost). Ambient rows stand 13-30 sd clear (mismatch draws)."""
     n_bins = filtered.shape[1]
+    step = _stride(filtered)
     out = np.zeros(len(filtered))
     for d, (row, (lo, hi)) in enumerate(zip(filtered, windows)):
-        outside = np.concatenate([row[:max(lo, 0)], row[min(hi + 1, n_bins):]])
+        outside = np.concatenate([row[:max(lo, 0)], row[min(hi + 1, n_bins):]])[::step]
         if outside.size < MIN_FLOOR_BINS:
             continue
         level = float(np.median(outside))
@@ -152,9 +182,11 @@ def _starts(windows, n_samples, stride, n_bins):
 
 
 def gaussian_observation(layout, filtered, raw, *, h_s=PAPER_H_S, pulse_sigma_s=29.73e-12,
-                         margin_m=0.35, frac=ONE_TARGET_FRAC) -> Observation:
+                         margin_m=0.35, frac=ONE_TARGET_FRAC, raw_scale=1.0) -> Observation:
     """Filtered samples around the signal. `filtered`: (D, N) host rows after the Gauss filter
-    of window `h_s`; `raw`: the same frame unfiltered (or None: the filtered rows are used)."""
+    of window `h_s`; `raw`: the same frame unfiltered (or None: the filtered rows are used),
+    one unit of it `raw_scale` units of the filtered rows (each Signals' scale_w: the floors
+    measured on the filtered rows come off samples filtered from raw)."""
     axis, paths = layout.time_axis, layout.path_axis()
     a = layout.calibration.a_m_per_s
     # From raw data we filter ourselves, with the Gaussian out to 5 sigma (the model's shape
@@ -178,8 +210,8 @@ def gaussian_observation(layout, filtered, raw, *, h_s=PAPER_H_S, pulse_sigma_s=
     if raw is None:
         y, noise = np.take_along_axis(filtered, idx, axis=1), f_noise
     else:
-        y = _filtered_at(raw, idx, taps)
-        white = _mad_std(np.diff(raw, axis=1)) / math.sqrt(2.0)
+        y = _filtered_at(raw, idx, taps) * raw_scale
+        white = _mad_std(_adjacent_steps(raw)) / math.sqrt(2.0) * raw_scale
         noise = white * math.sqrt(float(np.sum(taps ** 2)))
     lag = np.arange(n) * stride
     rho = np.array([np.dot(taps[:len(taps) - g], taps[g:]) if g < len(taps) else 0.0
@@ -200,7 +232,8 @@ def poisson_observation(layout, counts, filtered, *, pulse_sigma_s=29.73e-12, ji
     axis, paths = layout.time_axis, layout.path_axis()
     a = layout.calibration.a_m_per_s
     step = a * axis.dt_s
-    wins = signal_windows(filtered, _mad_std(filtered), int(math.ceil(margin_m / step)), frac)
+    wins = signal_windows(filtered, _mad_std(_every(filtered)), int(math.ceil(margin_m / step)),
+                          frac)
     n = int((wins[:, 1] - wins[:, 0]).max()) + 1
     k0 = _starts(wins, n, 1, axis.n_bins)
     idx = k0[:, None] + np.arange(n)[None, :]
@@ -214,27 +247,35 @@ def poisson_observation(layout, counts, filtered, *, pulse_sigma_s=29.73e-12, ji
                        np.ones(len(counts)), rho, paths.centre0_m + paths.step_m * k0)
 
 
-def looks_like_counts(values) -> bool:
-    """Non-negative whole numbers (after undoing the upload's scale): photon counts."""
+def looks_like_counts(values, scale=1.0) -> bool:
+    """Non-negative whole numbers (values x scale: the upload's scale undone): photon counts.
+    (A strided sample first: floats fail on it without a pass over a whole SPAD record.)"""
     v = np.asarray(values)
-    return bool(v.min() >= 0 and np.allclose(v, np.round(v), atol=1e-3) and v.max() >= 1)
+    for part in (_every(v) if v.ndim == 2 else v, v):
+        part = part * scale
+        if not (part.min() >= 0 and np.allclose(part, np.round(part), atol=1e-3)):
+            return False
+    return bool(v.max() * scale >= 1)
 
 
 def observation(scored, likelihood: str, *, h_s: float, pulse_sigma_s: float, jitter_s: float,
                 frac: float = ONE_TARGET_FRAC):
     """A scored frame as the fit sees it: a Gauss observation of the filtered data, or (counts
     in `raw`, likelihood 'poisson' or 'auto') a Poisson one."""
-    be, layout = scored.backend, scored.signals.layout
-    filtered = be.to_numpy(scored.signals.handle)
-    raw = None if scored.raw is None else be.to_numpy(scored.raw.handle)
+    layout = scored.signals.layout
+    # read as stored (float32 from a device), once: a SPAD record's float64 copies cost ~1 s
+    filtered = scored.host_rows if scored.host_rows is not None else \
+        read_values(scored.signals.backend, scored.signals.handle)
+    raw = None if scored.raw is None else read_values(scored.raw.backend, scored.raw.handle)
     mode = likelihood
     if mode == "auto":
         mode = "poisson" if raw is not None and looks_like_counts(
-            raw * scored.raw.scale_w) else "gauss"
+            raw, scored.raw.scale_w) else "gauss"
     if mode == "poisson":
         require(raw is not None, "raw", "the Poisson likelihood needs the photon counts",
                 "pass raw=counts to locate")
         return poisson_observation(layout, raw * scored.raw.scale_w, filtered,
                                    pulse_sigma_s=pulse_sigma_s, jitter_s=jitter_s, frac=frac)
+    raw_scale = 1.0 if raw is None else scored.raw.scale_w / scored.signals.scale_w
     return gaussian_observation(layout, filtered, raw, h_s=h_s, pulse_sigma_s=pulse_sigma_s,
-                                frac=frac)
+                                frac=frac, raw_scale=raw_scale)
