@@ -133,19 +133,19 @@ class Locator:
                                             self.grid, *args[5:], out=self._scores)
         return self._scores
 
-    def _scored(self, sig: Signals, raw, return_map: bool, mode: str) -> Scored:
+    def _scored(self, sig: Signals, raw, return_map: bool, mode: str, rows=None) -> Scored:
         """Scores where the estimator looks: the whole grid, or (coarse to fine) the best
-        cell's neighbourhood on a sub-grid of the same cells."""
-        args = self._args(sig)
-        found = None
+        cell's neighbourhood on a sub-grid of the same cells. rows: Scored.host_rows."""
+        args, found = self._args(sig), None
         if mode == "coarse_to_fine" and not return_map and self._search.useful:
             found = self._search.run(sig.backend, sig.handle, args)
         self.last_search = found
         if found is None:
-            return Scored(sig.backend, self.scores(sig, args), self.grid, self.log_mode,
-                          sig.n_detectors, sig, raw)
-        sub, scores = self._search.neighbourhood(sig.backend, sig.handle, args, found.index)
-        return Scored(sig.backend, scores, sub, self.log_mode, sig.n_detectors, sig, raw)
+            sub, scores = self.grid, self.scores(sig, args)
+        else:
+            sub, scores = self._search.neighbourhood(sig.backend, sig.handle, args, found.index)
+        return Scored(sig.backend, scores, sub, self.log_mode, sig.n_detectors, sig, raw,
+                      host_rows=rows)
 
     def __call__(self, signals, *, raw=None, prior=None, return_map: bool = False,
                  detect: bool = True) -> Location:
@@ -178,7 +178,7 @@ class Locator:
                             raw, paper=paper, host_rows=rows)
             estimate, full = _estimate(self.estimator, scored, prior), None
         else:
-            scored = self._scored(sig, raw, return_map, mode)
+            scored = self._scored(sig, raw, return_map, mode, rows)
             estimate = _in_grid(_estimate(self.estimator, scored, prior), self.grid, self.last_search)
             full = sig.backend.to_numpy(scored.scores) if return_map else None
         if timed:

@@ -196,7 +196,7 @@ def gaussian_observation(layout, filtered, raw, *, h_s=PAPER_H_S, pulse_sigma_s=
     sigma_f = a * h_s / 3.0 * (TRUNCATED_SD if raw is None else 1.0)
     # The filtered noise is correlated over ~h / dt bins: every 8th bin holds the same
     # information for its MAD at an eighth of the cost (1,024 rows x 60,000 bins: 2 s).
-    f_noise = _mad_std(filtered[:, ::8])
+    f_noise = _mad_std(_every(filtered[:, ::8]))
     margin = int(math.ceil((margin_m + 3 * sigma_f) / (a * axis.dt_s)))
     wins = signal_windows(filtered, f_noise, margin, frac)
     n = int(math.ceil((wins[:, 1] - wins[:, 0]).max() / stride)) + 1
