@@ -151,6 +151,38 @@ def closed_shapes_row(rt, smoke):
                note="twin = model.host_shapes, what model_on='auto' runs for <= 64 spots")
 
 
+def spad_model_row(rt, smoke):
+    """One frame of the paper's plate at (2, 3, 0) located by the model fit from every spot of
+    a 32 x 32 SPAD patch (3 cm pitch, 60,042 bins: `reproduce beyond`'s "model on all 1,024
+    spots"), whole `nl.locate` calls: the issue 23 goal is <= 1 s. Smoke: 8 x 8 spots."""
+    from ...core.grid import Grid
+    from ...localization.model import ModelEstimator
+    from ...physics import layouts
+    from ...physics.scene import Scene, Target, paper_setup
+    n = 8 if smoke else 32
+    spots = layouts.spad_patch((-1.0, 0.0, 0.0), (n, n), (0.03, 0.03))
+    truth = (2.0, 3.0, 0.0)
+    mesh = nl.rectangle(0.3, 1.6, centre=truth, cell_m=0.05 if smoke else 0.01)
+    clean = nl.simulate(Scene(paper_setup(detector_spots=spots), Target(mesh), truth=truth),
+                        backend=rt)
+    noisy = nl.add_noise(clean, 10.0, seed=0).histograms()
+    filtered = nl.gauss_filter(noisy)
+    grid = Grid() if not smoke else Grid.from_ranges(x=(1, 3), y=(2, 4), step_m=0.02)
+
+    def run():
+        return nl.locate(filtered, grid, log_mode=True, raw=noisy,
+                         estimator=ModelEstimator()).error_m
+    start = time.perf_counter()
+    error = run()
+    build = time.perf_counter() - start
+    kernel = timed(run, 1 if smoke else 3, rt.finish)
+    k, k_spread = spread(kernel)
+    return Row("model", f"SPAD patch: {n * n} spots x {noisy.layout.time_axis.n_bins} bins, "
+               "one frame located by the model fit (nl.locate)", 1, k, math.nan,
+               max(build - k, 0.0), 1 / k, "frames", math.nan, "-", math.nan, k_spread,
+               note=f"error {error:.4f} m; no twin; goal (issue 23, 1,024 spots) <= 1 s")
+
+
 def all_rows(rt, smoke=False, say=print):
     say("operations")
     rows = list(operation_rows(rt, smoke, say))
@@ -161,6 +193,8 @@ def all_rows(rt, smoke=False, say=print):
     rows.append(pipeline_row(rt, smoke))
     say("model: closed shapes, device against the host batch")
     rows.append(closed_shapes_row(rt, smoke))
+    say("model: a SPAD patch located from every spot")
+    rows.append(spad_model_row(rt, smoke))
     say("stream: plans and the tracker, host frames to track states")
     from .stream import stream_rows
     rows.extend(stream_rows(rt, smoke, Row))
