@@ -15,8 +15,8 @@ from ..core.constants import LOG_FLOOR, PAPER_H_S, SPEED_OF_LIGHT
 from ..core.errors import require
 from ..core.grid import Grid
 from ..core.tuning import AUTO_TRIALS
-from ..ops.argmax_patch import decode
 from ..core.histograms import HistogramSet
+from ..ops.argmax_patch import decode
 from ..ops.backend import NumpyBackend, read_values
 from ..ops.signals import Signals, as_signals
 from .estimate import Location, Scored, capabilities_of
@@ -67,10 +67,10 @@ class Locator:
     scores only the blocks that can hold the best cell (nlos_cl/search.py): the same argmax
     cell, score and 3 x 3 x 3 neighbourhood as "exhaustive", which scores every cell. "auto"
     (default) times both on the first frames (AUTO_TRIALS each, after a warm-up) and keeps the
-    faster for this grid: the answer is the same either way. It applies to estimators with
-    `local = True` (the paper's: the best cell's neighbourhood) or `from_paper = True` (the
-    paper's estimate: the model fit); others, and return_map=True, score every cell. With the paper's estimator a frame costs
-    one small read: the search (or the argmax) and the neighbourhood stay on the device.
+    faster for this grid: the answer is the same either way. It applies to `local` estimators
+    (the paper's) and `from_paper` ones (the model fit); others, and return_map=True, score
+    every cell. With the paper's estimator a frame costs one small read: the search (or the
+    argmax) and the neighbourhood stay on the device.
     signal_width_m: the filtered signal's width in hidden-path metres (default: the paper's
     filter, c h / 3 = 6.5 cm); it sets the coarse grid's step, i.e. only the speed.
     """

@@ -132,7 +132,7 @@ class HostProblem(Problem):
         path, weight = _paths(points, normal, area / 4.0, obs.spots, obs.laser, self._factor)
         weight = shade(weight, points, rows, occluders, self.lattice, obs.laser, obs.spots)
         hist = deposit_bins(path, weight, obs.edge0[None] - shift, obs.dpath, sigma, obs.n,
-                             self.os, self._taps)
+                            self.os, self._taps)
         self.calls += len(rows)
         self.model_s += time.perf_counter() - t
         return np.where(obs.valid[None], hist, 0.0)

@@ -126,8 +126,7 @@ def signal_windows(filtered, noise, margin_bins, frac=ONE_TARGET_FRAC, n_sigma=6
         found = above.any(axis=1)
         first = np.where(found, above.argmax(axis=1), rows.argmax(axis=1))  # none: the peak
         last = np.where(found, rows.shape[1] - 1 - above[:, ::-1].argmax(axis=1), first)
-        out[at:at + WINDOW_ROWS, 0], out[at:at + WINDOW_ROWS, 1] = first - margin_bins, \
-            last + margin_bins
+        out[at:at + WINDOW_ROWS] = np.stack([first - margin_bins, last + margin_bins], axis=1)
     return out
 
 

@@ -152,7 +152,7 @@ class HostShapeProblem(Problem):
             path, weight = point_paths(points, normals, areas, obs.spots[part],
                                        laser[part] if laser.ndim == 2 else laser, self._factor)
             out[:, part] = deposit_bins(path, weight, edge0[:, part], obs.dpath[part], sigma,
-                                         obs.n, self.os, self._taps)
+                                        obs.n, self.os, self._taps)
         return out
 
 

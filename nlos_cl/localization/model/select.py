@@ -48,12 +48,8 @@ def best_of(problem, rows, free, final_nfev, fixed=None, keep=3):
     """Short fits from the `keep` best candidate rows, then the best one to convergence."""
     prefix = [] if fixed is None else list(fixed)
     chosen = starts.best_starts(problem, rows, fixed, keep=keep)
-    shorter = _short_problem(problem, fixed)
-    calls, model_s = shorter.calls, shorter.model_s
-    short = [fit(shorter, np.array(prefix + [p]), free, SHORT_NFEV) for p in chosen]
-    if shorter is not problem:  # the problem counts every plate evaluated for it
-        problem.calls += shorter.calls - calls
-        problem.model_s += shorter.model_s - model_s
+    short = starts.on_start_lattice(problem, fixed, lambda on: [  # the final fit: full lattice
+        fit(on, np.array(prefix + [p]), free, SHORT_NFEV) for p in chosen])
     short.sort(key=lambda r: (not _plausible(r), r.cost))
     final = fit(problem, short[0].params, free, final_nfev)
     for other in short[1:]:  # a fit that drifted to implausible amplitudes: the next start
@@ -63,15 +59,6 @@ def best_of(problem, rows, free, final_nfev, fixed=None, keep=3):
         if _plausible(again):
             final = again
     return final
-
-
-def _short_problem(problem, fixed):
-    """Where one target's short fits run: the host model on starts.START_LATTICE (a quarter of
-    the points), as the starts are ranked; the final fit is on the full lattice."""
-    lattice = tuple(min(a, b) for a, b in zip(starts.START_LATTICE, problem.lattice))
-    if fixed is None and hasattr(problem, "coarser") and lattice != tuple(problem.lattice):
-        return problem.coarser(lattice)
-    return problem
 
 
 def _plausible(result) -> bool:
