@@ -84,22 +84,15 @@ def best_starts(problem, rows, fixed=None, keep=3) -> list[np.ndarray]:
     """Score each candidate row (with the plates in `fixed` alongside) by its profiled cost;
     return the `keep` best, distinct in centre or yaw. (The rows go to column_batch
     SCORE_ROWS at a time: the host model evaluates each group in one call, in bounded memory.)"""
-    return on_start_lattice(problem, fixed, lambda scorer: _best(scorer, rows, fixed, keep))
-
-
-def on_start_lattice(problem, fixed, work):
-    """work(p), p one target's problem on START_LATTICE (the host model's `coarser`; with
-    `fixed` plates, or another model, `problem` itself): the starts are ranked and the short
-    fits run there (model.select.best_of). `problem` counts every plate evaluated for it."""
-    lattice = tuple(min(a, b) for a, b in zip(START_LATTICE, problem.lattice))
-    if fixed is not None or not hasattr(problem, "coarser") or lattice == tuple(problem.lattice):
-        return work(problem)
-    coarse = problem.coarser(lattice)
-    calls, model_s = coarse.calls, coarse.model_s
-    out = work(coarse)
-    problem.calls += coarse.calls - calls
-    problem.model_s += coarse.model_s - model_s
-    return out
+    scorer, lattice = problem, tuple(min(a, b) for a, b in zip(START_LATTICE, problem.lattice))
+    if fixed is None and hasattr(problem, "coarser") and lattice != tuple(problem.lattice):
+        scorer = problem.coarser(lattice)  # see START_LATTICE
+    calls, model_s = scorer.calls, scorer.model_s
+    chosen = _best(scorer, rows, fixed, keep)
+    if scorer is not problem:  # the problem counts every plate evaluated for it
+        problem.calls += scorer.calls - calls
+        problem.model_s += scorer.model_s - model_s
+    return chosen
 
 
 def _best(problem, rows, fixed, keep):
