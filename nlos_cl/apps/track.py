@@ -45,7 +45,8 @@ def make_tracker(args, seq, backend):
         sigma = sequence_scatter(seq, grid, h_s=h_s, backend=backend)
     return Tracker(seq, grid, estimator=estimator, h_s=h_s, background=background,
                    motion=motion_model(args), max_tracks=args.targets,
-                   frame_interval_s=interval, backend=backend, fallback_sigma_m=sigma)
+                   frame_interval_s=interval, backend=backend, fallback_sigma_m=sigma,
+                   gated_search=not args.full_search)
 
 
 def motion_model(args):

@@ -25,6 +25,7 @@ from .estimators import as_estimator
 from .filter import layout_of
 from .paper import PaperArgmax
 from .search import SEARCHES, CoarseToFine
+from .window import checked_box, on_inner_face, sub_grid
 
 # The width of a filtered signal in hidden-path metres, where the caller gives none: the
 # paper's filter, sigma = h / 3 (the 30 ps pulse adds 1 % in quadrature). It sets only the
@@ -73,6 +74,10 @@ class Locator:
     argmax) and the neighbourhood stay on the device.
     signal_width_m: the filtered signal's width in hidden-path metres (default: the paper's
     filter, c h / 3 = 6.5 cm); it sets the coarse grid's step, i.e. only the speed.
+    within (per call): a box (lo, hi) in metres; the paper's argmax is searched only among the
+    grid's cells inside it (nlos_cl/localization/window.py; a tracker's gates), unless its best
+    cell lies on the box's inner face, where the whole grid is searched. It applies where the
+    argmax comes from the fused search (the paper's estimator and the model fit's start).
     """
 
     def __init__(self, layout, grid: Grid | None = None, *, estimator=None,
@@ -106,8 +111,11 @@ class Locator:
         can = self.capabilities  # a search for those that need the neighbourhood or argmax
         self.search = search if can.local or can.from_paper else "exhaustive"
         self._search = CoarseToFine(grid, self._inv_dpath, float(width))
+        self.last_window = None  # the window the last frame's argmax was searched in, or None
+        self._full_cells = grid.n_cells  # cells the last whole-grid search scored (windows: fewer)
         self._choice = SearchChoice(self.search if self._search.useful else "exhaustive")
         self.last_search = None  # what the last frame's search did (search.Found)
+        self.last_cell = None  # the last argmax's cell index (ix, iy, iz)
         self._window = None  # each row's bins a target in the grid can reach (detection)
 
     @property
@@ -148,14 +156,16 @@ class Locator:
                       host_rows=rows)
 
     def __call__(self, signals, *, raw=None, prior=None, return_map: bool = False,
-                 detect: bool = True) -> Location:
+                 detect: bool = True, within=None) -> Location:
         """Locate from filtered signals; `raw`: the same frame unfiltered, for estimators that
         fit a model to the histograms (the paper's argmax does not need it); `prior`: where
         the targets are expected (a localization.estimate.Prior, e.g. a tracker's prediction),
         for estimators that start a fit from it. detect: first test the frame for any target
         signal (localization.detection; ~1 ms for 3 x 60,000 bins); where there is none the
         estimator is not run, and the Location has no targets (`detected` False) and the paper's
-        argmax as its position."""
+        argmax as its position. within: a box (lo, hi) to search the argmax in (class doc)."""
+        box = None if within is None else checked_box(within)
+        self.last_window = None
         sig = _checked(as_signals(signals, self.backend), self.layout)
         mode = self._choice.mode() if self._search.useful else "exhaustive"
         if detect and self._window is None:
@@ -170,10 +180,12 @@ class Locator:
         can, raw = self.capabilities, _raw_for(self.estimator, raw, sig.backend)
         timed = not return_map  # search="auto" learns from this frame's search time
         if fusable and can.is_paper:
-            estimate, full = self._fused(sig, mode), None
+            estimate, full = self._paper(sig, mode, box), None
+            timed = timed and self.last_window is None
         elif fusable and can.from_paper:  # a model fit starts from the fused search's one read
-            paper, timed = self._fused(sig, mode), False  # the search timed alone (the fit's
-            self._choice.learn(mode, time.perf_counter() - start)  # noise had chosen it)
+            paper, timed = self._paper(sig, mode, box), False  # the search timed alone (the
+            if self.last_window is None:  # fit's noise had chosen it)
+                self._choice.learn(mode, time.perf_counter() - start)
             scored = Scored(sig.backend, None, self.grid, self.log_mode, sig.n_detectors, sig,
                             raw, paper=paper, host_rows=rows)
             estimate, full = _estimate(self.estimator, scored, prior), None
@@ -190,6 +202,30 @@ class Locator:
                            detection)
 
     # ------------------------------------------------------------ the paper's argmax, fused
+    def _paper(self, sig: Signals, mode: str, box):
+        """The paper's estimate: from the window `box` where it is a saving and its best cell
+        is not on its inner face (self.last_window: that window), else from the whole grid.
+        The window's cells are scored as a tile of the grid (ellipse_score's blocks form, the
+        grid's own origin and indices), so its scores are the grid's, bit for bit."""
+        self.last_window = None
+        # a window once "auto" has chosen the whole grid's search (whose cost it must beat)
+        ready = self._choice.chosen is not None or not self._search.useful
+        cut = None if box is None or not ready else sub_grid(self.grid, *box, self._full_cells)
+        if cut is not None:
+            window, first = cut
+            be, args = sig.backend, self._args(sig)
+            nx, ny, nz = window.shape
+            scores = be.call("ellipse_score", sig.handle, *args[:5], self.grid, *args[5:],
+                             np.array([first]), window.shape)
+            self._result = be.call("argmax_patch", scores.reshape(nz, ny, nx), out=self._result)
+            index, best, _, patch = decode(be.to_numpy(self._result))
+            if index is not None and not on_inner_face(index, first, window, self.grid):
+                index = tuple(int(i + f) for i, f in zip(index, first))
+                self.last_window, self.last_search, self.last_cell = window, None, index
+                return PaperArgmax().from_patch(index, best, patch, self.grid, self.log_mode,
+                                                sig.n_detectors)
+        return self._fused(sig, mode)
+
     def _fused(self, sig: Signals, mode: str):
         """The paper's estimate with one read: the fused search (coarse to fine) or the whole
         map's argmax with its neighbourhood (exhaustive), both on the device."""
@@ -203,7 +239,9 @@ class Locator:
             index, best, _, patch = decode(be.to_numpy(self._result))
         else:
             index, best = found.index, found.score
-        self.last_search = found
+        self.last_search, self.last_cell = found, index
+        self._full_cells = self.grid.n_cells if found is None else \
+            2 * self._search.coarse.n_cells + found.cells_scored
         return PaperArgmax().from_patch(index, best, patch, self.grid, self.log_mode,
                                         sig.n_detectors)
 

@@ -30,7 +30,7 @@ import numpy as np
 from ..core.constants import PAPER_H_S
 from ..core.errors import InputError, require
 from ..core.tuning import auto_log_mode
-from . import association, kalman, warm
+from . import association, gated, kalman, warm
 from .lifecycle import Lifecycle
 from .recovery import Recovery
 from .motion import MEMBERS as MOTION_MEMBERS, Interacting
@@ -50,8 +50,10 @@ class Tracker:
     estimator=ModelEstimator(targets=K)). warm_start: with the model estimator (a fixed
     number of targets), fit each frame from the confirmed tracks' last plates moved to their
     predictions (nlos_cl.tracking.warm; ~10x faster), else from the data alone. log_mode:
-    None chooses by the number of detectors (nlos_cl.core.tuning.auto_log_mode). See the
-    module docstring for the rest."""
+    None chooses by the number of detectors (nlos_cl.core.tuning.auto_log_mode).
+    gated_search: while every slot holds a confirmed track measured last frame, search the
+    argmax only in a box holding the tracks' gates (nlos_cl.tracking.gated). See the module
+    docstring for the rest."""
 
     def __init__(self, layout, grid=None, *, estimator="paper", motion=None,
                  h_s: float = PAPER_H_S, log_mode: bool | None = None, background=None,
@@ -60,7 +62,7 @@ class Tracker:
                  confirm=(2, 3), max_misses: int = 5, frame_interval_s: float = 0.1,
                  max_history: int | None = None, backend=None, search="auto",
                  max_sigma_m: float | None = 0.5, max_birge_ratio: float | None = None,
-                 warm_start: bool = True, reacquire: bool = True):
+                 warm_start: bool = True, reacquire: bool = True, gated_search: bool = True):
         from ..core.grid import Grid
         from ..localization.estimators import as_estimator
         from ..localization.filter import GaussFilter
@@ -87,6 +89,7 @@ class Tracker:
         self.max_tracks, self.gate_probability = int(max_tracks), float(gate_probability)
         self.recovery = Recovery(self.lifecycle, motion, self.gate_probability) \
             if reacquire else None
+        self.gated_search, self._fallback_sigma = bool(gated_search), float(fallback_sigma_m)
         self.frame_interval_s, self.backend = float(frame_interval_s), backend
         self.max_sigma_m, self.max_birge_ratio = max_sigma_m, max_birge_ratio
         self._as_measurement = functools.partial(
@@ -146,21 +149,27 @@ class Tracker:
             if getattr(self.background, "alpha", 0) > 0 and self.background.frames_seen == 1:
                 self.last_location, self.last_measurements, self.last_filtered = None, [], None
                 return []  # a running mean's first frame: nothing learnt to subtract yet
-        starters = None
+        starters, box = None, None
         if self.warm_start and predictions is not None:
             starters = warm.starters(predictions, self.estimator.targets)
-        location, found = self._locate(sig, None if starters is None else warm.prior(starters))
+        if self.gated_search and predictions is not None:
+            box = gated.search_box(predictions, self.tracks, self.max_tracks,
+                                   self.gate_probability, self._fallback_sigma, self.grid)
+        location, found = self._locate(sig, None if starters is None else warm.prior(starters),
+                                       box)
         if starters is not None and warm.outside_gates(found, starters, self.gate_probability):
             location, found = warm.better((location, found), self._locate(sig, None))  # cold
         self.last_location, self.last_measurements = location, found
         return found
 
-    def _locate(self, sig, prior):
-        """(Location or None, measurements), from `prior` where given; detection while births can be."""
+    def _locate(self, sig, prior, within=None):
+        """(Location or None, measurements), from `prior` where given, the argmax searched
+        `within` a box where given; detection while births can be."""
         try:
             self.last_filtered = self.gauss(sig)
             births = sum(t.status == "confirmed" for t in self.tracks) < self.max_tracks
-            location = self.locator(self.last_filtered, raw=sig, prior=prior, detect=births)
+            location = self.locator(self.last_filtered, raw=sig, prior=prior, detect=births,
+                                    within=within)
         except InputError as exc:
             if NO_SIGNAL not in str(exc):
                 raise
