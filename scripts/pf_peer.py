@@ -8,10 +8,12 @@ its venv .venv-pf, torch on the CPU).
    Its per-frame particle means (results/.../particles.pth) go to OUT/pf_estimates.json.
 2. Runs `nlos-cl convert` and `nlos-cl track --json` (nlos_cl's venv) on the same frames,
    timed the same way.
-3. Prints a table: frames/s of each, the ratio, and each estimate's median top-view distance
+3. Prints a table: frames/s of each (whole program, and frame loop alone: each one's own
+   progress bar), the ratios, and each estimate's median top-view distance
    to the particle means that ship with the dataset (the authors' own run: accuracy is compared
    against those; this run of their filter is random and is for timing) and its jitter.
-Usage: pf_peer.sh [--out DIR] [--frames N]
+   The timings go to docs/performance-pf-peer.json, which `nlos-cl bench` reports.
+Usage: pf_peer.sh [--out DIR] [--frames N] [--json PATH]
 """
 from __future__ import annotations
 
@@ -34,6 +36,8 @@ DATA = Path(os.environ.get("NLOS_CL_REALDATA", ROOT.parent / "shared" / "realdat
 PEERS = Path(os.environ.get("NLOS_CL_PEERS", ROOT.parent / "shared" / "peers"))
 WALK = DATA / "consumer-nlos" / "st_spad_person_tracking"
 LOOP_BAR = re.compile(r"Particle Filtering: 100%[^\[]*\[(\d+):(\d+)<")
+OUR_BAR = re.compile(r"track: 100%[^\[]*\[(\d+):(\d+)<")  # nlos-cl track's own progress bar
+PEER_JSON = ROOT / "docs" / "performance-pf-peer.json"  # read by `nlos-cl bench`
 TOP = [0, 2]  # the authors' (X, Z): the floor plane (Y is the weakly seen vertical)
 
 
@@ -85,9 +89,12 @@ def run_nlos_cl(tmp: Path, files: list[Path]) -> dict:
     subprocess.run([*cli, "convert", str(folder), "--out", str(seq)], check=True,
                    capture_output=True)
     start = time.perf_counter()
-    proc = subprocess.run([*cli, "track", str(seq), "--json", "--no-progress"], check=True,
+    proc = subprocess.run([*cli, "track", str(seq), "--json"], check=True,
                           capture_output=True, text=True)
     wall = time.perf_counter() - start
+    # its frame loop alone, read as the peer's is: its progress bar's elapsed whole seconds
+    bars = OUR_BAR.findall(proc.stderr)
+    loop = 60.0 * int(bars[-1][0]) + int(bars[-1][1]) if bars else float("nan")
     lines = [json.loads(line) for line in proc.stdout.splitlines() if line.startswith("{")]
     ours, ids = np.full((len(lines), 3), np.nan), set()
     for k, entry in enumerate(lines):
@@ -95,7 +102,8 @@ def run_nlos_cl(tmp: Path, files: list[Path]) -> dict:
         confirmed = [t for t in entry["tracks"] if t["status"] == "confirmed"]
         if confirmed:
             ours[k] = confirmed[0]["position"]
-    return {"wall_s": wall, "frames": len(lines), "positions": ours, "ids": len(ids)}
+    return {"wall_s": wall, "loop_s": loop, "frames": len(lines), "positions": ours,
+            "ids": len(ids)}
 
 
 def _stats(estimate, reference) -> tuple:
@@ -108,10 +116,22 @@ def _stats(estimate, reference) -> tuple:
             float(np.median(steps)) if len(steps) else float("nan"))
 
 
+def _cpu() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return "unknown"
+
+
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--out", default=str(ROOT / "out" / "pf_peer"))
     p.add_argument("--frames", type=int, default=None, help="the first N frames (default all)")
+    p.add_argument("--json", default=str(PEER_JSON),
+                   help="the timings for `nlos-cl bench` ('' for none; default %(default)s)")
     args = p.parse_args()
     if not WALK.is_dir() or not (PEERS / "consumer-nlos" / "tracking.py").is_file():
         print(f"SKIP pf_peer: {WALK} or {PEERS / 'consumer-nlos'} is absent")
@@ -131,18 +151,29 @@ def main() -> int:
              *_stats(peer["means"], shipped)),
             ("authors' PF (shipped)", len(files), float("nan"), float("nan"), "-",
              *_stats(shipped, shipped)),
-            ("nlos-cl track", ours["frames"], ours["wall_s"], float("nan"), ours["ids"],
+            ("nlos-cl track", ours["frames"], ours["wall_s"], ours["loop_s"], ours["ids"],
              *_stats(ours["positions"], shipped))]
     print(f"{'tracker':24} {'frames':>6} {'wall s':>8} {'fps':>6} {'loop fps':>8} {'ids':>4} "
           f"{'to shipped PF m':>15} {'jitter m':>9}")
     for name, n, wall, loop, ids, dist, jit in rows:
         print(f"{name:24} {n:6d} {wall:8.1f} {n / wall:6.1f} {n / loop:8.1f} {ids!s:>4} "
               f"{dist:15.3f} {jit:9.4f}")
-    print(f"frames/s ratio nlos-cl track / authors' PF (wall, whole program): "
-          f"{(ours['frames'] / ours['wall_s']) / (peer['frames'] / peer['wall_s']):.2f}; "
-          f"against the PF loop alone: "
-          f"{(ours['frames'] / ours['wall_s']) / (peer['frames'] / peer['loop_s']):.2f}")
+    wall_ratio = peer["wall_s"] / ours["wall_s"]  # the same frames: a time ratio is a fps one
+    loop_ratio = peer["loop_s"] / ours["loop_s"]
+    print(f"frames/s ratio nlos-cl track / authors' PF (wall, whole program): {wall_ratio:.2f}; "
+          f"frame loops alone: {loop_ratio:.2f}")
     print(f"wrote {out / 'pf_estimates.json'}")
+    if args.json:
+        Path(args.json).write_text(json.dumps({
+            "what": "scripts/pf_peer.sh: the consumer-nlos authors' particle filter and "
+                    "nlos-cl track on the same walk frames, one after the other in one run",
+            "date": time.strftime("%Y-%m-%d"), "cpu": _cpu(), "threads": os.cpu_count(),
+            "frames": len(files), "ratio_wall": wall_ratio, "ratio_loop": loop_ratio,
+            "rows": [{"tracker": name, "frames": n, "wall_s": wall, "loop_s": loop,
+                      "ids": ids, "to_shipped_pf_m": dist, "jitter_m": jit}
+                     for name, n, wall, loop, ids, dist, jit in rows[:1] + rows[2:]]},
+            indent=1, default=lambda v: None))
+        print(f"wrote {args.json}")
     return 0
 
 

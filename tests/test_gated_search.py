@@ -27,8 +27,8 @@ def test_a_window_holding_the_best_cell_gives_the_region_answer(runtime, search)
     whole = plan(hist)
     cell = whole.cell_position
     got = plan(hist, within=(cell - 0.3, cell + 0.4))
-    assert plan.last_window is not None  # the window was searched, not the region
-    assert plan.last_window.n_cells < 0.05 * VOLUME.n_cells
+    assert plan.windows.last is not None  # the window was searched, not the region
+    assert plan.windows.last.n_cells < 0.05 * VOLUME.n_cells
     assert np.allclose(got.cell_position, cell, rtol=0, atol=1e-12)
     assert got.score == whole.score  # the same cell scored by the same kernel
     assert np.allclose(got.position, whole.position, rtol=0, atol=1e-9)
@@ -41,7 +41,7 @@ def test_a_window_whose_best_cell_is_on_its_inner_face_gives_way_to_the_region(r
     cell = whole.cell_position
     off = cell + np.array([0.9, 0.0, 0.0])  # a window beside the target, not holding it
     got = plan(hist, within=(off - 0.3, off + 0.3))
-    assert plan.last_window is None
+    assert plan.windows.last is None
     assert np.array_equal(got.cell_position, whole.cell_position) and got.score == whole.score
 
 
@@ -83,7 +83,7 @@ class _Prediction:
 def test_the_box_holds_every_gate_and_only_when_no_slot_is_open():
     a, b = _Track(), _Track(plate=np.array([0, 0, 0, 0.3, 1.6, 0]))
     preds = [_Prediction(a, [3.0, 2.0, 0.0], 0.02), _Prediction(b, [4.0, 1.0, 0.1], 0.02)]
-    lo, hi = gated.search_box(preds, [a, b], 2, 0.999, 0.05, VOLUME)
+    lo, hi = gated.box_of(preds, [a, b], 2, 0.999, 0.05, VOLUME)
     reach = np.sqrt(16.266) * np.hypot(0.02, 0.05)  # the 3-dof gate's radius at 0.999: 0.22
     half_a = max(reach, gated.MIN_HALF_M)  # 0.25
     half_b = half_a + 0.5 * np.hypot(0.3, 1.6)  # b's plate: its surface around its centre
@@ -95,9 +95,9 @@ def test_the_box_holds_every_gate_and_only_when_no_slot_is_open():
     np.testing.assert_allclose(lo, want_lo, atol=1e-9)
     np.testing.assert_allclose(hi, want_hi, atol=1e-9)
     # a free slot (births), a tentative track or one that missed: the whole region
-    assert gated.search_box(preds[:1], [a], 2, 0.999, 0.05, VOLUME) is None
-    assert gated.search_box(preds, [a, _Track(misses=1)], 2, 0.999, 0.05, VOLUME) is None
-    assert gated.search_box(preds, [a, _Track("tentative")], 2, 0.999, 0.05, VOLUME) is None
+    assert gated.box_of(preds[:1], [a], 2, 0.999, 0.05, VOLUME) is None
+    assert gated.box_of(preds, [a, _Track(misses=1)], 2, 0.999, 0.05, VOLUME) is None
+    assert gated.box_of(preds, [a, _Track("tentative")], 2, 0.999, 0.05, VOLUME) is None
 
 
 def test_the_gated_tracker_tracks_as_the_ungated_one(runtime):
@@ -121,7 +121,7 @@ def test_the_gated_tracker_tracks_as_the_ungated_one(runtime):
         for frame in frames:
             tracker.update(frame.signals, frame.t_s)
             measured[gate].append([m.position for m in tracker.last_measurements])
-            windows += gate and tracker.locator.last_window is not None
+            windows += gate and tracker.locator.windows.last is not None
     assert windows >= 6
     for a, b in zip(measured[False], measured[True]):
         assert len(a) == len(b)

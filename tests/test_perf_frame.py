@@ -17,6 +17,7 @@ from test_search import histograms
 class Counter:
     def __init__(self, monkeypatch):
         self.launches = self.reads = self.writes = 0
+        self.written = []  # bytes of each write
         launch, copy = cl.enqueue_nd_range_kernel, cl.enqueue_copy
 
         def counted_launch(*args, **kw):
@@ -28,6 +29,7 @@ class Counter:
                 self.reads += 1
             else:
                 self.writes += 1
+                self.written.append(getattr(src, "nbytes", -1))
             return copy(queue, dest, src, **kw)
         monkeypatch.setattr(cl, "enqueue_nd_range_kernel", counted_launch)
         monkeypatch.setattr(cl, "enqueue_copy", counted_copy)
@@ -49,15 +51,22 @@ def test_a_located_frame_is_one_read(runtime, monkeypatch, search, launches):
     assert (count.launches, count.reads, count.writes) == (launches, 2, 0)
 
 
-def test_a_tracked_frame_is_one_upload_and_one_read(runtime, monkeypatch):
+@pytest.mark.parametrize("gated", [False, True])
+def test_a_tracked_frame_is_one_upload_and_one_read(runtime, monkeypatch, gated):
     # inside the 9 m record (the (4, 2) target's peak lies beyond it: too faint to detect)
     hist = histograms([(3.0, 1.5, 0.0)], [1.0], 3, 0.065, 0.05, 7)
     grid = nl.Grid.from_ranges(x=(2.0, 6.0), y=(0.5, 4.0), step_m=0.01)
-    tracker = Tracker(hist.layout, grid, search="coarse_to_fine", backend=runtime)
+    tracker = Tracker(hist.layout, grid, search="coarse_to_fine", backend=runtime,
+                      gated_search=gated)
     for _ in range(3):  # until the track is confirmed: detection (gating births) then stops
         tracker.update(hist)
     assert [t.status for t in tracker.tracks] == ["confirmed"]
     count = Counter(monkeypatch)
     tracker.update(hist)
-    assert (count.reads, count.writes) == (1, 1)
+    windowed = tracker.locator.windows.last is not None
+    assert windowed == gated  # this frame's gate box is smaller than what the search scores
+    # the frame; a windowed frame also its tile's first cell (one int4, 16 bytes: uploaded
+    # once per content, so not again while the window stays where it was)
+    assert count.reads == 1 and [n for n in count.written if n > 16] == [hist.data.nbytes // 2]
+    assert count.writes <= 1 + windowed
     assert count.launches <= 6  # Gauss filter (2), row stats + dilation, coarse, refinement

@@ -25,7 +25,7 @@ from .estimators import as_estimator
 from .filter import layout_of
 from .paper import PaperArgmax
 from .search import SEARCHES, CoarseToFine
-from .window import checked_box, on_inner_face, sub_grid
+from .window import WindowSearch, checked_box
 
 # The width of a filtered signal in hidden-path metres, where the caller gives none: the
 # paper's filter, sigma = h / 3 (the 30 ps pulse adds 1 % in quadrature). It sets only the
@@ -64,36 +64,23 @@ class Locator:
     `locator(filtered_signals) -> Location`. log_mode scores by the sum of log-likelihoods
     (for many detectors); the estimator is a name ('paper') or an object (localization.estimate).
 
-    search: "coarse_to_fine" scores a coarse grid, bounds every block of cells from above and
-    scores only the blocks that can hold the best cell (nlos_cl/search.py): the same argmax
-    cell, score and 3 x 3 x 3 neighbourhood as "exhaustive", which scores every cell. "auto"
-    (default) times both on the first frames (AUTO_TRIALS each, after a warm-up) and keeps the
-    faster for this grid: the answer is the same either way. It applies to `local` estimators
-    (the paper's) and `from_paper` ones (the model fit); others, and return_map=True, score
-    every cell. With the paper's estimator a frame costs one small read: the search (or the
-    argmax) and the neighbourhood stay on the device.
+    search: "coarse_to_fine" scores only the blocks of cells whose upper bound can hold the
+    best cell (nlos_cl/localization/search.py): the same argmax cell, score and 3 x 3 x 3
+    neighbourhood as "exhaustive" (every cell). "auto" (default) times both on the first
+    frames and keeps the faster for this grid, for `local` (the paper's) and `from_paper`
+    estimators (the model fit); others, and return_map=True, score every cell. With the
+    paper's estimator a frame costs one small read: the search stays on the device.
     signal_width_m: the filtered signal's width in hidden-path metres (default: the paper's
     filter, c h / 3 = 6.5 cm); it sets the coarse grid's step, i.e. only the speed.
-    within (per call): a box (lo, hi) in metres; the paper's argmax is searched only among the
-    grid's cells inside it (nlos_cl/localization/window.py; a tracker's gates), unless its best
-    cell lies on the box's inner face, where the whole grid is searched. It applies where the
-    argmax comes from the fused search (the paper's estimator and the model fit's start).
+    within (per call): a box (lo, hi) in metres to search the argmax in, for the fused paths
+    (nlos_cl/localization/window.py: a tracker's gates; where it is no saving, the whole grid).
     """
 
     def __init__(self, layout, grid: Grid | None = None, *, estimator=None,
                  log_mode: bool = False, backend=None, search: str = "auto",
                  signal_width_m: float | None = None):
         layout = layout_of(layout)
-        grid = Grid() if grid is None else grid
-        require(isinstance(grid, Grid), "grid", f"expected a nlos_cl.Grid, got "
-                f"{type(grid).__name__}", "build one with Grid.from_ranges(x=(0, 6), y=(0.01, 6), "
-                "step_m=0.01)")
-        require(search in SEARCHES, "search", f"unknown search {search!r}",
-                f"pass one of {list(SEARCHES)}")
-        width = PAPER_SIGNAL_WIDTH_M if signal_width_m is None else signal_width_m
-        require(isinstance(width, (int, float)) and math.isfinite(width) and width > 0,
-                "signal_width_m", f"must be a positive path length in metres, got {width!r}",
-                "pass e.g. 0.065 (c h / 3 for the paper's h)")
+        grid, width = _checked_options(grid, search, signal_width_m)
         self.layout, self.grid, self.log_mode = layout, grid, bool(log_mode)
         self.estimator = as_estimator(estimator)
         self.backend = backend
@@ -111,11 +98,10 @@ class Locator:
         can = self.capabilities  # a search for those that need the neighbourhood or argmax
         self.search = search if can.local or can.from_paper else "exhaustive"
         self._search = CoarseToFine(grid, self._inv_dpath, float(width))
-        self.last_window = None  # the window the last frame's argmax was searched in, or None
-        self._full_cells = grid.n_cells  # cells the last whole-grid search scored (windows: fewer)
+        self.windows = WindowSearch(grid)  # `within`: windows.last, the last frame's, or None
         self._choice = SearchChoice(self.search if self._search.useful else "exhaustive")
-        self.last_search = None  # what the last frame's search did (search.Found)
-        self.last_cell = None  # the last argmax's cell index (ix, iy, iz)
+        # what the last frame's search did (search.Found), and its argmax's (ix, iy, iz)
+        self.last_search = self.last_cell = None
         self._window = None  # each row's bins a target in the grid can reach (detection)
 
     @property
@@ -130,12 +116,7 @@ class Locator:
 
     def scores(self, signals: Signals, args=None):
         """The grid's joint likelihood on the signals' backend (the plan's own buffer)."""
-        from ..core.limits import require_memory
-        require(self.grid.n_cells < 2 ** 31, "grid", f"has {self.grid.n_cells:.3g} cells to score "
-                "as one map, more than the kernels index (2^31)", "search a smaller region or "
-                "a coarser step (search='coarse_to_fine' scores a fine grid in parts)")
-        require_memory("grid", 4.0 * self.grid.n_cells, f"scoring {self.grid.n_cells:.3g} "
-                       "cells as one map", "search a smaller region or a coarser step")
+        _check_map(self.grid)
         args = self._args(signals) if args is None else args
         self._scores = signals.backend.call("ellipse_score", signals.handle, *args[:5],
                                             self.grid, *args[5:], out=self._scores)
@@ -164,8 +145,7 @@ class Locator:
         signal (localization.detection; ~1 ms for 3 x 60,000 bins); where there is none the
         estimator is not run, and the Location has no targets (`detected` False) and the paper's
         argmax as its position. within: a box (lo, hi) to search the argmax in (class doc)."""
-        box = None if within is None else checked_box(within)
-        self.last_window = None
+        box, self.windows.last = within and checked_box(within), None
         sig = _checked(as_signals(signals, self.backend), self.layout)
         mode = self._choice.mode() if self._search.useful else "exhaustive"
         if detect and self._window is None:
@@ -180,11 +160,11 @@ class Locator:
         can, raw = self.capabilities, _raw_for(self.estimator, raw, sig.backend)
         timed = not return_map  # search="auto" learns from this frame's search time
         if fusable and can.is_paper:
-            estimate, full = self._paper(sig, mode, box), None
-            timed = timed and self.last_window is None
+            estimate, full = self._fused(sig, mode, box), None
+            timed = timed and self.windows.last is None
         elif fusable and can.from_paper:  # a model fit starts from the fused search's one read
-            paper, timed = self._paper(sig, mode, box), False  # the search timed alone (the
-            if self.last_window is None:  # fit's noise had chosen it)
+            paper, timed = self._fused(sig, mode, box), False  # the search timed alone (the
+            if self.windows.last is None:  # fit's noise had chosen it)
                 self._choice.learn(mode, time.perf_counter() - start)
             scored = Scored(sig.backend, None, self.grid, self.log_mode, sig.n_detectors, sig,
                             raw, paper=paper, host_rows=rows)
@@ -202,34 +182,18 @@ class Locator:
                            detection)
 
     # ------------------------------------------------------------ the paper's argmax, fused
-    def _paper(self, sig: Signals, mode: str, box):
-        """The paper's estimate: from the window `box` where it is a saving and its best cell
-        is not on its inner face (self.last_window: that window), else from the whole grid.
-        The window's cells are scored as a tile of the grid (ellipse_score's blocks form, the
-        grid's own origin and indices), so its scores are the grid's, bit for bit."""
-        self.last_window = None
-        # a window once "auto" has chosen the whole grid's search (whose cost it must beat)
-        ready = self._choice.chosen is not None or not self._search.useful
-        cut = None if box is None or not ready else sub_grid(self.grid, *box, self._full_cells)
-        if cut is not None:
-            window, first = cut
-            be, args = sig.backend, self._args(sig)
-            nx, ny, nz = window.shape
-            scores = be.call("ellipse_score", sig.handle, *args[:5], self.grid, *args[5:],
-                             np.array([first]), window.shape)
-            self._result = be.call("argmax_patch", scores.reshape(nz, ny, nx), out=self._result)
-            index, best, _, patch = decode(be.to_numpy(self._result))
-            if index is not None and not on_inner_face(index, first, window, self.grid):
-                index = tuple(int(i + f) for i, f in zip(index, first))
-                self.last_window, self.last_search, self.last_cell = window, None, index
-                return PaperArgmax().from_patch(index, best, patch, self.grid, self.log_mode,
-                                                sig.n_detectors)
-        return self._fused(sig, mode)
-
-    def _fused(self, sig: Signals, mode: str):
-        """The paper's estimate with one read: the fused search (coarse to fine) or the whole
-        map's argmax with its neighbourhood (exhaustive), both on the device."""
+    def _fused(self, sig: Signals, mode: str, box=None):
+        """The paper's estimate with one read, on the device: in the window `box` where that
+        is cheaper (window.py; once "auto" has chosen the grid's search), else the fused search
+        (coarse to fine) or the whole map's argmax and its neighbourhood (exhaustive)."""
         be, found = sig.backend, None
+        hit = None if box is None or not (self._choice.chosen or not self._search.useful) \
+            else self.windows.run(be, sig.handle, lambda: self._args(sig), box, self._result)
+        if hit is not None:
+            index, best, patch, self._result = hit
+            self.last_search, self.last_cell = None, index
+            return PaperArgmax().from_patch(index, best, patch, self.grid, self.log_mode,
+                                            sig.n_detectors)
         if mode == "coarse_to_fine":
             found, patch, self._result = self._search.fused(be, sig.handle, self._geometry,
                                                             self._result)
@@ -240,10 +204,34 @@ class Locator:
         else:
             index, best = found.index, found.score
         self.last_search, self.last_cell = found, index
-        self._full_cells = self.grid.n_cells if found is None else \
-            2 * self._search.coarse.n_cells + found.cells_scored
+        self.windows.searched(found, self._search)
         return PaperArgmax().from_patch(index, best, patch, self.grid, self.log_mode,
                                         sig.n_detectors)
+
+
+def _checked_options(grid, search, signal_width_m) -> tuple:
+    """(the grid, the signal width in path metres), each checked."""
+    grid = Grid() if grid is None else grid
+    require(isinstance(grid, Grid), "grid", f"expected a nlos_cl.Grid, got "
+            f"{type(grid).__name__}", "build one with Grid.from_ranges(x=(0, 6), y=(0.01, 6), "
+            "step_m=0.01)")
+    require(search in SEARCHES, "search", f"unknown search {search!r}",
+            f"pass one of {list(SEARCHES)}")
+    width = PAPER_SIGNAL_WIDTH_M if signal_width_m is None else signal_width_m
+    require(isinstance(width, (int, float)) and math.isfinite(width) and width > 0,
+            "signal_width_m", f"must be a positive path length in metres, got {width!r}",
+            "pass e.g. 0.065 (c h / 3 for the paper's h)")
+    return grid, width
+
+
+def _check_map(grid: Grid) -> None:
+    """A grid scored as one map: within the kernels' index range and the memory limit."""
+    from ..core.limits import require_memory
+    require(grid.n_cells < 2 ** 31, "grid", f"has {grid.n_cells:.3g} cells to score "
+            "as one map, more than the kernels index (2^31)", "search a smaller region or "
+            "a coarser step (search='coarse_to_fine' scores a fine grid in parts)")
+    require_memory("grid", 4.0 * grid.n_cells, f"scoring {grid.n_cells:.3g} "
+                   "cells as one map", "search a smaller region or a coarser step")
 
 
 def _estimate(estimator, scored: Scored, prior):

@@ -25,6 +25,7 @@ import numpy as np
 
 from ..core.errors import require
 from ..core.grid import Grid
+from ..ops.argmax_patch import decode
 
 
 
@@ -72,3 +73,39 @@ def on_inner_face(index, first, window: Grid, grid: Grid) -> bool:
         if (i == 0 and f > 0) or (i == n - 1 and f + n < full):
             return True
     return False
+
+
+class WindowSearch:
+    """A Locator's windowed searches: `run` one, `searched` after each whole-grid search (whose
+    cost a window must beat). last: the window the last frame's argmax came from, or None."""
+
+    def __init__(self, grid: Grid):
+        self.grid, self.full_cells, self.last = grid, grid.n_cells, None
+
+    def searched(self, found, search) -> None:
+        """The whole grid was searched: every cell (found None) or coarse to fine (`search`'s
+        coarse cells, scored twice, and found's candidate blocks)."""
+        self.full_cells = self.grid.n_cells if found is None else \
+            2 * search.coarse.n_cells + found.cells_scored
+
+    def run(self, be, handle, args, box, result):
+        """(best cell's index in the grid, its score, its 3 x 3 x 3 patch, the result buffer)
+        from the window `box`: its cells scored as one tile of the grid (ellipse_score's
+        blocks form: the grid's own origin and indices, so the grid's scores bit for bit) and
+        their argmax and patch on the device (argmax_patch, one read). None where the window
+        is no saving or its best cell lies on its inner face. args: () -> the scoring's
+        (stats, spots, laser, path0, inv_dpath, log_mode, log_floor)."""
+        cut = sub_grid(self.grid, *box, self.full_cells)
+        if cut is None:
+            return None
+        window, first = cut
+        nx, ny, nz = window.shape
+        a = args()
+        scores = be.call("ellipse_score", handle, *a[:5], self.grid, *a[5:], np.array([first]),
+                         window.shape)
+        result = be.call("argmax_patch", scores.reshape(nz, ny, nx), out=result)
+        index, best, _, patch = decode(be.to_numpy(result))
+        if index is None or on_inner_face(index, first, window, self.grid):
+            return None
+        self.last = window
+        return tuple(int(i + f) for i, f in zip(index, first)), best, patch, result

@@ -50,10 +50,8 @@ class Tracker:
     estimator=ModelEstimator(targets=K)). warm_start: with the model estimator (a fixed
     number of targets), fit each frame from the confirmed tracks' last plates moved to their
     predictions (nlos_cl.tracking.warm; ~10x faster), else from the data alone. log_mode:
-    None chooses by the number of detectors (nlos_cl.core.tuning.auto_log_mode).
-    gated_search: while every slot holds a confirmed track measured last frame, search the
-    argmax only in a box holding the tracks' gates (nlos_cl.tracking.gated). See the module
-    docstring for the rest."""
+    None chooses by the number of detectors (core.tuning.auto_log_mode). gated_search: search
+    near the tracks where that can do (tracking.gated). See the module docstring for the rest."""
 
     def __init__(self, layout, grid=None, *, estimator="paper", motion=None,
                  h_s: float = PAPER_H_S, log_mode: bool | None = None, background=None,
@@ -89,8 +87,8 @@ class Tracker:
         self.max_tracks, self.gate_probability = int(max_tracks), float(gate_probability)
         self.recovery = Recovery(self.lifecycle, motion, self.gate_probability) \
             if reacquire else None
-        self.gated_search, self._fallback_sigma = bool(gated_search), float(fallback_sigma_m)
         self.frame_interval_s, self.backend = float(frame_interval_s), backend
+        self.gated_search, self._fallback_sigma = bool(gated_search), float(fallback_sigma_m)
         self.max_sigma_m, self.max_birge_ratio = max_sigma_m, max_birge_ratio
         self._as_measurement = functools.partial(
             kalman.measurement, d=self.dims, fallback_sigma_m=float(fallback_sigma_m),
@@ -149,22 +147,17 @@ class Tracker:
             if getattr(self.background, "alpha", 0) > 0 and self.background.frames_seen == 1:
                 self.last_location, self.last_measurements, self.last_filtered = None, [], None
                 return []  # a running mean's first frame: nothing learnt to subtract yet
-        starters, box = None, None
-        if self.warm_start and predictions is not None:
-            starters = warm.starters(predictions, self.estimator.targets)
-        if self.gated_search and predictions is not None:
-            box = gated.search_box(predictions, self.tracks, self.max_tracks,
-                                   self.gate_probability, self._fallback_sigma, self.grid)
-        location, found = self._locate(sig, None if starters is None else warm.prior(starters),
-                                       box)
+        starters = warm.starters(predictions, self.estimator.targets) \
+            if self.warm_start and predictions is not None else None
+        box = gated.search_box(self, predictions)  # None: the whole region
+        location, found = self._locate(sig, starters and warm.prior(starters), box)
         if starters is not None and warm.outside_gates(found, starters, self.gate_probability):
             location, found = warm.better((location, found), self._locate(sig, None))  # cold
         self.last_location, self.last_measurements = location, found
         return found
 
     def _locate(self, sig, prior, within=None):
-        """(Location or None, measurements), from `prior` where given, the argmax searched
-        `within` a box where given; detection while births can be."""
+        """(Location or None, measurements), from `prior`, the argmax `within` a box, if given."""
         try:
             self.last_filtered = self.gauss(sig)
             births = sum(t.status == "confirmed" for t in self.tracks) < self.max_tracks

@@ -61,6 +61,48 @@ def check_out(out_dir: Path, force: bool = False) -> None:
                          kind="a file nlos-cl bench wrote")
 
 
+PF_PEER_JSON = Path(__file__).resolve().parents[3] / "docs" / "performance-pf-peer.json"
+
+
+def pf_peer_section(path: Path = PF_PEER_JSON) -> str:
+    """The peer tracker's table from scripts/pf_peer.sh's JSON (the consumer-nlos authors'
+    particle filter against `nlos-cl track` on their walk, both run in one run of that script),
+    or "" where it has not been run here."""
+    try:
+        data = json.loads(path.read_text())
+        rows = data["rows"]
+    except (OSError, ValueError, KeyError):
+        return ""
+
+    def num(v, fmt):
+        return "-" if v is None or (isinstance(v, float) and math.isnan(v)) else format(v, fmt)
+
+    lines = [f"## Peer tracker: the consumer-nlos authors' particle filter (issue 23)\n",
+             f"`scripts/pf_peer.sh` ({data.get('date', '?')}, {data.get('cpu', '?')}, "
+             f"{data.get('threads', '?')} threads; its own venv: PyTorch on the CPU) ran the "
+             "authors' `tracking.py` (1,000 particles) and then `nlos-cl track` on the same "
+             f"{data.get('frames', '?')} frames of their walk (16 zones x 128 bins). Loop: each "
+             "one's frame loop alone, from its own progress bar (whole seconds); wall: the whole "
+             "program (the peer's includes building its voxelized canonical measurement). "
+             "Distances: the median top-view distance to the particle means the authors ship "
+             "with the data (their estimate, not a ground truth), and the median "
+             "frame-to-frame step (jitter).\n",
+             "| tracker | frames | wall s | wall frames/s | loop s | loop frames/s | "
+             "to shipped PF (m) | jitter (m) |", "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        n = r["frames"]
+        lines.append(f"| {r['tracker']} | {n} | {num(r['wall_s'], '.1f')} | "
+                     f"{num(n / r['wall_s'] if r['wall_s'] else None, '.1f')} | "
+                     f"{num(r['loop_s'], '.0f')} | "
+                     f"{num(n / r['loop_s'] if r['loop_s'] else None, '.1f')} | "
+                     f"{num(r['to_shipped_pf_m'], '.3f')} | {num(r['jitter_m'], '.4f')} |")
+    lines.append(f"\nnlos-cl track is **{num(data.get('ratio_wall'), '.1f')}x** the particle "
+                 f"filter's frame rate as whole programs and **{num(data.get('ratio_loop'), '.1f')}x** "
+                 "frame loop against frame loop (ratios from that one run; both use this "
+                 "machine's cores).\n")
+    return "\n".join(lines) + "\n"
+
+
 def report(device_name: str, rows, smoke: bool, out_dir: Path | None, force: bool = False
            ) -> str:
     """The table as text; with out_dir, also OUT/performance.md, .json and .png, each written
@@ -75,7 +117,8 @@ def report(device_name: str, rows, smoke: bool, out_dir: Path | None, force: boo
     check_out(out_dir, force)
     analysis = resources.files(__package__).joinpath("analysis.md").read_text()
     page = ("# Performance\n\n" + HEADER + "\n\n" + text
-            + "\n![time against problem size](performance.png)\n\n" + analysis)
+            + "\n![time against problem size](performance.png)\n\n" + pf_peer_section()
+            + "\n" + analysis)
     data = json.dumps({"device": device_name, "smoke": smoke,
                        "rows": [asdict(r) | {"ratio": r.ratio} for r in rows]}, indent=1)
     for name, content in (("performance.json", data), ("performance.md", page)):
