@@ -4,16 +4,22 @@
 // coarse_pair: every coarse cell (a block's centre) scored twice by score8, the same code as a
 //   whole grid: on the filtered rows (exact) and on the dilated rows over the widened record
 //   (bound, an upper bound of every fine cell of the block).
-// refine_argmax: ONE work group of WG items, in four steps separated by barriers:
+// Then three launches (one work group of WG items, many, one):
+// select_candidates, in two steps separated by barriers:
 //   1. L = the best exact score (coarse_pair leaves -inf where a block's centre is no fine
 //      cell); the threshold
 //      thr = L - SLACK (|L| + slack_add);
 //   2. the candidate blocks (bound >= thr), compacted into `list` in coarse-index order (each
 //      item counts its own contiguous share, offsets by a prefix over the items' counts);
+//      list[0] = their number;
+// refine_partial (every group of the device's work, not one: one group used one core of a
+//   CPU and one multiprocessor of a GPU, 1/132 of an H100's):
 //   3. every fine cell of every candidate block scored (rows of a block in float8 steps, work
-//      units dealt round-robin), each item keeping its best (value, flat index), ties to the
-//      lower flat index: the result does not depend on which item scored what;
-//   4. the best over the items (ties: lower flat index, as argmax over a whole map), then
+//      units dealt round-robin over all items), each item keeping its best (value, flat
+//      index), ties to the lower flat index, then each group's best: the result does not
+//      depend on which item or group scored what;
+// refine_finish:
+//   4. the best over the groups (ties: lower flat index, as argmax over a whole map), then
 //      items 0..8 score the 3 x 3 x 3 cells around it (NaN outside the grid), one row each.
 //   result: [ix, iy, iz, score, candidate blocks, 0, 0, 0, 27 neighbourhood scores (dz, dy,
 //   dx)], all exact in float (indices and counts below 2^24, which the host checks); ix = -1
@@ -122,46 +128,80 @@ inline int select_blocks(__global const float *exact, __global const float *boun
 }
 
 __kernel __attribute__((reqd_work_group_size(WG, 1, 1)))
-void refine_argmax(__global const float *signal, __global const float2 *stats,
-                   __global const float4 *spots, __global const float4 *lasers,
-                   __global const float2 *axis, const int n_bins,
-                   const float4 origin, const float4 step,  // the fine grid's
-                   const int4 shape,                        // fine (nx, ny, nz)
-                   const int4 fa,                           // cells per block (fx, fy, fz)
-                   const int4 cshape,                       // blocks (coarse cells)
-                   __global const float *exact, __global const float *bound,
-                   const float slack_add,                   // 1 in log mode, else 0
-                   __global int *list,                      // [coarse cells]: scratch
-                   __global float *result)                  // [8 + 27]
+void select_candidates(__global const float *exact, __global const float *bound,
+                       const int4 cshape,                      // blocks (coarse cells)
+                       const float slack_add,                  // 1 in log mode, else 0
+                       __global int *list)                     // [1 + coarse cells]
 {
     __local float lval[WG];
-    __local int lcount[WG], lwhere[WG];
-    const int w = get_local_id(0);
-    const int total = select_blocks(exact, bound, cshape, slack_add, list, lval, lcount);
+    __local int lcount[WG];
+    const int total = select_blocks(exact, bound, cshape, slack_add, list + 1, lval, lcount);
+    if (get_local_id(0) == 0) list[0] = total;
+}
+
+// Step 3, spread over every work group: each keeps its best (value, flat) in partial[group].
+__kernel __attribute__((reqd_work_group_size(WG, 1, 1)))
+void refine_partial(__global const float *signal, __global const float2 *stats,
+                    __global const float4 *spots, __global const float4 *lasers,
+                    __global const float2 *axis, const int n_bins,
+                    const float4 origin, const float4 step,  // the fine grid's
+                    const int4 shape,                        // fine (nx, ny, nz)
+                    const int4 fa,                           // cells per block (fx, fy, fz)
+                    const int4 cshape,                       // blocks (coarse cells)
+                    __global const int *list,                // [1 + coarse cells]: count, blocks
+                    __global float *partial_value,           // [groups]
+                    __global int *partial_where)             // [groups]
+{
+    __local float lval[WG];
+    __local int lwhere[WG];
+    const int w = get_local_id(0), items = get_global_size(0);
     const int chunks = (fa.x + 7) / 8;
-    const int units = total * fa.z * fa.y * chunks;
+    const int units = list[0] * fa.z * fa.y * chunks;
     float best = -INFINITY;
     int where = -1;
-    for (int u = w; u < units; u += WG) {
+    for (int u = get_global_id(0); u < units; u += items) {
         const int chunk = u % chunks, jy = (u / chunks) % fa.y;
         const int jz = (u / (chunks * fa.y)) % fa.z, k = u / (chunks * fa.y * fa.z);
         score_unit(signal, stats, spots, lasers, axis, n_bins, origin, step, shape, fa, cshape,
-                   list[k], jy, jz, chunk, &best, &where);
+                   list[1 + k], jy, jz, chunk, &best, &where);
     }
     lval[w] = best;
     lwhere[w] = where;
     barrier(CLK_LOCAL_MEM_FENCE);
-    best = -INFINITY;
-    where = -1;
-    for (int j = 0; j < WG; ++j) {
-        if (beats(lval[j], lwhere[j], best, where)) { best = lval[j]; where = lwhere[j]; }
+    if (w == 0) {
+        for (int j = 1; j < WG; ++j) {
+            if (beats(lval[j], lwhere[j], best, where)) { best = lval[j]; where = lwhere[j]; }
+        }
+        partial_value[get_group_id(0)] = best;
+        partial_where[get_group_id(0)] = where;
+    }
+}
+
+// Step 4: the best over the groups (ties: lower flat index), its 3 x 3 x 3 neighbourhood.
+__kernel __attribute__((reqd_work_group_size(WG, 1, 1)))
+void refine_finish(__global const float *signal, __global const float2 *stats,
+                   __global const float4 *spots, __global const float4 *lasers,
+                   __global const float2 *axis, const int n_bins,
+                   const float4 origin, const float4 step, const int4 shape,
+                   __global const int *list, __global const float *partial_value,
+                   __global const int *partial_where, const int groups,
+                   __global float *result)                  // [8 + 27]
+{
+    const int w = get_local_id(0);
+    float best = -INFINITY;
+    int where = -1;
+    for (int j = 0; j < groups; ++j) {
+        if (beats(partial_value[j], partial_where[j], best, where)) {
+            best = partial_value[j];
+            where = partial_where[j];
+        }
     }
     const int ix = where < 0 ? -1 : where % shape.x;
     const int iy = where < 0 ? 0 : (where / shape.x) % shape.y;
     const int iz = where < 0 ? 0 : where / (shape.x * shape.y);
     if (w == 0) {
         result[0] = (float)ix; result[1] = (float)iy; result[2] = (float)iz;
-        result[3] = best; result[4] = (float)total;
+        result[3] = best; result[4] = (float)list[0];
         result[5] = result[6] = result[7] = 0.0f;
     }
     if (w < 9) {  // row (dz, dy) of the neighbourhood: cells ix - 1 .. ix + 1

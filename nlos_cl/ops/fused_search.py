@@ -23,6 +23,8 @@ from .base import Example, Operation, relative_error
 SLACK = 1e-4  # relative: float32 rounding between a bound and a fine score (search.py)
 WG = 64  # the refinement's one work group
 MAX_COARSE = 1 << 22  # coarse cells: beyond, the host-side search (one work group would crawl)
+GROUPS_PER_UNIT = 4  # refinement work groups per compute unit
+MAX_GROUPS = 1024
 
 
 def coarse_grid(grid: Grid, factors) -> Grid:
@@ -82,6 +84,13 @@ def _i4(v) -> np.ndarray:
     return int4(v)
 
 
+def refine_groups(rt) -> int:
+    """Work groups of the refinement: GROUPS_PER_UNIT per compute unit (each a core of a CPU, a
+    multiprocessor of a GPU), so every one has work and a few to balance uneven blocks."""
+    units = getattr(getattr(rt, "device", None), "max_compute_units", 1) or 1
+    return int(min(max(units * GROUPS_PER_UNIT, 1), MAX_GROUPS))
+
+
 def opencl(rt, signal, dilated, stats, spots, laser, path0, inv_dpath, grid, factors, half,
            log_mode=False, log_floor=LOG_FLOOR, out=None):
     from ..device.runtime import float4_rows
@@ -100,18 +109,25 @@ def opencl(rt, signal, dilated, stats, spots, laser, path0, inv_dpath, grid, fac
     wide = rt.constant(np.stack([path0 - half / inv_dpath, inv_dpath], axis=1))
     spots_buf = rt.constant(float4_rows(spots))
     laser4 = rt.constant(float4_rows(np.asarray(laser).reshape(-1, 3)))
-    exact, bound, blocks = rt.resource(("fused_search", coarse.n_cells), lambda: (
-        rt.empty((cz, cy, cx)), rt.empty((cz, cy, cx)), rt.empty((coarse.n_cells,), np.int32)))
+    groups = refine_groups(rt)
+    exact, bound, blocks, value, where = rt.resource(("fused_search", coarse.n_cells), lambda: (
+        rt.empty((cz, cy, cx)), rt.empty((cz, cy, cx)),
+        rt.empty((1 + coarse.n_cells,), np.int32), rt.empty((groups,)),
+        rt.empty((groups,), np.int32)))
     rt.run(rt.kernel("fused_search", "coarse_pair", **defines), (-(-cx // 8), cy, cz), signal,
            dilated, stats, spots_buf, laser4, axis, wide, np.int32(n_bins),
            np.int32(dilated.shape[1]), _f4(coarse.origin), _f4(coarse.step), np.int32(cx),
            np.int32(cy), _i4(valid_counts(grid, fa)), exact, bound)
     if out is None or isinstance(out, np.ndarray):  # (a host result: not a device buffer)
         out = rt.empty((PATCH_RESULT,))
-    kern = rt.kernel("fused_search", "refine_argmax", **defines)
-    rt.run(kern, (WG,), signal, stats, spots_buf, laser4, axis, np.int32(n_bins),
-           _f4(grid.origin), _f4(grid.step), _i4(grid.shape), _i4(fa), _i4(coarse.shape), exact,
-           bound, np.float32(1.0 if log_mode else 0.0), blocks, out, local_size=(WG,))
+    rt.run(rt.kernel("fused_search", "select_candidates", **defines), (WG,), exact, bound,
+           _i4(coarse.shape), np.float32(1.0 if log_mode else 0.0), blocks, local_size=(WG,))
+    fine = (signal, stats, spots_buf, laser4, axis, np.int32(n_bins), _f4(grid.origin),
+            _f4(grid.step), _i4(grid.shape))
+    rt.run(rt.kernel("fused_search", "refine_partial", **defines), (groups * WG,), *fine,
+           _i4(fa), _i4(coarse.shape), blocks, value, where, local_size=(WG,))
+    rt.run(rt.kernel("fused_search", "refine_finish", **defines), (WG,), *fine, blocks, value,
+           where, np.int32(groups), out, local_size=(WG,))
     return out
 
 
