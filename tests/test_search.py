@@ -141,12 +141,15 @@ def test_auto_keeps_one_search_after_its_trials(runtime):
     plan, exhaustive = Locator(hist.layout, grid, backend=runtime, estimator="paper"), Locator(
         hist.layout, grid, backend=runtime, search="exhaustive", estimator="paper")
     expected = exhaustive(hist, detect=False)
-    for _ in range(2 * (AUTO_TRIALS + 1)):
+    assert plan._choice.modes == ("coarse_to_fine_wide", "coarse_to_fine", "exhaustive")
+    for _ in range(3 * (AUTO_TRIALS + 1)):  # each search, a warm-up and AUTO_TRIALS timed
         assert plan.chosen is None
         found = plan(hist, detect=False)  # peaks of 3.3 sigma: noise reaches them (detection)
         assert np.array_equal(found.cell_position, expected.cell_position)
         assert found.score == expected.score
     assert plan.chosen in ("coarse_to_fine", "exhaustive")
+    # blocks of 5 cells (their diagonal within the 6.5 cm signal width) and of 7, the wider trial
+    assert [plan._plans[m].factor for m in ("coarse_to_fine", "coarse_to_fine_wide")] == [5, 7]
 
 
 class _SlowFromPaper:
@@ -173,12 +176,12 @@ def test_auto_times_the_search_alone_for_an_estimator_from_the_paper(runtime):
     assert plan.search == "auto"
     expected = Locator(hist.layout, grid, backend=runtime, search="exhaustive",
                        estimator="paper")(hist, detect=False)
-    for _ in range(2 * (AUTO_TRIALS + 1)):
+    for _ in range(3 * (AUTO_TRIALS + 1)):
         found = plan(hist, detect=False)
         assert np.array_equal(found.cell_position, expected.cell_position)
     trials = plan._choice._trials
-    assert len(trials) == 2 * (AUTO_TRIALS + 1) and {m for m, _ in trials} == {
-        "coarse_to_fine", "exhaustive"}
+    assert len(trials) == 3 * (AUTO_TRIALS + 1) and {m for m, _ in trials} == {
+        "coarse_to_fine", "coarse_to_fine_wide", "exhaustive"}
     assert max(t for _, t in trials) < 0.1  # the estimator's 0.1 s is in none of them
     assert plan.chosen in ("coarse_to_fine", "exhaustive")
 

@@ -32,29 +32,36 @@ from .window import WindowSearch, checked_box
 # coarse-to-fine search's speed, never its answer.
 PAPER_SIGNAL_WIDTH_M = SPEED_OF_LIGHT * PAPER_H_S / 3.0
 SEARCHES_TRIED = ("coarse_to_fine", "exhaustive")
+# "auto" also tries coarse to fine with blocks 2 cells wider than the signal width allows:
+# where the bound prunes well, fewer coarse cells outweigh more candidate cells (the consumer
+# sensor's walk, 3.5 M cells: blocks of 5 8.1 ms, of 3 14.5 ms; the paper's plane: 5-9 alike)
+WIDE_BLOCKS = "coarse_to_fine_wide"
 
 
 class SearchChoice:
-    """search="auto": time both searches on the first frames (AUTO_TRIALS each, after one
+    """search="auto": time each search on the first frames (AUTO_TRIALS each, after one
     warm-up each: it builds the programs) and keep the one with the lower median. The answer
-    is the same either way; only the speed differs between grids and devices."""
+    is the same either way; only the speed differs between grids and devices. modes: the
+    searches tried (coarse to fine at the signal width's blocks, at WIDE_BLOCKS, exhaustive)."""
 
-    def __init__(self, search: str):
+    def __init__(self, search: str, modes=SEARCHES_TRIED):
         self.chosen = None if search == "auto" else search
+        self.modes = tuple(modes)
         self._trials = []  # (search, seconds) of the first frames
 
     def mode(self) -> str:
-        return self.chosen or SEARCHES_TRIED[len(self._trials) % 2]
+        return self.chosen or self.modes[len(self._trials) % len(self.modes)]
 
     def learn(self, mode: str, seconds: float) -> None:
         if self.chosen is not None:
             return
         self._trials.append((mode, seconds))
-        if len(self._trials) < 2 * (AUTO_TRIALS + 1):
+        n = len(self.modes)
+        if len(self._trials) < n * (AUTO_TRIALS + 1):
             return
-        med = {m: statistics.median([t for k, t in self._trials[2:] if k == m])
-               for m in SEARCHES_TRIED}
-        self.chosen = min(SEARCHES_TRIED, key=lambda m: med[m])
+        med = {m: statistics.median([t for k, t in self._trials[n:] if k == m])
+               for m in self.modes}
+        self.chosen = min(self.modes, key=lambda m: med[m])
 
 
 class Locator:
@@ -65,15 +72,14 @@ class Locator:
     (for many detectors); the estimator is a name ('paper') or an object (localization.estimate).
 
     search: "coarse_to_fine" scores only the blocks of cells whose upper bound can hold the
-    best cell (nlos_cl/localization/search.py): the same argmax cell, score and 3 x 3 x 3
-    neighbourhood as "exhaustive" (every cell). "auto" (default) times both on the first
-    frames and keeps the faster for this grid, for `local` (the paper's) and `from_paper`
+    best cell (localization/search.py): the same argmax cell, score and 3 x 3 x 3 neighbourhood
+    as "exhaustive" (every cell). "auto" (default) times them (and blocks 2 cells wider) on
+    the first frames and keeps the fastest, for `local` (the paper's) and `from_paper`
     estimators (the model fit); others, and return_map=True, score every cell. With the
-    paper's estimator a frame costs one small read: the search stays on the device.
+    paper's estimator a frame is one small read: the search stays on the device.
     signal_width_m: the filtered signal's width in hidden-path metres (default: the paper's
     filter, c h / 3 = 6.5 cm); it sets the coarse grid's step, i.e. only the speed.
-    within (per call): a box (lo, hi) in metres to search the argmax in, for the fused paths
-    (nlos_cl/localization/window.py: a tracker's gates; where it is no saving, the whole grid).
+    within (per call): a box (lo, hi) to search the argmax in (localization/window.py).
     """
 
     def __init__(self, layout, grid: Grid | None = None, *, estimator=None,
@@ -97,17 +103,17 @@ class Locator:
                 "pass estimator='paper' (its argmax locates paired and confocal captures)")
         can = self.capabilities  # a search for those that need the neighbourhood or argmax
         self.search = search if can.local or can.from_paper else "exhaustive"
-        self._search = CoarseToFine(grid, self._inv_dpath, float(width))
+        self._plans, self._choice = _search_plans(grid, self._inv_dpath, width, self.search)
+        self._search = self._plans["coarse_to_fine"]  # the plan of the frame at hand
         self.windows = WindowSearch(grid)  # `within`: windows.last, the last frame's, or None
-        self._choice = SearchChoice(self.search if self._search.useful else "exhaustive")
         # what the last frame's search did (search.Found), and its argmax's (ix, iy, iz)
         self.last_search = self.last_cell = None
         self._window = None  # each row's bins a target in the grid can reach (detection)
 
     @property
     def chosen(self) -> str | None:
-        """The search kept for this grid (None while "auto" is still timing both)."""
-        return self._choice.chosen
+        """The search kept for this grid (None while "auto" is still timing them)."""
+        return "coarse_to_fine" if self._choice.chosen == WIDE_BLOCKS else self._choice.chosen
 
     def _args(self, signals: Signals):
         stats = signals.backend.call("row_stats", signals.handle, out=self._stats)
@@ -147,8 +153,9 @@ class Locator:
         argmax as its position. within: a box (lo, hi) to search the argmax in (class doc)."""
         box, self.windows.last = within and checked_box(within), None
         sig = _checked(as_signals(signals, self.backend), self.layout)
-        mode = self._choice.mode() if self._search.useful else "exhaustive"
-        if detect and self._window is None:
+        trial = self._choice.mode()  # one of _search_plans' (WIDE_BLOCKS: coarse to fine)
+        self._search, mode = self._plans.get(trial, self._search), _kind(trial)
+        if detect and self._window is None:  # the detection's bins, once
             self._window = reachable_bins(self.layout, self.grid)
         rows, detection = detected_in(sig, self._window) if detect else (None, None)
         if detection is not None and not detection.detected and not return_map:
@@ -165,7 +172,7 @@ class Locator:
         elif fusable and can.from_paper:  # a model fit starts from the fused search's one read
             paper, timed = self._fused(sig, mode, box), False  # the search timed alone (the
             if self.windows.last is None:  # fit's noise had chosen it)
-                self._choice.learn(mode, time.perf_counter() - start)
+                self._choice.learn(trial, time.perf_counter() - start)
             scored = Scored(sig.backend, None, self.grid, self.log_mode, sig.n_detectors, sig,
                             raw, paper=paper, host_rows=rows)
             estimate, full = _estimate(self.estimator, scored, prior), None
@@ -174,7 +181,7 @@ class Locator:
             estimate = _in_grid(_estimate(self.estimator, scored, prior), self.grid, self.last_search)
             full = sig.backend.to_numpy(scored.scores) if return_map else None
         if timed:
-            self._choice.learn(mode, time.perf_counter() - start)
+            self._choice.learn(trial, time.perf_counter() - start)
         if detection is not None and not detection.detected:  # a map was asked for
             return Location.undetected(estimate, self.grid, sig.layout.truth, detection,
                                        self.estimator.name, full)
@@ -207,6 +214,20 @@ class Locator:
         self.windows.searched(found, self._search)
         return PaperArgmax().from_patch(index, best, patch, self.grid, self.log_mode,
                                         sig.n_detectors)
+
+
+def _search_plans(grid: Grid, inv_dpath, width: float, search: str) -> tuple:
+    """({"coarse_to_fine": blocks for the signal width, WIDE_BLOCKS: 2 cells wider}, the
+    SearchChoice among them and exhaustive; exhaustive alone where blocks are no use)."""
+    base = CoarseToFine(grid, inv_dpath, float(width))
+    plans = {"coarse_to_fine": base,
+             WIDE_BLOCKS: CoarseToFine(grid, inv_dpath, float(width), base.factor + 2)}
+    return plans, SearchChoice(search if base.useful else "exhaustive",
+                               (WIDE_BLOCKS,) + SEARCHES_TRIED)
+
+
+def _kind(trial: str) -> str:
+    return "exhaustive" if trial == "exhaustive" else "coarse_to_fine"
 
 
 def _checked_options(grid, search, signal_width_m) -> tuple:
