@@ -3,6 +3,9 @@ read one: a lock, a missing compression filter and a cut-off file each get their
 rather than all being called "corrupted"."""
 from __future__ import annotations
 
+import copy
+import functools
+
 import numpy as np
 
 from ...core.errors import InputError, require
@@ -88,7 +91,7 @@ def our_metadata(info, path=""):
     nesting, a key twice: nlos_cl.io.yamlfile) is refused, not expanded."""
     import yaml
 
-    from ..yamlfile import MAX_BYTES, YamlLimit, yaml_loader
+    from ..yamlfile import MAX_BYTES, YamlLimit
     if isinstance(info, bytes):
         try:
             info = info.decode("utf-8-sig")
@@ -97,9 +100,20 @@ def our_metadata(info, path=""):
     if not isinstance(info, str) or len(info) > 16 * MAX_BYTES:  # far beyond what we write
         return None
     try:
-        info = yaml.load(info, Loader=yaml_loader())  # noqa: S506 - a SafeLoader subclass
+        info = _parsed(info)
     except YamlLimit as exc:
         raise InputError(f"capture {path}: scene_info: {exc.problem}. Fix: {exc.fix}") from None
     except yaml.YAMLError:
         return None
-    return info.get("nlos_cl") if isinstance(info, dict) else None
+    return copy.deepcopy(info.get("nlos_cl")) if isinstance(info, dict) else None
+
+
+@functools.lru_cache(maxsize=4)
+def _parsed(text: str):
+    """scene_info parsed once per text (read_sequence reads it twice; the consumer sensor's
+    walk carries 47 kB, ~0.2 s for PyYAML's Python reader, which the bounds need); callers get
+    deep copies of it."""
+    import yaml
+
+    from ..yamlfile import yaml_loader
+    return yaml.load(text, Loader=yaml_loader())  # noqa: S506 - a SafeLoader subclass
