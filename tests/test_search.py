@@ -141,7 +141,7 @@ def test_auto_keeps_one_search_after_its_trials(runtime):
     plan, exhaustive = Locator(hist.layout, grid, backend=runtime, estimator="paper"), Locator(
         hist.layout, grid, backend=runtime, search="exhaustive", estimator="paper")
     expected = exhaustive(hist, detect=False)
-    assert plan._choice.modes == ("coarse_to_fine_wide", "coarse_to_fine", "exhaustive")
+    assert plan._choice.modes == ("coarse_to_fine", "coarse_to_fine_wide", "exhaustive")
     for _ in range(3 * (AUTO_TRIALS + 1)):  # each search, a warm-up and AUTO_TRIALS timed
         assert plan.chosen is None
         found = plan(hist, detect=False)  # peaks of 3.3 sigma: noise reaches them (detection)

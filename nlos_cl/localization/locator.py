@@ -222,8 +222,9 @@ def _search_plans(grid: Grid, inv_dpath, width: float, search: str) -> tuple:
     base = CoarseToFine(grid, inv_dpath, float(width))
     plans = {"coarse_to_fine": base,
              WIDE_BLOCKS: CoarseToFine(grid, inv_dpath, float(width), base.factor + 2)}
+    # the signal width's blocks first: a one-shot locate (one frame) searches as before
     return plans, SearchChoice(search if base.useful else "exhaustive",
-                               (WIDE_BLOCKS,) + SEARCHES_TRIED)
+                               ("coarse_to_fine", WIDE_BLOCKS, "exhaustive"))
 
 
 def _kind(trial: str) -> str:
