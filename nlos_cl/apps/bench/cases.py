@@ -196,6 +196,8 @@ def all_rows(rt, smoke=False, say=print):
     say("model: a SPAD patch located from every spot")
     rows.append(spad_model_row(rt, smoke))
     say("stream: plans and the tracker, host frames to track states")
-    from .stream import stream_rows
+    from .stream import crossing_row, stream_rows
     rows.extend(stream_rows(rt, smoke, Row))
+    say("stream: two targets crossing, tracked")
+    rows.append(crossing_row(rt, smoke, Row))
     return rows

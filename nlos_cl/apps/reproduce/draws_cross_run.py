@@ -27,7 +27,7 @@ from .common import Settings
 from .draws_scene import mesh_of
 
 
-def _sequence(d: dict, path: Path) -> float:
+def write_frames(d: dict, path: Path) -> float:
     """Simulate the draw's frames into a sequence file at `path`; the seconds it took."""
     from nlos_cl.tracking import MovingTarget, Trajectory, simulate_sequence, write_sequence
     f = d["frames"]
@@ -143,7 +143,7 @@ def run(d: dict, s: Settings, failure_m: float | None = None) -> list[dict]:
     row = {**describe(d), "estimator": "track default"}
     with tempfile.TemporaryDirectory(prefix="nlos-cl-crossing-") as tmp:
         path = Path(tmp) / "crossing.h5"
-        row["sim_s"] = round(_sequence(d, path), 3)
+        row["sim_s"] = round(write_frames(d, path), 3)
         start = time.perf_counter()
         try:
             tracked = track_file(path)
