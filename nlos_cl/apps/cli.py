@@ -246,8 +246,8 @@ def _track_args(p):
                    help="track the first N frames")
     p.add_argument("--full-search", action="store_true",
                    help="search the whole region every frame (default: while every target is "
-                   "followed, only a box holding the tracks' gates, where that is cheaper; the "
-                   "same cells, bit for bit)")
+                   "followed, only a box holding the tracks' gates, where that is cheaper: the "
+                   "region's own scores; docs/tracking.md)")
     p.add_argument("--smooth", action="store_true",
                    help="offline: with --json, print every frame's tracks smoothed with the "
                         "later frames (Rauch-Tung-Striebel), after the last frame")
