@@ -20,10 +20,14 @@ def _frame(target=(3.4, 2.1, 0.1), seed=0):
     return histograms([target], [1.0], 6, 0.06, 0.05, seed)
 
 
-@pytest.mark.parametrize("search", ["exhaustive", "coarse_to_fine"])
-def test_a_window_holding_the_best_cell_gives_the_region_answer(runtime, search):
+@pytest.mark.parametrize("search, twin", [("exhaustive", False), ("coarse_to_fine", False),
+                                          ("exhaustive", True)])
+def test_a_window_holding_the_best_cell_gives_the_region_answer(runtime, search, twin):
+    """On the device and on the float64 twins (NumpyBackend): the same cell, score, position."""
+    from nlos_cl.ops.backend import NumpyBackend
     hist = _frame()
-    plan = Locator(hist.layout, VOLUME, estimator="paper", backend=runtime, search=search)
+    plan = Locator(hist.layout, VOLUME, estimator="paper", search=search,
+                   backend=NumpyBackend() if twin else runtime)
     whole = plan(hist)
     cell = whole.cell_position
     got = plan(hist, within=(cell - 0.3, cell + 0.4))

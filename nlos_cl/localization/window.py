@@ -1,20 +1,19 @@
 """The paper's argmax searched inside a window of the region: the cells of the Locator's grid
-within a box (a tracker's gate around its predictions, nlos_cl.tracking.gated), not the whole
+within a box (a tracker's gates around its predictions, nlos_cl.tracking.gated), not the whole
 region. `Locator(..., within=(lo, hi))`.
 
-A tracker that follows every target it may follow needs the argmax only where its gates can
-accept it: on the consumer sensor's walk (16 confocal spots, a 3-D region of 195 x 105 x 169
-cells) the whole region's search was ~35 ms of a ~40 ms frame, a 0.8 m window ~30x fewer cells.
 The window is a box of the region's own cells, scored as one tile of the region's grid
 (ellipse_score's blocks form: the region's origin and cell indices), so its scores are the
 region's scores of those cells, bit for bit, and its best cell the region's wherever the
-region's best cell lies in it.
+region's best cell lies in it. (A sub-grid with its own origin computes its cells' float32
+coordinates otherwise: ~1 ulp apart, scores 1e-3 apart, enough to move a near-tie.)
 
 A window is searched where it scores fewer cells than the region's own search (the one
-search="auto" chose) did on its last frame (every cell, or coarse-to-fine's coarse cells twice
-and its candidate blocks): on the
-walk above the gates are wide (the argmax's scatter is ~0.3 m) and the coarse-to-fine search of
-the whole region is the cheaper one. One rule keeps the windowed answer honest: where the window's best cell lies on one of its
+search="auto" chose) did on its last frame: every cell, or coarse-to-fine's coarse cells twice
+and its candidate blocks. Two crossing targets on an 8-spot circle (a 3-D region of ~4 M cells
+that coarse-to-fine cannot prune): 44-59 -> 6-7 ms a frame; on the consumer sensor's walk the
+gates are wide (the argmax scatters ~0.3 m) and coarse-to-fine over the region stays cheaper.
+One rule keeps the windowed answer honest: where the window's best cell lies on one of its
 faces inside the region, the region's maximum may lie beyond it, and the Locator searches the
 whole region instead (`on_inner_face`)."""
 from __future__ import annotations
@@ -26,7 +25,6 @@ import numpy as np
 from ..core.errors import require
 from ..core.grid import Grid
 from ..ops.argmax_patch import decode
-
 
 
 def checked_box(within) -> tuple[np.ndarray, np.ndarray]:
