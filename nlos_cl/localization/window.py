@@ -33,10 +33,12 @@ def checked_box(within) -> tuple[np.ndarray, np.ndarray]:
         lo, hi = (np.asarray(v, dtype=np.float64).reshape(3) for v in within)
     except (TypeError, ValueError):
         lo = hi = None
-    require(lo is not None and bool(np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))
-                                    and np.all(lo <= hi)), "within",
-            f"must be a box (lo, hi) of two finite (x, y, z) corners with lo <= hi, got {within!r}",
-            "pass e.g. ((1.5, 1.0, -0.5), (2.5, 2.0, 0.5)) in metres, or None for the whole region")
+    if lo is None or not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))
+                          and np.all(lo <= hi)):  # (the message only then: a repr per frame
+        # of a tracker's box cost 0.3 ms)
+        require(False, "within", f"must be a box (lo, hi) of two finite (x, y, z) corners "
+                f"with lo <= hi, got {within!r}", "pass e.g. ((1.5, 1.0, -0.5), (2.5, 2.0, "
+                "0.5)) in metres, or None for the whole region")
     return lo, hi
 
 
