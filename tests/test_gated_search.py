@@ -30,7 +30,7 @@ def test_a_window_holding_the_best_cell_gives_the_region_answer(runtime, search,
                    backend=NumpyBackend() if twin else runtime)
     whole = plan(hist)
     cell = whole.cell_position
-    got = plan(hist, within=(cell - 0.3, cell + 0.4))
+    got = plan(hist, within=np.stack([cell - 0.3, cell + 0.4]))  # (2, 3) array, or 2 corners
     assert plan.windows.last is not None  # the window was searched, not the region
     assert plan.windows.last.n_cells < 0.05 * VOLUME.n_cells
     assert np.allclose(got.cell_position, cell, rtol=0, atol=1e-12)

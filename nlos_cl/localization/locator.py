@@ -151,7 +151,7 @@ class Locator:
         signal (localization.detection; ~1 ms for 3 x 60,000 bins); where there is none the
         estimator is not run, and the Location has no targets (`detected` False) and the paper's
         argmax as its position. within: a box (lo, hi) to search the argmax in (class doc)."""
-        box, self.windows.last = within and checked_box(within), None
+        box, self.windows.last = None if within is None else checked_box(within), None
         sig = _checked(as_signals(signals, self.backend), self.layout)
         trial = self._choice.mode()  # one of _search_plans' (WIDE_BLOCKS: coarse to fine)
         self._search, mode = self._plans.get(trial, self._search), _kind(trial)
@@ -168,11 +168,9 @@ class Locator:
         timed = not return_map  # search="auto" learns from this frame's search time
         if fusable and can.is_paper:
             estimate, full = self._fused(sig, mode, box), None
-            timed = timed and self.windows.last is None
         elif fusable and can.from_paper:  # a model fit starts from the fused search's one read
             paper, timed = self._fused(sig, mode, box), False  # the search timed alone (the
-            if self.windows.last is None:  # fit's noise had chosen it)
-                self._choice.learn(trial, time.perf_counter() - start)
+            self._choice.learn(trial, time.perf_counter() - start)  # fit's noise had chosen it)
             scored = Scored(sig.backend, None, self.grid, self.log_mode, sig.n_detectors, sig,
                             raw, paper=paper, host_rows=rows)
             estimate, full = _estimate(self.estimator, scored, prior), None
@@ -194,8 +192,9 @@ class Locator:
         is cheaper (window.py; once "auto" has chosen the grid's search), else the fused search
         (coarse to fine) or the whole map's argmax and its neighbourhood (exhaustive)."""
         be, found = sig.backend, None
-        hit = None if box is None or not (self._choice.chosen or not self._search.useful) \
-            else self.windows.run(be, sig.handle, lambda: self._args(sig), box, self._result)
+        # (windows only after "auto" has chosen, so its trials time whole-grid searches alone)
+        hit = None if box is None or self._choice.chosen is None else self.windows.run(
+            be, sig.handle, lambda: self._args(sig), box, self._result)
         if hit is not None:
             index, best, patch, self._result = hit
             self.last_search, self.last_cell = None, index

@@ -21,7 +21,7 @@ from .argmax_patch import PATCH_RESULT, result_of
 from .base import Example, Operation, relative_error
 
 SLACK = 1e-4  # relative: float32 rounding between a bound and a fine score (search.py)
-WG = 64  # the refinement's one work group
+WG = 64  # work-group size of the selection and the refinement
 MAX_COARSE = 1 << 22  # coarse cells: beyond, the host-side search (one work group would crawl)
 GROUPS_PER_UNIT = 4  # refinement work groups per compute unit
 MAX_GROUPS = 1024
@@ -87,8 +87,7 @@ def _i4(v) -> np.ndarray:
 def refine_groups(rt) -> int:
     """Work groups of the refinement: GROUPS_PER_UNIT per compute unit (each a core of a CPU, a
     multiprocessor of a GPU), so every one has work and a few to balance uneven blocks."""
-    units = getattr(getattr(rt, "device", None), "max_compute_units", 1) or 1
-    return int(min(max(units * GROUPS_PER_UNIT, 1), MAX_GROUPS))
+    return int(min(max(rt.device.max_compute_units, 1) * GROUPS_PER_UNIT, MAX_GROUPS))
 
 
 def opencl(rt, signal, dilated, stats, spots, laser, path0, inv_dpath, grid, factors, half,

@@ -34,7 +34,7 @@ def search_box(tracker, predictions) -> tuple | None:
     if not tracker.gated_search or predictions is None:
         return None
     return box_of(predictions, tracker.tracks, tracker.max_tracks, tracker.gate_probability,
-                  tracker._fallback_sigma, tracker.grid)
+                  tracker.fallback_sigma_m, tracker.grid)
 
 
 def box_of(predictions, tracks, max_tracks: int, gate_probability: float, sigma_m: float,
@@ -55,8 +55,6 @@ def box_of(predictions, tracks, max_tracks: int, gate_probability: float, sigma_
         lo[:d], hi[:d] = centre - half, centre + half
         lows.append(lo)
         highs.append(hi)
-    if not lows:
-        return None
     ends = [(o, o + s * (n - 1)) for o, s, n in zip(grid.origin, grid.step, grid.shape)]
     first = np.array([e[0] for e in ends])
     last = np.array([e[1] for e in ends])

@@ -88,10 +88,10 @@ class Tracker:
         self.recovery = Recovery(self.lifecycle, motion, self.gate_probability) \
             if reacquire else None
         self.frame_interval_s, self.backend = float(frame_interval_s), backend
-        self.gated_search, self._fallback_sigma = bool(gated_search), float(fallback_sigma_m)
+        self.gated_search, self.fallback_sigma_m = bool(gated_search), float(fallback_sigma_m)
         self.max_sigma_m, self.max_birge_ratio = max_sigma_m, max_birge_ratio
         self._as_measurement = functools.partial(
-            kalman.measurement, d=self.dims, fallback_sigma_m=float(fallback_sigma_m),
+            kalman.measurement, d=self.dims, fallback_sigma_m=self.fallback_sigma_m,
             min_sigma_m=float(min_sigma_m),
             unseen_axis=_unseen_axis(layout))
         self.tracks: list[Track] = []  # live
