@@ -177,3 +177,81 @@ def test_blocking_in_components_is_the_vector_forms():
         assert np.allclose(got, want, rtol=0, atol=1e-12)
         partial += bool(np.any((want > 0) & (want < 1)))
     assert partial >= 20  # the cases do block, partly
+
+
+# ---------------------------------------------------------------- a partly hidden plate's size
+NARROW = np.array([3.492, 3.09, -0.005, 0.14, 0.347, 3.153])  # FAR fitted over its visible part
+
+
+def test_a_half_hidden_plate_fits_narrower_than_it_is_without_a_size_prior(host):
+    """The degeneracy the size prior is for: FAR, half behind NEAR, is explained better by a
+    0.14 m plate over its visible part (0.09 m off) than by its true 0.3 m row. From a start a
+    tracker may give (6 cm towards the visible part, 0.2 m wide: a fit that began to shrink),
+    the data alone fit it narrow and > 4 cm off; with the size it had when seen whole
+    (model.warm.size_prior, sd 15 mm) it comes back within 2 cm at its size."""
+    from nlos_cl.localization.model.warm import size_prior
+    truth = np.stack([NEAR, FAR])
+    assert fit(host, np.stack([NEAR, NARROW]), FREE, 30).cost < fit(host, truth, FREE, 30).cost
+    start = truth.copy()
+    start[1, plate.Y] += 0.06
+    start[1, plate.WIDTH] = 0.2
+    alone = fit(host, start, FREE, 30)
+    assert np.linalg.norm(alone.params[1, :3] - FAR[:3]) > 0.04
+    assert alone.params[1, plate.WIDTH] < 0.25
+    prior = size_prior(host, start, (truth[:, 3:5], np.full((2, 2), 0.015)))
+    assert prior is not None and np.isinf(prior[1][0]).all()  # NEAR: nothing hides it
+    np.testing.assert_array_equal(prior[0][1, 3:5], FAR[3:5])  # FAR starts at its known size
+    held = fit(host, prior[0], FREE, 30, prior=prior)
+    assert np.linalg.norm(held.params[1, :3] - FAR[:3]) < 0.02
+    assert abs(held.params[1, plate.WIDTH] - FAR[plate.WIDTH]) < 0.02
+    # the reported cost is the data's alone, the prior's apart
+    cols = host.columns(held.params)
+    r = host.residual(cols, host.linear(cols))
+    assert held.cost == pytest.approx(float(r @ r), rel=1e-9) and held.prior_cost > 0
+
+
+def test_no_size_prior_where_nothing_hides_a_plate_or_no_size_is_known(host):
+    from nlos_cl.localization.model.warm import size_prior
+    truth = np.stack([NEAR, FAR])
+    assert size_prior(host, truth, None) is None
+    assert size_prior(host, truth, (truth[:, 3:5], np.full((2, 2), np.inf))) is None
+    aside = np.array([-3.0, 1.0, 0.0, 0.3, 0.3, 0.0])
+    apart = np.stack([FAR, aside])
+    assert size_prior(host, apart, (apart[:, 3:5], np.full((2, 2), 0.01))) is None
+    assert size_prior(host, FAR[None], (FAR[None, 3:5], np.full((1, 2), 0.01))) is None
+
+
+def test_a_prior_with_no_finite_sd_changes_no_bit_and_a_tight_one_holds(host):
+    """prior=(mean, inf) is the fit without one (bit for bit); a 1 mm sd on FAR's width holds
+    it within 3 mm of the mean, and the covariance knows it (width sd <= 1.5 mm)."""
+    truth = np.stack([NEAR, FAR])
+    start = truth.copy()
+    start[1, plate.X] += 0.01
+    plain = fit(host, start, FREE, 8)
+    none = fit(host, start, FREE, 8, prior=(start, np.full(start.shape, np.inf)))
+    assert plain.params.tobytes() == none.params.tobytes() and plain.cost == none.cost
+    assert none.prior is None and none.prior_cost == 0.0
+    sd = np.full(start.shape, np.inf)
+    sd[1, plate.WIDTH] = 0.001
+    mean = truth.copy()
+    mean[1, plate.WIDTH] = 0.28
+    tight = fit(host, start, FREE, 30, prior=(mean, sd))
+    assert abs(tight.params[1, plate.WIDTH] - 0.28) < 0.003
+    cov, _ = covariance(host, tight, FREE)
+    width = plate.N_PARAMS + plate.WIDTH
+    assert np.sqrt(cov[width, width]) < 0.0015
+    cov_plain, _ = covariance(host, plain, FREE)
+    assert cov_plain[width, width] > 4 * cov[width, width]
+
+
+def test_hidden_shares_agree_with_the_simulators_ray_caster(host):
+    """FAR's hidden share (12 x 12 points, every spot, the ramps) against the any-hit ray
+    caster's on a 60 x 60 lattice: within one lattice column (1/12); NEAR: nothing hides it."""
+    truth = np.stack([NEAR, FAR])
+    got = shadow.hidden_shares(truth, host.obs.laser, host.obs.spots, host.lattice)
+    facets = plate.plate_facets(FAR, (60, 60))
+    meshes = [nl.rectangle(0.3, 0.3, centre=FAR[:3]), nl.rectangle(0.3, 0.3, centre=NEAR[:3])]
+    hard = visibility(facets, np.zeros(3), SPOTS, meshes, 0, caster=any_hit_brute)
+    assert got[0] == 0.0
+    assert abs(got[1] - (1.0 - hard.mean())) < 1.0 / 12
+    assert 0.3 < got[1] < 0.7

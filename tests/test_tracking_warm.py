@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import nlos_cl as nl
-from nlos_cl.localization.estimate import Scored
-from nlos_cl.localization.fit_result import ModelFit, WarmStart
+from nlos_cl.localization.estimate import Prior, Scored
+from nlos_cl.localization.fit_result import ModelFit, Parameter, WarmStart
 from nlos_cl.localization.model import ModelEstimator
 from nlos_cl.localization.model.batch import CHUNK_ROWS, HostProblem
 from nlos_cl.localization.model.likelihood import Problem
@@ -222,10 +222,43 @@ def test_a_misfit_warm_fit_is_kept_where_the_cold_fit_costs_more(monkeypatch):
         monkeypatch.setattr(warm, "warm_fit", lambda *a, **k: (None, dict(info), missed))
         monkeypatch.setattr(ModelEstimator, "_cold", lambda self, *a: fitted(cold_cost, 100))
         got, got_info = estimator._warm_or_cold(est, NS(backend=None), None, None, None, 0.0,
-                                                row, {})
+                                                Prior(row[None]), {})
         assert (got is missed) == keep_warm
         if keep_warm:
             assert got_info["used"] and "the cold fit cost more" in got_info["reason"]
             assert got[0].calls == 107  # the cold fit's 100 evaluations counted
         else:
             assert not got_info["used"] and got[2].cost == 5.0
+
+
+def test_a_track_learns_its_size_only_where_the_fit_saw_the_plate_whole():
+    """warm.remember: a fit with hidden_share <= model.warm.HIDDEN_SHARE adds its size, a
+    partly hidden one (which fits small) does not; warm.prior carries the mean size and its sd
+    (5 % of it beside the sizes' own scatter), inf where no size is known yet."""
+    from nlos_cl.tracking.track import Track
+
+    def measured(width, hidden):
+        params = tuple(Parameter(n, v, -9.0, 9.0, True, 0.01) for n, v in
+                       zip(("x", "y", "z", "width", "height", "yaw"),
+                           (3.0, 2.0, 0.0, width, 0.5, 3.1)))
+        fit = ModelFit("plate", "upright plate", params, 1.0, np.zeros(3), "gauss", 0.0, 1, 1.0,
+                       True, diagnostics={"hidden_share": hidden})
+        src = nl.LocatedTarget(np.array([3.0, 2.0, 0.0]), np.diag([1e-4] * 3), fit=fit)
+        return kalman.measurement(src, 2, fallback_sigma_m=0.05, min_sigma_m=0.002)
+    track = Track(1, np.array([3.0, 2.0, 0.0, 0.0]), np.eye(4) * 1e-4, 0.0, status="confirmed")
+    for width in (0.40, 0.42, 0.38):
+        warm.remember(track, measured(width, 0.0))
+    warm.remember(track, measured(0.15, 0.45))  # half hidden: fitted small, not learnt
+    assert track.plate[3] == 0.15  # still the next warm start's row
+    size, sd = warm.size_of(track)
+    np.testing.assert_allclose(size, [0.40, 0.5])
+    np.testing.assert_allclose(sd[0], np.hypot(0.05 * 0.40, np.std([0.40, 0.42, 0.38])))
+    prior = warm.prior([kalman.Prediction(track, np.array([3.1, 2.0, 0.0, 0.0]), np.eye(4))])
+    np.testing.assert_allclose(prior.rows[0, :2], [3.1, 2.0])
+    np.testing.assert_allclose(prior.size[0], [0.40, 0.5])
+    assert prior.rows[0, 3] == 0.15  # the start row is the last plate's; the estimator decides
+    fresh = Track(2, np.zeros(4), np.eye(4), 0.0, status="confirmed")
+    warm.remember(fresh, measured(0.3, 0.0))
+    fresh.sizes.clear()
+    none = warm.prior([kalman.Prediction(fresh, np.zeros(4), np.eye(4))])
+    assert np.isinf(none.size_sd).all()

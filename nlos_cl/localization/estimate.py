@@ -131,9 +131,15 @@ def capabilities_of(estimator) -> Capabilities:
 class Prior:
     """Where a frame's targets are expected, to start a fit from (a tracker's prediction):
     `rows` (K, n) of the estimator's shape parameters (the model estimator: plate rows x, y, z,
-    width, height, yaw), one per target."""
+    width, height, yaw), one per target. size, size_sd: None, or (K, 2) each, each target's
+    width and height as known from elsewhere (e.g. the frames where nothing hid it) and their
+    sd (inf: not known): the model estimator starts a plate the others partly hide at that size
+    and holds it there within size_sd, since there the data cannot tell a partly hidden plate
+    from a smaller one (nlos_cl.localization.model.warm.size_prior)."""
 
     rows: np.ndarray
+    size: np.ndarray | None = None
+    size_sd: np.ndarray | None = None
 
 
 class Estimator(Protocol):

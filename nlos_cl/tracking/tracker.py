@@ -180,7 +180,7 @@ class Tracker:
         pairs, free = association.associate(self.tracks, measurements, self.gate_probability)
         for track, m in pairs:
             kalman.update_track(track, m)
-            track.plate = warm.plate_of(m)
+            warm.remember(track, m)
         paired = {id(tr) for tr, _ in pairs}
         if self.recovery is not None:  # a lost target re-found continues its track
             recovered, free = self.recovery.step(self.tracks, paired, free, t, self.frame_index,

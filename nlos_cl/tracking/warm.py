@@ -40,6 +40,32 @@ def plate_of(measurement):
     return fit.values()
 
 
+# A size prior's sd relative to the remembered size, beside the remembered sizes' own scatter:
+# a rigid target keeps its size; 5 % lets a plate model of a non-rigid one (a person turning)
+# follow. It acts only where another plate can shadow the target (model.warm.size_prior).
+SIZE_REL_SD = 0.05
+
+
+def remember(track, measurement) -> None:
+    """After pairing: the track's warm-start plate, and its size where the fit saw the plate
+    whole (the others hid <= model.warm.HIDDEN_SHARE of its paths: a partly hidden plate
+    fits smaller, model.warm.size_prior)."""
+    from ..localization.model.warm import HIDDEN_SHARE
+    track.plate = plate_of(measurement)
+    fit = getattr(measurement.source, "fit", None)
+    if track.plate is not None and fit.diagnostics.get("hidden_share", 0.0) <= HIDDEN_SHARE:
+        track.sizes.append(track.plate[3:5].copy())
+
+
+def size_of(track):
+    """(size (2,), sd (2,)) the track's remembered plate size, or None (none remembered)."""
+    if not track.sizes:
+        return None
+    sizes = np.array(track.sizes)
+    mean = sizes.mean(axis=0)
+    return mean, np.sqrt((SIZE_REL_SD * mean) ** 2 + sizes.var(axis=0))
+
+
 def starters(predictions, targets: int) -> list | None:
     """The predictions of the confirmed tracks with a plate, if there are exactly `targets`
     of them (else None: no warm start)."""
@@ -49,14 +75,19 @@ def starters(predictions, targets: int) -> list | None:
 
 def prior(starters) -> Prior:
     """The start tracks' last plates, their centres moved to the predicted positions (z too
-    where the track is 3D; a 2D track keeps the plate's own height)."""
-    rows = []
+    where the track is 3D; a 2D track keeps the plate's own height), and the tracks'
+    remembered sizes and their sd (`size_of`; inf: none remembered), which the estimator uses
+    for a plate the others partly hide (Prior.size)."""
+    rows, size, size_sd = [], [], []
     for p in starters:
         tr, x = p.track, p.x
         row = tr.plate.copy()
         row[:tr.dims] = x[:tr.dims]
         rows.append(row)
-    return Prior(np.array(rows))
+        known = size_of(tr) or (row[3:5], np.full(2, np.inf))
+        size.append(known[0])
+        size_sd.append(known[1])
+    return Prior(np.array(rows), np.array(size), np.array(size_sd))
 
 
 def outside_gates(measurements, predictions, gate_probability) -> bool:

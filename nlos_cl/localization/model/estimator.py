@@ -107,7 +107,7 @@ class ModelEstimator:
         runs, from there (nlos_cl.localization.model.warm), and the full fit replaces it where
         it misses the data; each target's fit.warm_start says which. start=rows is
         prior=Prior(rows)."""
-        start = prior.rows if prior is not None else start
+        prior = Prior(start) if prior is None and start is not None else prior
         clock = {"start": time.perf_counter()}
         paper = scored.paper  # the Locator's fused search, or (no map read yet) from the scores
         if paper is None:
@@ -123,7 +123,7 @@ class ModelEstimator:
             return Estimate(list(paper.targets), paper.cell_position, paper.score)
         observable = held.axis != 2  # the height (ModelFit.height_observable)
         free = held.free_mask()
-        fitted, warm_info = _warm_or_cold(self, scored, obs, paper, free, held, start, clock)
+        fitted, warm_info = _warm_or_cold(self, scored, obs, paper, free, held, prior, clock)
         problem, chosen, result, free, (cov_all, info), history = fitted
         if warm_info is not None:
             info = dict(info, warm_start=warm_info)
@@ -131,8 +131,9 @@ class ModelEstimator:
         for note in notes:
             warnings.warn(note, stacklevel=3)
         self.timings = _stages(clock, problem)
-        located = [self._target(result, cov_all, k, info, notes, obs, history, observable,
-                                chosen.shape)
+        hidden = _hidden(chosen, result.params)
+        located = [self._target(result, cov_all, k, dict(info, hidden_share=hidden[k]), notes,
+                                obs, history, observable, chosen.shape)
                    for k in _order(result)]
         if self.sanity:
             located = checked(located, paper.targets[0].position, obs.spots, obs.laser)
@@ -247,14 +248,28 @@ def _model_fit(shape, p, result, cov_all, k, info, notes, obs, history, observab
                     None if warm is None else WarmStart(**warm), diagnostics)
 
 
-def _warm_or_cold(est, scored, obs, paper, free, held, start, clock):
-    """(fitted, warm_info): the warm fit from `start` where it explains the data, else the cold
-    fit, unless the cold fit costs more than the misfit warm one (same data, same K)."""
+def _hidden(problem, params) -> list[float]:
+    """Per target of params, the share of its paths the other targets block
+    (model.shadow.hidden_shares; 0 for every target of a problem without shadows): a tracker
+    learns a target's size from the frames where it was seen whole (nlos_cl.tracking.warm)."""
+    if not getattr(problem, "shadows", False) or len(params) < 2:
+        return [0.0] * len(params)
+    from .shadow import hidden_shares
+    obs = problem.obs
+    return [round(float(h), 4) for h in hidden_shares(params, obs.laser, obs.spots,
+                                                       problem.lattice)]
+
+
+def _warm_or_cold(est, scored, obs, paper, free, held, prior, clock):
+    """(fitted, warm_info): the warm fit from the Prior's rows (and sizes) where it explains
+    the data, else the cold fit, unless the cold fit costs more than the misfit warm one (same
+    data, same K)."""
     fitted, warm_info, missed = None, None, None
-    if start is not None:
+    if prior is not None:
+        sizes = None if prior.size_sd is None else (prior.size, prior.size_sd)
         from .warm import warm_fit
-        fitted, warm_info, missed = warm_fit(est, obs, start_rows(est, start), free, held,
-                                             scored.backend)
+        fitted, warm_info, missed = warm_fit(est, obs, start_rows(est, prior.rows), free, held,
+                                             scored.backend, sizes)
         clock["warm_fit"] = time.perf_counter()
     if fitted is None:
         fitted = est._cold(scored, obs, paper, free, held, clock)

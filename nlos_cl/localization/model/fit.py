@@ -40,6 +40,10 @@ class FitResult:
     n_residuals: int
     nfev: int
     cov: np.ndarray | None = None  # (K*N, K*N) over all parameters (inf where fixed)
+    # a Gaussian prior on parameters, (mean (K, N), sd (K, N); inf: none), or None: the fit
+    # minimised cost + prior_cost; `cost` is the data's alone (Birge ratios, comparisons)
+    prior: tuple | None = None
+    prior_cost: float = 0.0
 
 
 def shape_of(problem):
@@ -50,12 +54,17 @@ def shape_of(problem):
 class _Objective:
     """Residual and Jacobian of the profiled problem over the free parameters."""
 
-    def __init__(self, problem, params0, free):
+    def __init__(self, problem, params0, free, prior=None):
         self.problem, self.shape = problem, shape_of(problem)
         self.base = np.array(params0, dtype=np.float64).reshape(-1, self.shape.N_PARAMS)
         self.free = np.tile(np.asarray(free, bool), len(self.base))
         self.steps = np.tile(self.shape.STEPS, len(self.base))[self.free]
         self._key, self._cols, self._lin = None, None, None
+        # the prior's residuals (theta[at] - mean) / sd, over the free parameters it bounds
+        self.at, self.mean, self.sd = _prior_terms(prior, self.base.shape, self.free)
+
+    def prior_residual(self, theta):
+        return (np.asarray(theta)[self.at] - self.mean) / self.sd
 
     def full(self, theta):
         p = self.base.reshape(-1).copy()
@@ -77,7 +86,8 @@ class _Objective:
 
     def residual(self, theta):
         cols, lin = self._eval(theta)
-        return self.problem.residual(cols, lin)
+        r = self.problem.residual(cols, lin)
+        return np.concatenate([r, self.prior_residual(theta)]) if self.at.size else r
 
     def jac(self, theta):
         """Forward differences along every free parameter; the moved targets' histograms in
@@ -95,7 +105,15 @@ class _Objective:
         base = self.problem.residual(cols, lin)
         out = [(self.problem.residual(moved, self.problem.linear(moved, lin)) - base) / step
                for moved, step in zip(stepped, self.steps)]
-        return np.stack(out, axis=1)
+        return self._with_prior(np.stack(out, axis=1))
+
+    def _with_prior(self, jac):
+        """The data's Jacobian (rows: residuals) with the prior's rows below (exact: linear)."""
+        if not self.at.size:
+            return jac
+        rows = np.zeros((self.at.size, jac.shape[1]))
+        rows[np.arange(self.at.size), self.at] = 1.0 / self.sd
+        return np.vstack([jac, rows])
 
     def column(self, theta, j):
         """Forward difference along free parameter j: one forward call, only the target whose
@@ -111,7 +129,19 @@ class _Objective:
             moved = cols.copy()
             moved[k] = self.problem.column(p)
         r = self.problem.residual(moved, self.problem.linear(moved, lin))
-        return (r - self.problem.residual(cols, lin)) / self.steps[j]
+        col = (r - self.problem.residual(cols, lin)) / self.steps[j]
+        return np.concatenate([col, (self.at == j) / self.sd]) if self.at.size else col
+
+
+def _prior_terms(prior, shape, free):
+    """(indices into the free parameters, means, sds) of a prior (mean (K, N), sd (K, N),
+    inf: none) on the free parameters; empty arrays without one."""
+    if prior is None:
+        return np.zeros(0, int), np.zeros(0), np.zeros(0)
+    mean, sd = (np.broadcast_to(np.asarray(v, np.float64), shape).reshape(-1)[free]
+                for v in prior)
+    at = np.flatnonzero(np.isfinite(sd))
+    return at, mean[at], sd[at]
 
 
 def analytic_derivatives(problem, params):
@@ -174,10 +204,12 @@ def stepped_columns(problem, params, cols, moves) -> np.ndarray:
     return out
 
 
-def fit(problem, params0, free, max_nfev=30, tau=None, atol=None) -> FitResult:
+def fit(problem, params0, free, max_nfev=30, tau=None, atol=None, prior=None) -> FitResult:
     """Least squares from params0 (K, N_PARAMS) over the parameters marked in `free`
-    (N_PARAMS,). tau, atol: model.lm's (tau None: its default; atol None: off)."""
-    obj = _Objective(problem, params0, free)
+    (N_PARAMS,). tau, atol: model.lm's (tau None: its default; atol None: off). prior: None,
+    or (mean, sd), each (K, N_PARAMS) (sd inf: no prior on that parameter): a Gaussian prior
+    on the parameters, its residuals (p - mean) / sd minimised with the data's (a MAP fit)."""
+    obj = _Objective(problem, params0, free, prior)
     shape, k = obj.shape, len(obj.base)
     lo, hi = (np.tile(b, k)[obj.free] for b in (shape.LOWER, shape.UPPER))
     theta0 = np.clip(obj.base.reshape(-1)[obj.free], lo + 1e-6, hi - 1e-6)
@@ -187,7 +219,9 @@ def fit(problem, params0, free, max_nfev=30, tau=None, atol=None) -> FitResult:
                         atol=atol, **({} if tau is None else {"tau": tau}))
     cols, lin = obj._eval(sol.x)
     r = problem.residual(cols, lin)
-    return FitResult(obj.full(sol.x), lin, float(r @ r), int(r.size), int(sol.nfev))
+    pr = obj.prior_residual(sol.x)
+    return FitResult(obj.full(sol.x), lin, float(r @ r), int(r.size), int(sol.nfev),
+                     prior=prior if obj.at.size else None, prior_cost=float(pr @ pr))
 
 
 def _mean_jacobian(problem, params, lin, free):
@@ -269,11 +303,17 @@ def covariance(problem, result: FitResult, free) -> tuple[np.ndarray, dict]:
     cols, jmu = _mean_jacobian(problem, params, result.linear, free)
     mu = problem.mean(cols, result.linear)
     n_free = int(np.count_nonzero(free)) * len(params)
+    # a MAP fit's prior adds its precision to the information (model.fit's `prior`)
+    precision = np.zeros(jmu.shape[-1])
+    if result.prior is not None:
+        mask = np.tile(np.asarray(free, bool), len(params))
+        sd = np.broadcast_to(np.asarray(result.prior[1], np.float64), params.shape)
+        precision[:n_free] = 1.0 / sd.reshape(-1)[mask] ** 2  # inf sd: 0
     if obs.mode == "gauss":
         j = (jmu / obs.noise[:, None, None])[obs.valid]
         meat, trace = _correlated_terms(obs, j)
-        inv = _scaled_pinv(j.T @ j)
-        cov = inv @ meat @ inv
+        inv = _scaled_pinv(j.T @ j + np.diag(precision))
+        cov = inv @ (meat + np.diag(precision)) @ inv
         r = ((obs.y - mu) / obs.noise[:, None])[obs.valid]
         expected = float(trace - np.trace(inv @ meat))
         birge = float(r @ r) / max(expected, 1.0)
@@ -282,7 +322,7 @@ def covariance(problem, result: FitResult, free) -> tuple[np.ndarray, dict]:
     else:
         lam = np.maximum(mu, 1e-12)[obs.valid]
         j = jmu[obs.valid]
-        cov = _scaled_pinv(j.T @ (j / lam[:, None]))
+        cov = _scaled_pinv(j.T @ (j / lam[:, None]) + np.diag(precision))
         info = {"deviance": result.cost, "n_bins": int(obs.valid.sum())}
     full = np.full((params.size, params.size), np.inf)
     mask = np.tile(np.asarray(free, bool), len(params))

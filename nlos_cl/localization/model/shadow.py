@@ -72,6 +72,24 @@ def occluders_of(params, laser, spots, lattice) -> list[np.ndarray]:
             for j in range(len(params))]
 
 
+HIDDEN_LATTICE = (12, 12)  # points a plate's hidden share is taken over (`hidden_shares`)
+
+
+def hidden_shares(params, laser, spots, lattice) -> np.ndarray:
+    """(K,) per plate row of params (K, 6), the share of its paths (laser spot -> point ->
+    detector spot, over a HIDDEN_LATTICE of its points and every spot, unweighted) that the
+    other plates block: 0 where none can (`occluders_of`). What a tracker reads to learn a
+    target's size only from frames where it was seen whole (nlos_cl.tracking.warm)."""
+    params = np.reshape(np.asarray(params, float), (-1, plate.N_PARAMS))
+    out = np.zeros(len(params))
+    for k, which in enumerate(occluders_of(params, laser, spots, lattice)):
+        if len(which):
+            points = plate.plate_facets(params[k], HIDDEN_LATTICE).centres
+            cell = cell_size(params[k], HIDDEN_LATTICE)[0]
+            out[k] = 1.0 - float(visible(points, laser, spots, params[which], cell).mean())
+    return out
+
+
 def _ramp(distance, width):
     """0 -> 1 linearly over `width` centred on distance 0 (inside: distance > 0)."""
     return np.clip(0.5 + distance / width, 0.0, 1.0)
