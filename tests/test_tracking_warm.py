@@ -233,8 +233,9 @@ def test_a_misfit_warm_fit_is_kept_where_the_cold_fit_costs_more(monkeypatch):
 
 def test_a_track_learns_its_size_only_where_the_fit_saw_the_plate_whole():
     """warm.remember: a fit with hidden_share <= model.warm.HIDDEN_SHARE adds its size, a
-    partly hidden one (which fits small) does not; warm.prior carries the mean size and its sd
-    (5 % of it beside the sizes' own scatter), inf where no size is known yet."""
+    partly hidden one (which fits small) does not, but a track's first plate seeds the memory
+    (a target never seen whole keeps the size it was found with); warm.prior carries the mean
+    size and its sd (5 % of it beside the sizes' own scatter), inf where no size is known."""
     from nlos_cl.tracking.track import Track
 
     def measured(width, hidden):
@@ -257,6 +258,10 @@ def test_a_track_learns_its_size_only_where_the_fit_saw_the_plate_whole():
     np.testing.assert_allclose(prior.rows[0, :2], [3.1, 2.0])
     np.testing.assert_allclose(prior.size[0], [0.40, 0.5])
     assert prior.rows[0, 3] == 0.15  # the start row is the last plate's; the estimator decides
+    born_hidden = Track(3, np.zeros(4), np.eye(4), 0.0, status="confirmed")
+    warm.remember(born_hidden, measured(0.45, 0.3))
+    warm.remember(born_hidden, measured(0.20, 0.3))  # shrinking in the shadow: not learnt
+    np.testing.assert_allclose(np.array(born_hidden.sizes), [[0.45, 0.5]])
     fresh = Track(2, np.zeros(4), np.eye(4), 0.0, status="confirmed")
     warm.remember(fresh, measured(0.3, 0.0))
     fresh.sizes.clear()
