@@ -22,19 +22,24 @@ FREE = np.ones(plate.N_PARAMS, bool)
 
 
 @pytest.fixture(scope="module")
-def host():
-    """The estimator's host problem on a 10 dB frame of NEAR and FAR (occlusion simulated)."""
+def pair_scored():
+    """A scored 10 dB frame of NEAR and FAR (occlusion simulated)."""
     setup = nl.paper_setup(detector_spots=SPOTS)
     near, far = (nl.Target(nl.rectangle(0.3, 0.3, centre=p[:3])) for p in (NEAR, FAR))
     scene = nl.Scene(setup, near, truth=NEAR[:3], more_targets=(far,))
     raw = nl.add_noise(nl.simulate(scene), 10, seed=0)
     filtered = nl.gauss_filter(raw)
     locator = nl.Locator(filtered, GRID, estimator="model", log_mode=True)
-    scored = Scored(filtered.backend, locator.scores(filtered), GRID, True,
-                    filtered.n_detectors, filtered, raw)
+    return Scored(filtered.backend, locator.scores(filtered), GRID, True,
+                  filtered.n_detectors, filtered, raw)
+
+
+@pytest.fixture(scope="module")
+def host(pair_scored):
+    """The estimator's host problem on that frame."""
     est = ModelEstimator(targets=2)
-    obs = est.observation(scored)
-    problem = est.problem(obs, filtered.backend)
+    obs = est.observation(pair_scored)
+    problem = est.problem(obs, pair_scored.backend)
     assert problem.shadows  # a host problem: 8 spots
     return problem
 
@@ -201,6 +206,9 @@ def test_a_half_hidden_plate_fits_narrower_than_it_is_without_a_size_prior(host)
     prior = size_prior(host, start, (truth[:, 3:5], np.full((2, 2), 0.015)))
     assert prior is not None and np.isinf(prior[1][0]).all()  # NEAR: nothing hides it
     np.testing.assert_array_equal(prior[0][1, 3:5], FAR[3:5])  # FAR starts at its known size
+    restarted = fit(host, prior[0], FREE, 30)  # the known size as a start alone: not enough
+    assert np.linalg.norm(restarted.params[1, :3] - FAR[:3]) > 0.04
+    assert restarted.params[1, plate.WIDTH] < 0.25
     held = fit(host, prior[0], FREE, 30, prior=prior)
     assert np.linalg.norm(held.params[1, :3] - FAR[:3]) < 0.02
     assert abs(held.params[1, plate.WIDTH] - FAR[plate.WIDTH]) < 0.02
@@ -272,3 +280,30 @@ def test_a_misfit_plate_another_can_shadow_is_refitted_from_facing_yaws(host):
     assert np.linalg.norm(again.params[1, :3] - FAR[:3]) < 0.02
     good = fit(host, truth, FREE, 30)
     assert select.reseat_shadowed(host, good, FREE, 30) is good
+
+
+def test_the_estimator_holds_a_hidden_plate_and_says_so(pair_scored):
+    """ModelEstimator.estimate with a Prior carrying sizes (as the tracker passes it): FAR,
+    started as a tracker whose fit began to shrink would start it, keeps its size and place;
+    each target's diagnostics give its hidden share (FAR > model.warm.HIDDEN_SHARE, taken at
+    the known size) and whether the size prior held it (FAR yes, NEAR no)."""
+    from nlos_cl.localization.estimate import Prior
+    from nlos_cl.localization.model.warm import HIDDEN_SHARE, HIDDEN_SHARE_KEY
+    start = np.stack([NEAR, FAR])
+    start[1, plate.Y] += 0.06
+    start[1, plate.WIDTH] = 0.2
+    sizes = np.stack([NEAR[3:5], FAR[3:5]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        out = ModelEstimator(targets=2).estimate(pair_scored, Prior(start, sizes,
+                                                                    np.full((2, 2), 0.015)))
+    far = min(out.targets, key=lambda t: np.linalg.norm(t.position - FAR[:3]))
+    near = min(out.targets, key=lambda t: np.linalg.norm(t.position - NEAR[:3]))
+    assert far.fit.warm_start.used
+    assert np.linalg.norm(far.position - FAR[:3]) < 0.02
+    assert abs(far.fit.values()[plate.WIDTH] - FAR[plate.WIDTH]) < 0.02
+    assert far.fit.diagnostics[HIDDEN_SHARE_KEY] > HIDDEN_SHARE
+    assert far.fit.diagnostics["size_held"] and not near.fit.diagnostics["size_held"]
+    assert near.fit.diagnostics[HIDDEN_SHARE_KEY] <= HIDDEN_SHARE
+    with pytest.raises(nl.InputError, match="size_sd"):
+        ModelEstimator(targets=2).estimate(pair_scored, Prior(start, None, np.ones((2, 2))))

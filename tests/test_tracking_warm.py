@@ -229,6 +229,13 @@ def test_a_misfit_warm_fit_is_kept_where_the_cold_fit_costs_more(monkeypatch):
             assert got[0].calls == 107  # the cold fit's 100 evaluations counted
         else:
             assert not got_info["used"] and got[2].cost == 5.0
+    seen = []  # the Prior's sizes reach the warm fit (model.warm.size_prior), checked
+    monkeypatch.setattr(warm, "warm_fit", lambda *a, **k: seen.append(a) or
+                        (None, dict(info), fitted(10.0, 7)))
+    estimator._warm_or_cold(est, NS(backend=None), None, None, None, 0.0,
+                            Prior(row[None], row[None, 3:5], np.full((1, 2), 0.02)), {})
+    np.testing.assert_array_equal(seen[0][6][0], row[None, 3:5])
+    np.testing.assert_array_equal(seen[0][6][1], np.full((1, 2), 0.02))
 
 
 def test_a_track_learns_its_size_only_where_the_fit_saw_the_plate_whole():
@@ -247,17 +254,22 @@ def test_a_track_learns_its_size_only_where_the_fit_saw_the_plate_whole():
         src = nl.LocatedTarget(np.array([3.0, 2.0, 0.0]), np.diag([1e-4] * 3), fit=fit)
         return kalman.measurement(src, 2, fallback_sigma_m=0.05, min_sigma_m=0.002)
     track = Track(1, np.array([3.0, 2.0, 0.0, 0.0]), np.eye(4) * 1e-4, 0.0, status="confirmed")
-    for width in (0.40, 0.42, 0.38):
-        warm.remember(track, measured(width, 0.0))
+    warm.remember(track, measured(0.60, 0.30))  # the first plate seeds the memory...
+    assert track.size_seeded
+    for width, hidden in ((0.40, 0.0), (0.42, 0.05), (0.38, 0.0)):  # ...until one seen whole
+        warm.remember(track, measured(width, hidden))
+    assert not track.size_seeded
     warm.remember(track, measured(0.15, 0.45))  # half hidden: fitted small, not learnt
-    assert track.plate[3] == 0.15  # still the next warm start's row
+    warm.remember(track, measured(0.16, 0.06))  # just over HIDDEN_SHARE: not learnt
+    warm.remember(track, measured(0.17, None))  # unknown (K >= 2 without shadows): not learnt
+    assert track.plate[3] == 0.17  # still the next warm start's row
     size, sd = warm.size_of(track)
     np.testing.assert_allclose(size, [0.40, 0.5])
     np.testing.assert_allclose(sd[0], np.hypot(0.05 * 0.40, np.std([0.40, 0.42, 0.38])))
     prior = warm.prior([kalman.Prediction(track, np.array([3.1, 2.0, 0.0, 0.0]), np.eye(4))])
     np.testing.assert_allclose(prior.rows[0, :2], [3.1, 2.0])
     np.testing.assert_allclose(prior.size[0], [0.40, 0.5])
-    assert prior.rows[0, 3] == 0.15  # the start row is the last plate's; the estimator decides
+    assert prior.rows[0, 3] == 0.17  # the start row is the last plate's; the estimator decides
     born_hidden = Track(3, np.zeros(4), np.eye(4), 0.0, status="confirmed")
     warm.remember(born_hidden, measured(0.45, 0.3))
     warm.remember(born_hidden, measured(0.20, 0.3))  # shrinking in the shadow: not learnt
@@ -267,3 +279,22 @@ def test_a_track_learns_its_size_only_where_the_fit_saw_the_plate_whole():
     fresh.sizes.clear()
     none = warm.prior([kalman.Prediction(fresh, np.zeros(4), np.eye(4))])
     assert np.isinf(none.size_sd).all()
+
+
+def test_the_paper_tracker_never_imports_the_model_package():
+    """warm.remember on a measurement without a plate fit (the paper's estimator) returns
+    before anything of nlos_cl.localization.model is imported (a fresh interpreter)."""
+    import subprocess
+    import sys
+    code = ("import sys, numpy as np, nlos_cl as nl\n"
+            "from nlos_cl.tracking import kalman, warm\n"
+            "from nlos_cl.tracking.track import Track\n"
+            "src = nl.LocatedTarget(np.array([3.0, 2.0, 0.0]), np.eye(3) * 1e-4)\n"
+            "m = kalman.measurement(src, 2, fallback_sigma_m=0.05, min_sigma_m=0.002)\n"
+            "t = Track(1, np.zeros(4), np.eye(4), 0.0)\n"
+            "warm.remember(t, m)\n"
+            "assert t.plate is None and not t.sizes\n"
+            "print('nlos_cl.localization.model' in sys.modules)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True)
+    assert out.stdout.strip() == "False"

@@ -133,9 +133,10 @@ class Prior:
     `rows` (K, n) of the estimator's shape parameters (the model estimator: plate rows x, y, z,
     width, height, yaw), one per target. size, size_sd: None, or (K, 2) each, each target's
     width and height as known from elsewhere (e.g. the frames where nothing hid it) and their
-    sd (inf: not known): the model estimator starts a plate the others partly hide at that size
-    and holds it there within size_sd, since there the data cannot tell a partly hidden plate
-    from a smaller one (nlos_cl.localization.model.warm.size_prior)."""
+    sd (inf: not known): the model estimator's warm fit starts a plate the others partly hide
+    at that size and holds it there within size_sd, since there the data cannot tell a partly
+    hidden plate from a smaller one (nlos_cl.localization.model.warm.size_prior); its cold
+    fallback ignores them."""
 
     rows: np.ndarray
     size: np.ndarray | None = None

@@ -13,7 +13,7 @@ import numpy as np
 from . import kalman
 from .motion import ConstantVelocity
 
-SIZE_MEMORY = 20  # recent unshadowed plate sizes a track keeps (its size prior: tracking.warm)
+SIZE_MEMORY = 20  # recent plate sizes seen whole a track keeps (its size prior: tracking.warm)
 
 @dataclass
 class Track:
@@ -37,8 +37,10 @@ class Track:
     steps: deque = field(default_factory=deque)
     pending: tuple | None = None  # (dt, x, P) of the last prediction, until it is recorded
     plate: np.ndarray | None = None  # the last paired fit's plate row (warm starts)
-    # (width, height) of the recent paired plate fits that nothing could shadow (warm.remember)
+    # (width, height) of the recent paired plate fits that saw the plate whole, or the first
+    # plate's alone until one did (size_seeded): the size prior of warm fits (warm.remember)
     sizes: deque = field(default_factory=lambda: deque(maxlen=SIZE_MEMORY))
+    size_seeded: bool = False
     # under an IMM (motion.Interacting): the modes whose mixture is state/covariance (valid
     # while those equal modes_of, copies of the mixture's: a state set or edited otherwise,
     # e.g. by a re-acquisition, restarts the modes), and this frame's predicted modes (the

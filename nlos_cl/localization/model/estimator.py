@@ -19,6 +19,7 @@ from ..fit_result import ModelFit, Parameter, WarmStart
 from ..paper import PaperArgmax
 from ..region import unseen_axis
 from . import data, plate
+from .warm import checked_sizes, hidden_diagnostics
 from .fit import centre_covariance, covariance
 from .likelihood import Problem
 from .depth import unseen_note
@@ -105,8 +106,8 @@ class ModelEstimator:
         Prior of (targets, 6) plate rows (x, y, z, width, height, yaw) to warm-start from, e.g.
         the previous frame's fit moved to where a tracker predicts it: only the final fit
         runs, from there (nlos_cl.localization.model.warm), and the full fit replaces it where
-        it misses the data; each target's fit.warm_start says which. start=rows is
-        prior=Prior(rows)."""
+        it misses the data; each target's fit.warm_start says which. Its size, size_sd hold a
+        plate the others hide (model.warm.size_prior). start=rows is prior=Prior(rows)."""
         prior = Prior(start) if prior is None and start is not None else prior
         clock = {"start": time.perf_counter()}
         paper = scored.paper  # the Locator's fused search, or (no map read yet) from the scores
@@ -131,8 +132,8 @@ class ModelEstimator:
         for note in notes:
             warnings.warn(note, stacklevel=3)
         self.timings = _stages(clock, problem)
-        hidden = _hidden(chosen, result.params)
-        located = [self._target(result, cov_all, k, dict(info, hidden_share=hidden[k]), notes,
+        hidden = hidden_diagnostics(chosen, result, warm_info and warm_info["used"] and prior)
+        located = [self._target(result, cov_all, k, dict(info, **hidden[k]), notes,
                                 obs, history, observable, chosen.shape)
                    for k in _order(result)]
         if self.sanity:
@@ -248,25 +249,13 @@ def _model_fit(shape, p, result, cov_all, k, info, notes, obs, history, observab
                     None if warm is None else WarmStart(**warm), diagnostics)
 
 
-def _hidden(problem, params) -> list[float]:
-    """Per target of params, the share of its paths the other targets block
-    (model.shadow.hidden_shares; 0 for every target of a problem without shadows): a tracker
-    learns a target's size from the frames where it was seen whole (nlos_cl.tracking.warm)."""
-    if not getattr(problem, "shadows", False) or len(params) < 2:
-        return [0.0] * len(params)
-    from .shadow import hidden_shares
-    obs = problem.obs
-    return [round(float(h), 4) for h in hidden_shares(params, obs.laser, obs.spots,
-                                                       problem.lattice)]
-
-
 def _warm_or_cold(est, scored, obs, paper, free, held, prior, clock):
     """(fitted, warm_info): the warm fit from the Prior's rows (and sizes) where it explains
     the data, else the cold fit, unless the cold fit costs more than the misfit warm one (same
-    data, same K)."""
+    data, same K; data costs alone: the warm fit's size prior is not counted)."""
     fitted, warm_info, missed = None, None, None
     if prior is not None:
-        sizes = None if prior.size_sd is None else (prior.size, prior.size_sd)
+        sizes = checked_sizes(prior, len(prior.rows))
         from .warm import warm_fit
         fitted, warm_info, missed = warm_fit(est, obs, start_rows(est, prior.rows), free, held,
                                              scored.backend, sizes)

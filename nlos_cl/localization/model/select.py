@@ -251,17 +251,18 @@ def fit_targets(problem, est, argmax_position, free, held):
 
 # Yaws (from facing the laser spot) a plate another can shadow is refitted from, with the
 # shadows, where the shadowed final fit misses the data (`reseat_shadowed`).
-RESEAT_YAWS = np.radians([-30.0, 0.0, 30.0])
+HIDDEN_RESEAT_YAWS = np.radians([-30.0, 0.0, 30.0])
 
 
 def reseat_shadowed(problem, result, free, final_nfev):
     """Where the shadowed final fit misses the data (`misfit`), each plate another can shadow
-    refitted (all plates, shadows on) from RESEAT_YAWS about facing the spots; the lowest
-    cost kept if it explains the data (a partly hidden plate's lower cost alone is no sign of
-    a better answer: a smaller plate over its lit part costs less too, model.warm.size_prior).
+    refitted (all plates, shadows on) from HIDDEN_RESEAT_YAWS about facing the laser spot; the
+    lowest cost kept if it explains the data (a partly hidden plate's lower cost alone is no
+    sign of a better answer: a smaller plate over its lit part costs less too,
+    model.warm.size_prior).
     The unshadowed search can leave a partly hidden plate in another yaw's basin: crossing draw
     34, frame 0 (a 0.5 m square a third hidden, facing the wall): yaw -2.79 rad, 0.13 m off,
-    Birge 7; from facing, yaw -1.54 rad, 0.013 m off, cost 989 against 8,205, Birge ~1. An
+    Birge 7; from facing the laser spot, yaw -1.54 rad, 0.013 m off, cost 989 against 8,205, Birge ~1. An
     adequate fit is returned as it is."""
     from .fit import shadowed_by
     if not misfit(problem, result, free, covariance(problem, result, free)[1])[0]:
@@ -269,7 +270,7 @@ def reseat_shadowed(problem, result, free, final_nfev):
     which = shadowed_by(problem, result.params)
     best = result
     for k in [] if which is None else [j for j, w in enumerate(which) if len(w)]:
-        for dyaw in RESEAT_YAWS:
+        for dyaw in HIDDEN_RESEAT_YAWS:
             rows = best.params.copy()
             rows[k, plate.YAW] = plate.facing(rows[k, :3], problem.obs.laser) + dyaw
             again = fit(problem, rows, free, final_nfev)

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...core.errors import require
 from . import plate
 from .fit import covariance, fit
 
@@ -79,11 +80,15 @@ def size_prior(problem, rows, sizes):
     """(mean, sd) over the rows' parameters for model.fit's `prior`, or None: each plate the
     others partly hide at the start (> HIDDEN_SHARE of its paths blocked) with a known size
     (sizes: (size, sd), (K, 2) each; sd inf: unknown) has the mean's width and height set to
-    that size, with that sd; the other rows and parameters are the start's, without a prior. Where a plate is partly hidden, a narrower plate
-    over its visible part explains the data as well or better (crossing draw 15, frame 27: the
-    true 0.52 m plate, half hidden, fitted at 0.19 m and 0.15 m off, costing less than the
-    truth even on noiseless data, so no better model fixes it); the size learnt while it was
-    seen whole decides. A plate nothing hides is fitted as without a prior: bit for bit."""
+    that size, with that sd; the other rows and parameters are the start's, without a prior.
+    Where a plate is partly hidden, a narrower plate over its visible part explains the data as
+    well or better (crossing draw 15, frame 27: the true 0.52 m plate, half hidden, fitted at
+    0.19 m and 0.15 m off, costing less than the truth even on noiseless data, so no better
+    model fixes it); the size learnt while it was seen whole decides. A frame in which no plate
+    is held is fitted as without a prior, bit for bit (one held plate moves the others' fit
+    too: the fit is joint). The cold fit the estimator falls back to has no prior, and the
+    warm/cold comparisons (estimator._warm_or_cold, tracking.warm.better) weigh data costs
+    alone: where a narrow plate costs less, a fallback takes it."""
     if sizes is None or not getattr(problem, "shadows", False) or len(rows) < 2:
         return None
     from .shadow import hidden_shares
@@ -97,3 +102,45 @@ def size_prior(problem, rows, sizes):
     mean[np.ix_(~held, SIZE)] = np.asarray(rows, float)[np.ix_(~held, SIZE)]
     sd[np.ix_(held, SIZE)] = size_sd[held]
     return (mean, sd) if held.any() else None
+
+
+def checked_sizes(prior, k: int):
+    """The Prior's (size, size_sd) for model.warm.size_prior, each (K, 2), or None."""
+    if prior.size_sd is None:
+        return None
+    size, sd = (np.asarray(v, np.float64) if v is not None else None
+                for v in (prior.size, prior.size_sd))
+    require(size is not None and size.shape == (k, 2) and sd.shape == (k, 2)
+            and bool(np.all(np.isfinite(size) & (size > 0))) and bool(np.all(sd > 0)),
+            "prior", f"size and size_sd must both be (K={k}, 2) arrays of positive widths and "
+            "heights and their sds (inf: unknown)", "pass Prior(rows, size, size_sd) with one "
+            "row per target, or size_sd=None")
+    return size, sd
+
+
+HIDDEN_SHARE_KEY = "hidden_share"  # the per-target diagnostics key tracking.warm reads
+
+
+def hidden_diagnostics(problem, result, prior=None) -> list[dict]:
+    """Per target of the result, diagnostics: `hidden_share`, the share of its paths the other
+    targets block (model.shadow.hidden_shares), at its fitted size or, where `prior` (the Prior
+    of the warm fit that gave this result, same order; falsy: none) knows a larger one, at that
+    size (a plate fitted small over its lit part is not seen whole); 0.0 for one target, None
+    where K >= 2 plates are fitted without shadows (the device Problem: unknown).
+    `size_held`: the warm fit's size prior held its width and height (`size_prior`)."""
+    params = np.array(result.params, float)
+    held = np.zeros(len(params), bool) if result.prior is None else \
+        np.isfinite(np.asarray(result.prior[1])[:, [plate.WIDTH, plate.HEIGHT]]).any(axis=1)
+    if len(params) < 2 or not getattr(problem, "shadows", False):
+        share = [0.0 if len(params) < 2 else None] * len(params)
+    else:
+        from .shadow import hidden_shares
+        if prior and prior.size_sd is not None:
+            known = np.isfinite(np.asarray(prior.size_sd, float)).all(axis=1)
+            size = params[:, [plate.WIDTH, plate.HEIGHT]]
+            size[known] = np.maximum(size[known], np.asarray(prior.size, float)[known])
+            params[:, [plate.WIDTH, plate.HEIGHT]] = size
+        obs = problem.obs
+        share = [round(float(h), 4) for h in hidden_shares(params, obs.laser, obs.spots,
+                                                            problem.lattice)]
+    return [{HIDDEN_SHARE_KEY: h, "size_held": bool(b)} for h, b in zip(share, held)]
