@@ -305,10 +305,9 @@ def covariance(problem, result: FitResult, free) -> tuple[np.ndarray, dict]:
     n_free = int(np.count_nonzero(free)) * len(params)
     # a MAP fit's prior adds its precision to the information (model.fit's `prior`)
     precision = np.zeros(jmu.shape[-1])
-    if result.prior is not None:
-        mask = np.tile(np.asarray(free, bool), len(params))
-        sd = np.broadcast_to(np.asarray(result.prior[1], np.float64), params.shape)
-        precision[:n_free] = 1.0 / sd.reshape(-1)[mask] ** 2  # inf sd: 0
+    at, _, sd = _prior_terms(result.prior, params.shape, np.tile(np.asarray(free, bool),
+                                                                 len(params)))
+    precision[at] = 1.0 / sd ** 2  # the free target parameters come first, as in _prior_terms
     if obs.mode == "gauss":
         j = (jmu / obs.noise[:, None, None])[obs.valid]
         meat, trace = _correlated_terms(obs, j)
