@@ -22,6 +22,8 @@ import sys
 
 import numpy as np
 
+from ..core.stats import unique_sorted
+
 
 def make_tracker(args, seq, backend):
     """A Tracker on the search region `nlos-cl locate` would use for the first frame."""
@@ -69,7 +71,7 @@ def _sampled(seq) -> list:
     """Up to REACH_FRAMES frames spread over the sequence: the region reaches as far as their
     signal does (a target walking away later than frame 0 stays inside)."""
     n = len(seq)
-    return [seq[int(i)].histograms for i in np.unique(np.linspace(0, n - 1, min(n, REACH_FRAMES)
+    return [seq[int(i)].histograms for i in unique_sorted(np.linspace(0, n - 1, min(n, REACH_FRAMES)
                                                                   ).astype(int))]
 
 

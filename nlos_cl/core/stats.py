@@ -2,7 +2,9 @@
 misfit test), without SciPy: scipy.stats' import (~0.6 s) would be most of a one-shot
 `nlos-cl locate`. Newton's method on the regularized incomplete gamma function from the
 Wilson-Hilferty start; within 1e-10 (relative) of scipy.stats.chi2.ppf (tests/test_stats.py).
-And a row median with NumPy's numbers at a tenth of its cost on long rows."""
+And a row median with NumPy's numbers at a tenth of its cost on long rows; a median and
+np.unique's values without the numpy.ma import (~7 ms) their first call costs a one-shot
+command."""
 from __future__ import annotations
 
 import math
@@ -10,6 +12,21 @@ import math
 import numpy as np
 
 from .errors import require
+
+
+def unique_sorted(values) -> np.ndarray:
+    """np.unique(values): the sorted distinct values of the flattened array. NumPy 2.x's
+    np.unique without return_* imports numpy.ma on its first call (~7 ms of a one-shot `nlos-cl
+    locate`, issue 23); a sort and a comparison of neighbours import nothing."""
+    flat = np.sort(np.asarray(values).ravel())
+    return flat[np.concatenate(([True], flat[1:] != flat[:-1]))] if flat.size else flat
+
+
+def median(values) -> float:
+    """float(np.median(values)), the same number, without importing numpy.ma: NumPy 2.x's
+    median looks for NaNs through np.ma on its first call (~7 ms of a one-shot command)."""
+    flat = np.asarray(values, dtype=np.float64).reshape(1, -1)
+    return float(row_median(flat)[0]) if flat.size else float(np.median(flat))
 
 
 def row_median(rows, *, overwrite=False) -> np.ndarray:

@@ -13,6 +13,8 @@ can make, checked while it is composed so a hostile file fails fast in one line:
 """
 from __future__ import annotations
 
+import json
+import math
 import re
 from pathlib import Path
 
@@ -162,6 +164,77 @@ def read_yaml(path, what: str = "scene file") -> dict:
     require(isinstance(raw, dict), where, "is not a mapping of keys",
             "write `key: value` lines (docs/scene-files.md, docs/sweeps.md)")
     return raw
+
+
+# ---------------------------------------------------------------- JSON: the YAML nlos_cl writes
+
+def dump_json_yaml(data: dict) -> str:
+    """`data` as one line of JSON that PyYAML (YAML 1.1, as y-tal reads scene_info), nlos_cl's
+    reader and a JSON parser all read to the same values, or PyYAML's block style where it
+    cannot be (NaN, infinities, types JSON lacks, text PyYAML reads otherwise). Why: reading
+    JSON needs no PyYAML, whose import is ~11 ms of a one-shot `nlos-cl locate` (issue 23).
+    JSON is YAML 1.2; for YAML 1.1 a float's mantissa needs a dot (1.0e-11, not 1e-11), and
+    the text is checked by parsing it both ways before it is used."""
+    import yaml
+    try:
+        text = "{" + ", ".join(f"{_json_key(k)}: {_json(v)}" for k, v in data.items()) + "}"
+        if json.loads(text) == yaml.load(text, Loader=getattr(yaml, "CSafeLoader",  # noqa: S506
+                                                              yaml.SafeLoader)):
+            return text + "\n"
+    except (TypeError, ValueError, yaml.YAMLError):
+        pass
+    return yaml.safe_dump(data)
+
+
+def load_json_yaml(text: str):
+    """What dump_json_yaml wrote (a JSON object), read without PyYAML; None where `text` is
+    not a JSON object, or holds a key twice, NaN or Infinity (the YAML reader then decides,
+    with its bounds and its errors). JSON is a subset of YAML 1.2: the values are YAML's."""
+    if not text.lstrip().startswith("{"):
+        return None
+    try:
+        return json.loads(text, object_pairs_hook=_unique_keys, parse_constant=_not_yaml)
+    except (ValueError, RecursionError):  # RecursionError: deep nesting, which YAML refuses
+        return None
+
+
+def _json(value) -> str:
+    import numpy as np
+    if value is None or isinstance(value, (bool, np.bool_)):
+        return {None: "null", True: "true", False: "false"}[None if value is None else
+                                                            bool(value)]
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
+    if isinstance(value, (float, np.floating)):
+        if not math.isfinite(value):
+            raise ValueError("JSON has no NaN or infinity")
+        text = repr(float(value))
+        mantissa, e, exponent = text.partition("e")
+        return f"{mantissa}.0e{exponent}" if e and "." not in mantissa else text
+    if isinstance(value, str):
+        return json.dumps(value)
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{_json_key(k)}: {_json(v)}" for k, v in value.items()) + "}"
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_json(v) for v in value) + "]"
+    raise TypeError(f"{type(value).__name__} is not JSON")
+
+
+def _json_key(key) -> str:
+    if not isinstance(key, str):
+        raise TypeError("JSON keys are text")
+    return json.dumps(key)
+
+
+def _unique_keys(pairs):
+    keys = [k for k, _ in pairs]
+    if len(set(keys)) != len(keys):
+        raise ValueError("a key twice")  # YAML's reader names it (nlos_cl.io.yamlfile)
+    return dict(pairs)
+
+
+def _not_yaml(name):
+    raise ValueError(f"{name} is not YAML")
 
 
 # ---------------------------------------------------------------- values as YAML gives them

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.grid import Grid
-from ..core.stats import chi2_quantile
+from ..core.stats import chi2_quantile, median
 
 FALSE_ALARM = 1e-3  # nominal rate of "target" said on pure noise, per frame
 MAD_TO_SIGMA = 1.4826
@@ -50,11 +50,11 @@ class Detection:
     def as_dict(self) -> dict:
         return {"detected": self.detected, "statistic": round(self.statistic, 3),
                 "threshold": round(self.threshold, 3), "false_alarm": self.false_alarm,
-                "peak_z_median": round(float(np.median(self.peak_z)), 3) if self.peak_z else None}
+                "peak_z_median": round(median(self.peak_z), 3) if self.peak_z else None}
 
     @property
     def message(self) -> str:
-        return (f"no target signal: the strongest peaks are {np.median(self.peak_z):.1f} noise "
+        return (f"no target signal: the strongest peaks are {median(self.peak_z):.1f} noise "
                 f"sigma (median over {len(self.peak_z)} histograms), which noise alone reaches "
                 f"(Fisher statistic {self.statistic:.1f} <= {self.threshold:.1f}, false-alarm "
                 f"rate {self.false_alarm:g}); the position is the argmax of noise")

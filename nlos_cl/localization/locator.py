@@ -5,7 +5,6 @@ host), the kernels, and the argmax read."""
 from __future__ import annotations
 
 import math
-import statistics
 import time
 from dataclasses import replace
 
@@ -16,6 +15,7 @@ from ..core.errors import require
 from ..core.grid import Grid
 from ..core.tuning import AUTO_TRIALS
 from ..core.histograms import HistogramSet
+from ..core.stats import median
 from ..ops.argmax_patch import decode
 from ..ops.backend import NumpyBackend, read_values
 from ..ops.signals import Signals, as_signals
@@ -59,7 +59,7 @@ class SearchChoice:
         n = len(self.modes)
         if len(self._trials) < n * (AUTO_TRIALS + 1):
             return
-        med = {m: statistics.median([t for k, t in self._trials[n:] if k == m])
+        med = {m: median([t for k, t in self._trials[n:] if k == m])
                for m in self.modes}
         self.chosen = min(self.modes, key=lambda m: med[m])
 

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..core.stats import unique_sorted
 from . import kalman
 
 BIG = 1e12
@@ -107,7 +108,7 @@ def _unresolved(gated):
     adjacency[:n_t, n_t:] = gated
     _, label = connected_components(csr_matrix(adjacency), directed=False)
     rows, cols = [], []
-    for group in np.unique(label):
+    for group in unique_sorted(label):
         t = np.flatnonzero(label[:n_t] == group)
         m = np.flatnonzero(label[n_t:] == group)
         if len(t) >= 2 and len(m) < len(t):

@@ -16,6 +16,8 @@ import math
 
 import numpy as np
 
+from ..core.stats import unique_sorted
+
 FRAMES = 12  # consecutive frames per window (~0.03 s each on the walk)
 WINDOWS = 4  # windows spread over the sequence
 
@@ -24,7 +26,7 @@ def sequence_scatter(seq, grid, *, h_s: float, floor: float = 0.05, backend=None
     """argmax_scatter over WINDOWS runs of FRAMES consecutive frames of a sequence: the
     largest."""
     n = len(seq)
-    starts = np.unique(np.linspace(0, max(n - FRAMES, 0), WINDOWS).astype(int))
+    starts = unique_sorted(np.linspace(0, max(n - FRAMES, 0), WINDOWS).astype(int))
     return max(argmax_scatter([seq[k].histograms for k in range(a, min(n, a + FRAMES))], grid,
                               h_s=h_s, floor=floor, backend=backend) for a in starts)
 

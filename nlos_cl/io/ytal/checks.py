@@ -89,9 +89,7 @@ def our_metadata(info, path=""):
     """scene_info's `nlos_cl` mapping, or None. Another tool's scene_info (not YAML, not UTF-8)
     simply holds none of ours; one that breaks the YAML reader's bounds (an alias bomb, deep
     nesting, a key twice: nlos_cl.io.yamlfile) is refused, not expanded."""
-    import yaml
-
-    from ..yamlfile import MAX_BYTES, YamlLimit
+    from ..yamlfile import MAX_BYTES, YamlLimit, load_json_yaml
     if isinstance(info, bytes):
         try:
             info = info.decode("utf-8-sig")
@@ -99,13 +97,19 @@ def our_metadata(info, path=""):
             return None
     if not isinstance(info, str) or len(info) > 16 * MAX_BYTES:  # far beyond what we write
         return None
-    try:
-        info = _parsed(info)
-    except YamlLimit as exc:
-        raise InputError(f"capture {path}: scene_info: {exc.problem}. Fix: {exc.fix}") from None
-    except yaml.YAMLError:
-        return None
-    return copy.deepcopy(info.get("nlos_cl")) if isinstance(info, dict) else None
+    parsed = load_json_yaml(info)  # what nlos_cl writes: JSON, read without importing PyYAML
+    if parsed is not None:
+        return parsed.get("nlos_cl")  # parsed afresh: nothing shared to copy
+    else:
+        import yaml
+        try:
+            parsed = _parsed(info)
+        except YamlLimit as exc:
+            raise InputError(f"capture {path}: scene_info: {exc.problem}. Fix: {exc.fix}"
+                             ) from None
+        except yaml.YAMLError:
+            return None
+    return copy.deepcopy(parsed.get("nlos_cl")) if isinstance(parsed, dict) else None
 
 
 @functools.lru_cache(maxsize=4)

@@ -31,7 +31,7 @@ HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 
 
 def write_fields(f, h: HistogramSet, device_distance_m, metadata, compression):
-    import yaml
+    from ..yamlfile import dump_json_yaml
 
     a, axis = h.calibration.a_m_per_s, h.time_axis
     offsets = h.calibration.offsets(h.n_detectors)
@@ -63,7 +63,8 @@ def write_fields(f, h: HistogramSet, device_distance_m, metadata, compression):
     f["delta_t"] = np.float32(a * axis.dt_s)
     f["t_start"] = np.float32(a * (axis.t0_s + 0.5 * axis.dt_s) + offsets[0])  # bin centre 0
     f["t_accounts_first_and_last_bounces"] = False
-    f["scene_info"] = yaml.safe_dump({"original_format": "nlos_cl", "nlos_cl": ours})
+    # YAML as JSON (y-tal reads it with PyYAML; nlos_cl without it: nlos_cl.io.yamlfile)
+    f["scene_info"] = dump_json_yaml({"original_format": "nlos_cl", "nlos_cl": ours})
 
 
 def enum(f, name, members, value):

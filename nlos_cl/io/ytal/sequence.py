@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from ...core.errors import require
+from ...core.stats import median
 
 FORMAT_VERSION = 1
 GROW = 256  # frames added to H's size at a time while writing
@@ -225,7 +226,7 @@ def check_frame_times(t, field: str) -> None:
     require(bool(np.all(np.isfinite(t))), field, "contains NaN or inf", "store finite times (s)")
     require(bool(np.all(np.diff(t) > 0)), field, "timestamps must increase strictly from frame "
             "to frame", "pass frames in time order")
-    gap = float(np.median(np.diff(t))) if t.size > 1 else 0.0
+    gap = median(np.diff(t)) if t.size > 1 else 0.0
     unit, short, factor = (("milliseconds", "ms", 1e3) if gap < 1e4 else
                            ("microseconds", "us", 1e6) if gap < 1e7 else ("nanoseconds", "ns", 1e9))
     require(gap <= MAX_FRAME_SPACING_S, field, f"frames are {gap:.4g} s apart (median), "

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...core.histograms import HistogramSet
+from ...core.stats import median, unique_sorted
 
 # How far (m of hidden path) from its expected place a direct return is looked for: 0.6 m is
 # 2 ns, a generous error of a file's time zero; beyond it the strongest early peak is more
@@ -61,7 +62,7 @@ def aligned_sum(data: np.ndarray, shifts: np.ndarray, before: int) -> np.ndarray
     n_bins = data.shape[1]
     pad = int(max(0, shifts.max()))  # room for rows whose bin 0 lands before offset -before
     out = np.zeros(pad + before + n_bins + int(max(0, -shifts.min())))
-    for s in np.unique(shifts):
+    for s in unique_sorted(shifts):
         start = pad + before - int(s)  # where these rows' record bin 0 lands
         out[start:start + n_bins] += data[shifts == s].sum(axis=0)
     return out[pad:pad + before + n_bins]
@@ -84,7 +85,7 @@ def find_direct_return(h: HistogramSet) -> tuple[DirectReturn | None, str]:
                       f"{SEARCH_M:g} m of hidden path of the expected direct-return bin "
                       f"(gated, or cropped upstream)")
     peak = int(np.argmax(window))
-    first = origin - int(np.median(shifts))  # where the record starts (typical histogram)
+    first = origin - int(median(shifts))  # where the record starts (typical histogram)
     truncated = peak <= first
     if peak == len(window) - 1 or (peak == 0 and not truncated):
         return None, ("none: the strongest bin near the expected direct-return bin lies at "
@@ -113,7 +114,7 @@ def _end_of(profile: np.ndarray, peak: int, step: float) -> tuple[int, str]:
     smooth = np.convolve(profile, np.ones(3) / 3, mode="same")
     cap = min(len(profile), peak + 1 + max(3, int(round(MAX_TAIL_M / step))))
     rest = profile[cap:]
-    level = float(np.median(rest)) if rest.size else 0.0
+    level = median(rest) if rest.size else 0.0
     threshold = max(GATE_FRACTION * top, level)
     below = np.flatnonzero(smooth[peak + 1:cap] <= threshold)
     if below.size:

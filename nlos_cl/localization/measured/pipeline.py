@@ -16,6 +16,7 @@ import numpy as np
 
 from ...core.constants import FWHM_PER_SIGMA
 from ...core.errors import require
+from ...core.stats import median, unique_sorted
 from ...core.histograms import HistogramSet
 from ...core.paths import TimeAxis
 from . import bins as binfacts
@@ -101,7 +102,7 @@ def _bins(hist, data, bg, counts):
     expected = expected_bins(hist)
     near_direct = np.array([bool(np.any(np.abs(b - expected) <= search)) for b in hot], bool)
     left, hot = hot[near_direct], hot[~near_direct]
-    masked = np.union1d(dead, hot)
+    masked = unique_sorted(np.concatenate([dead, hot]))
     note = {"kind": "counts" if counts else "floats",
             "kind_why": ("every bin integral and >= 0: photon counts (Poisson)" if counts else
                          "not all bins integral and >= 0: processed floats"),
@@ -118,12 +119,12 @@ def _bins(hist, data, bg, counts):
 def _time_zero(hist, direct: DirectReturn | None, seen: str, calibrated: bool):
     """(report, t0 shift in bins to apply: 0 for none)."""
     axis = hist.time_axis
-    note = {"t0_s_file": axis.t0_s, "expected_path_m": _r(float(np.median(
-        np.linalg.norm(hist.laser_spots - hist.detector_spots, axis=1))))}
+    note = {"t0_s_file": axis.t0_s, "expected_path_m": _r(median(
+        np.linalg.norm(hist.laser_spots - hist.detector_spots, axis=1)))}
     if direct is None:
         return {**note, "direct_return": seen, "action": "kept the file's t0"}, 0.0
     rows = direct.shifts_bins
-    shift = float(np.median(rows))
+    shift = median(rows)
     q1, q3 = np.percentile(rows, [25, 75])
     note.update(direct_return="found", histograms=int(rows.size),
                 peak_shift_bins=_r(shift, 4), shift_spread_bins=_r(q3 - q1, 4),
@@ -158,7 +159,7 @@ def _response(hist, direct: DirectReturn | None, counts: bool):
     t = np.arange(lo, hi) + 0.0
     seg = y[lo:hi]
     weights = 1.0 / np.sqrt(np.maximum(seg, 1.0)) if counts else np.ones_like(seg)
-    floor0 = float(np.median(y[lo:max(lo + 1, p - int(2 * fwhm))]))
+    floor0 = median(y[lo:max(lo + 1, p - int(2 * fwhm))])
     start = (max(float(seg.sum() - floor0 * seg.size), 1e-30), p - 0.2 * fwhm,
              max(0.3, 0.35 * fwhm), max(0.5, 0.5 * fwhm), floor0)
     fit = fit_exgauss(t, seg, weights, start)
@@ -194,8 +195,8 @@ def _gate(staged, direct: DirectReturn | None):
     data = np.array(staged.data)
     data[np.arange(data.shape[1])[None, :] < ends[:, None]] = 0.0
     axis = staged.path_axis()
-    end_m = float(np.median(axis.start_m + ends * axis.step_m))  # hidden path where data resume
-    return {"applied": True, "bins": int(np.median(ends)), "path_m": _r(end_m, 4),
+    end_m = median(axis.start_m + ends * axis.step_m)  # hidden path where data resume
+    return {"applied": True, "bins": int(median(ends)), "path_m": _r(end_m, 4),
             "why": direct.why_end,
             "hides": f"hidden paths below ~{end_m:.3g} m (objects within ~{end_m / 2:.3g} m "
                      "of the wall)"}, replace(staged, data=data, allow_negative=True)
@@ -204,7 +205,7 @@ def _gate(staged, direct: DirectReturn | None):
 def pooled_h(processed: list) -> float | None:
     """One instrument, one window: the median of the sets' measured h (None if none)."""
     hs = [p.h_from_response_s for p in processed if p.h_from_response_s is not None]
-    return float(np.median(hs)) if hs else None
+    return median(hs) if hs else None
 
 
 def process_capture(sets: list, backgrounds: list | None, *, negatives: str = "keep",

@@ -29,6 +29,7 @@ import time
 import numpy as np
 
 from ...core.allocator import keep_freed_memory
+from ...core.stats import unique_sorted
 from ...ops.forward import SUB_BINS_PER_SIGMA
 from . import plate
 from .deposit import deposit_bins
@@ -66,7 +67,7 @@ class HostProblem(Problem):
         self._hists = {}  # row bytes -> its histograms, evaluated with its own statistics
         self._keep_hists = int(min(64, HISTS_BYTES // max(8 * obs.y.size, 1)))
         self._taps = {}  # (pad, scale) -> the deposit's taps (model.deposit.taps_of)
-        some = np.unique(np.linspace(0, len(obs.spots) - 1, min(len(obs.spots),
+        some = unique_sorted(np.linspace(0, len(obs.spots) - 1, min(len(obs.spots),
                                                                  plate.STAT_SPOTS)).round())
         self._stat_spots = obs.spots[some.astype(int)]  # the cell statistics' spots
         self._affine = None

@@ -17,7 +17,7 @@ import numpy as np
 
 from ...core.constants import PAPER_H_S
 from ...core.errors import require
-from ...core.stats import row_median
+from ...core.stats import median, row_median
 from ...ops.backend import read_values
 from ...ops.gauss_filter import gauss_taps
 
@@ -152,7 +152,7 @@ def row_floors(filtered, windows, noise, kappa=1.0) -> np.ndarray:
         outside = np.concatenate([row[:max(lo, 0)], row[min(hi + 1, n_bins):]])[::step]
         if outside.size < MIN_FLOOR_BINS:
             continue
-        level = float(np.median(outside))
+        level = median(outside)
         se = MEDIAN_SE * float(noise[d]) * math.sqrt(kappa / outside.size)
         if abs(level) > FLOOR_SIGNIFICANCE * se:
             out[d] = level

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...core.geometry import Facets
+from ...core.stats import unique_sorted
 
 NAMES = ("x", "y", "z", "width", "height", "yaw")
 LOWER = np.array([-np.inf, 0.05, -np.inf, 0.04, 0.04, -np.inf])
@@ -110,7 +111,7 @@ def cell_statistics(cells, edges, spots, laser, blur_share=None):
     """`cell_model`'s numbers: per cell how far its Gauss points are pulled in, keep (F,);
     the shared blur^2 (m^2 of path); the path shift per detector (D,)."""
     spots, laser = np.asarray(spots, float), np.asarray(laser, float)
-    some = np.unique(np.linspace(0, len(spots) - 1, min(len(spots), STAT_SPOTS)).round()
+    some = unique_sorted(np.linspace(0, len(spots) - 1, min(len(spots), STAT_SPOTS)).round()
                      ).astype(int)
     paired = laser.ndim == 2
     mean, centre, var_df, wsum = _cell_stats(cells, edges, spots[some],

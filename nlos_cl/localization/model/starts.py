@@ -10,6 +10,7 @@ import itertools
 
 import numpy as np
 
+from ...core.stats import median
 from . import plate
 
 YAW_OFFSETS = np.radians([-50.0, -25.0, 0.0, 25.0, 50.0])
@@ -62,7 +63,7 @@ def ellipse_point(obs, paths, held=plate.Held()) -> np.ndarray:
         return (d1 / np.expand_dims(r1, -1) + d2 / r2[:, None])[:, axes]
 
     best = None
-    reach = float(np.median(paths)) / 2
+    reach = median(paths) / 2
     lo = np.array([-np.inf, 0.05, -np.inf])[axes]
     for gx, gy in ((0.5, 0.7), (0.9, 0.3), (0.2, 0.9)):
         v0 = np.array([x0 + gx * reach, max(gy * reach, 0.1), held.at[2]])[axes]
