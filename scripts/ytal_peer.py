@@ -139,7 +139,7 @@ def backprojection_peak(path):
     rec = tal.reconstruct.bp.solve(data, volume_xyz=volume.astype(np.float32),
                                    volume_format=VolumeFormat.N_3,
                                    camera_system=CameraSystem.DIRECT_LIGHT, progress=False)
-    return data, volume[int(np.argmax(np.abs(np.asarray(rec).reshape(-1))))], truth
+    return data, volume[int(np.argmax(np.abs(np.asarray(rec).reshape(-1))))], truth, info
 
 
 def check_ytal_reads_nlos(folder: Path) -> bool:
@@ -157,9 +157,15 @@ def check_ytal_reads_nlos(folder: Path) -> bool:
             return False
     for path, limit, what in ((paper, 0.15 + BP_STEP_M, "the paper's plate (on the plate)"),
                               (small, BP_CELLS * BP_STEP_M, f"a 5 cm plate ({BP_CELLS} cells)")):
-        data, peak, truth = backprojection_peak(path)
+        data, peak, truth, info = backprojection_peak(path)
         err = float(np.linalg.norm(peak - truth))
         ok &= err <= limit
+        # scene_info is JSON written for YAML 1.1 too (nlos_cl.io.yamlfile): numbers stay numbers
+        axis = info["nlos_cl"]["time_axis"]
+        numbers = all(isinstance(axis[k], float) for k in ("t0_s", "dt_s"))
+        ok &= numbers
+        if not numbers:
+            print(f"(a) y-tal read scene_info's time axis as {axis!r}: FAIL (numbers as text)")
         print(f"(a) y-tal {getattr(tal, '__version__', '')} read nlos_cl's capture of {what}: H "
               f"{data.H.shape} {data.H_format.name}; backprojection peak "
               f"{np.round(peak, 3).tolist()} vs truth {truth.tolist()}: {err:.3f} m = "
