@@ -288,7 +288,7 @@ def test_the_estimator_holds_a_hidden_plate_and_says_so(pair_scored):
     each target's diagnostics give its hidden share (FAR > model.warm.HIDDEN_SHARE, taken at
     the known size) and whether the size prior held it (FAR yes, NEAR no)."""
     from nlos_cl.localization.estimate import Prior
-    from nlos_cl.localization.model.warm import HIDDEN_SHARE, HIDDEN_SHARE_KEY
+    from nlos_cl.localization.model.warm import HIDDEN_SD_KEY, HIDDEN_SHARE, HIDDEN_SHARE_KEY
     start = np.stack([NEAR, FAR])
     start[1, plate.Y] += 0.06
     start[1, plate.WIDTH] = 0.2
@@ -305,5 +305,35 @@ def test_the_estimator_holds_a_hidden_plate_and_says_so(pair_scored):
     assert far.fit.diagnostics[HIDDEN_SHARE_KEY] > HIDDEN_SHARE
     assert far.fit.diagnostics["size_held"] and not near.fit.diagnostics["size_held"]
     assert near.fit.diagnostics[HIDDEN_SHARE_KEY] <= HIDDEN_SHARE
+    # the centre's extra sd the tracker adds (tracking.kalman): share x half the larger side
+    assert far.fit.diagnostics[HIDDEN_SD_KEY] == pytest.approx(
+        far.fit.diagnostics[HIDDEN_SHARE_KEY] * max(FAR[plate.WIDTH], FAR[plate.HEIGHT]) / 2,
+        rel=0.05)  # the fitted size, within the 0.02 m held above
+    assert near.fit.diagnostics[HIDDEN_SD_KEY] <= HIDDEN_SHARE * max(NEAR[3:5]) / 2
     with pytest.raises(nl.InputError, match="size_sd"):
         ModelEstimator(targets=2).estimate(pair_scored, Prior(start, None, np.ones((2, 2))))
+
+
+def test_a_cold_fit_in_its_own_order_is_judged_at_the_tracked_sizes(host):
+    """hidden_diagnostics matches each fitted plate to the tracker's nearest prior row: a cold
+    fit (its own order) that shrank FAR to 0.05 m over its lit part is judged, and given its
+    hidden_sd_m, at the 0.3 m FAR was tracked at, whichever order the prior lists them in."""
+    from types import SimpleNamespace
+
+    from nlos_cl.localization.estimate import Prior
+    from nlos_cl.localization.model.warm import HIDDEN_SD_KEY, HIDDEN_SHARE_KEY, \
+        hidden_diagnostics
+    narrow = np.stack([NEAR, FAR])
+    narrow[1, plate.WIDTH] = 0.05
+    result = SimpleNamespace(params=narrow, prior=None)
+    alone = hidden_diagnostics(host, result)
+    sizes, sd = np.stack([NEAR[3:5], FAR[3:5]]), np.full((2, 2), 0.015)
+    truth_judged = hidden_diagnostics(host, SimpleNamespace(params=np.stack([NEAR, FAR]),
+                                                            prior=None))
+    for order in ([0, 1], [1, 0]):
+        judged = hidden_diagnostics(host, result, Prior(np.stack([NEAR, FAR])[order],
+                                                        sizes[order], sd))
+        assert judged[1][HIDDEN_SHARE_KEY] == truth_judged[1][HIDDEN_SHARE_KEY]
+        assert judged[1][HIDDEN_SD_KEY] == pytest.approx(
+            judged[1][HIDDEN_SHARE_KEY] * 0.3 / 2, abs=1e-4)
+    assert alone[1][HIDDEN_SHARE_KEY] > judged[1][HIDDEN_SHARE_KEY] + 0.1  # 5 cm: behind NEAR

@@ -121,3 +121,30 @@ def test_bad_options():
     tr.step([], 1.0)
     with pytest.raises(nl.InputError, match="t_s"):
         tr.step([], 0.5)
+
+
+def _hidden(p, sd_m, hidden_sd_m):
+    """A model fit's target: covariance sd_m, and a hidden part worth hidden_sd_m."""
+    from types import SimpleNamespace
+    fit = SimpleNamespace(diagnostics={"hidden_sd_m": hidden_sd_m}, birge_ratio=1.0, shape="box")
+    return LocatedTarget(np.asarray(p, float), np.diag([sd_m ** 2] * 3), details={"fit": 1},
+                         fit=fit)
+
+
+def test_a_partly_hidden_plate_weighs_what_its_hidden_part_leaves():
+    """R gains the fit's hidden_sd_m^2 (model.warm.hidden_diagnostics): a plate fitted over its
+    lit part, with a fitted sd of 3 mm but a centre that drifts along its hidden part, does not
+    drag the track; the same drift with no hidden part is followed (the filter believes it)."""
+    m = measurement(_hidden([3, 2, 0], 0.003, 0.1), 3, fallback_sigma_m=0.05, min_sigma_m=0.002)
+    np.testing.assert_allclose(m.R, (0.003 ** 2 + 0.002 ** 2 + 0.01) * np.eye(3))
+    errors = {}
+    for hidden_sd_m in (0.0, 0.12):
+        tr = Tracker(_layout(), estimator="paper", motion=ConstantVelocity(accel_sigma=0.1))
+        for k in range(25):  # frames 20-24 drift 0.012 .. 0.06 m off (a crossing's few frames)
+            t, truth = 0.1 * k, np.array([2 + 0.5 * 0.1 * k, 2.0, 0])
+            drift = 0.0 if k < 20 else 0.012 * (k - 19)
+            (track,) = tr.step([_hidden(truth + [0, drift, 0], 0.003,
+                                        hidden_sd_m if drift else 0.0)], t)
+        errors[hidden_sd_m] = np.linalg.norm(track.position - truth)
+    assert errors[0.0] > 0.045  # followed the drift (0.06 m)
+    assert errors[0.12] < 0.015  # held on its motion

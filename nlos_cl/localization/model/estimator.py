@@ -132,7 +132,7 @@ class ModelEstimator:
         for note in notes:
             warnings.warn(note, stacklevel=3)
         self.timings = _stages(clock, problem)
-        hidden = hidden_diagnostics(chosen, result, warm_info and warm_info["used"] and prior)
+        hidden = hidden_diagnostics(chosen, result, prior)
         located = [self._target(result, cov_all, k, dict(info, **hidden[k]), notes,
                                 obs, history, observable, chosen.shape)
                    for k in _order(result)]

@@ -104,6 +104,19 @@ def size_prior(problem, rows, sizes):
     return (mean, sd) if held.any() else None
 
 
+def _nearest_rows(centres, prior_centres) -> list[tuple[int, int]]:
+    """(result row, prior row) pairs: the one-to-one matching with the least summed centre
+    distance (a few targets: every permutation is cheap)."""
+    import itertools
+    n, m = len(centres), len(prior_centres)
+    gap = np.linalg.norm(centres[:, None] - prior_centres[None], axis=2)
+    if n <= m:
+        options = (list(zip(range(n), cols)) for cols in itertools.permutations(range(m), n))
+    else:
+        options = (list(zip(rows, range(m))) for rows in itertools.permutations(range(n), m))
+    return min(options, key=lambda pairs: sum(gap[k, j] for k, j in pairs))
+
+
 def checked_sizes(prior, k: int):
     """The Prior's (size, size_sd) for model.warm.size_prior, each (K, 2), or None."""
     if prior.size_sd is None:
@@ -119,28 +132,40 @@ def checked_sizes(prior, k: int):
 
 
 HIDDEN_SHARE_KEY = "hidden_share"  # the per-target diagnostics key tracking.warm reads
+HIDDEN_SD_KEY = "hidden_sd_m"  # ... and the one tracking.kalman adds to a measurement's noise
 
 
 def hidden_diagnostics(problem, result, prior=None) -> list[dict]:
     """Per target of the result, diagnostics: `hidden_share`, the share of its paths the other
-    targets block (model.shadow.hidden_shares), at its fitted size or, where `prior` (the Prior
-    of the warm fit that gave this result, same order; falsy: none) knows a larger one, at that
-    size (a plate fitted small over its lit part is not seen whole); 0.0 for one target, None
-    where K >= 2 plates are fitted without shadows (the device Problem: unknown).
+    targets block (model.shadow.hidden_shares), at its fitted size or, where `prior` (the
+    tracker's Prior; falsy: none) knows a larger one for the row nearest it, at that size (a
+    plate fitted small over its lit part is not seen whole; a cold fit that replaced the warm
+    one has its own order, hence the matching); 0.0 for one target, None where K >= 2 plates
+    are fitted without shadows (the device Problem: unknown).
+    `hidden_sd_m`: how far the hidden part could move the centre, share x half the plate's
+    larger side at that size (m; a plate 78 % hidden is fitted over its lit part, its centre
+    degenerate: crossing draw 8's frames 19-22 were 0.06-0.14 m off with fitted sds of 3-9
+    mm); 0.0 or None as the share. It is not in the covariance, which stays the data's.
     `size_held`: the warm fit's size prior held its width and height (`size_prior`)."""
     params = np.array(result.params, float)
     held = np.zeros(len(params), bool) if result.prior is None else \
         np.isfinite(np.asarray(result.prior[1])[:, [plate.WIDTH, plate.HEIGHT]]).any(axis=1)
     if len(params) < 2 or not getattr(problem, "shadows", False):
         share = [0.0 if len(params) < 2 else None] * len(params)
+        sd = share
     else:
         from .shadow import hidden_shares
         if prior and prior.size_sd is not None:
+            rows = np.asarray(prior.rows, float).reshape(-1, params.shape[1])
             known = np.isfinite(np.asarray(prior.size_sd, float)).all(axis=1)
-            size = params[:, [plate.WIDTH, plate.HEIGHT]]
-            size[known] = np.maximum(size[known], np.asarray(prior.size, float)[known])
-            params[:, [plate.WIDTH, plate.HEIGHT]] = size
+            for k, j in _nearest_rows(params[:, :3], rows[:, :3]):
+                if known[j]:
+                    params[k, SIZE] = np.maximum(params[k, SIZE], np.asarray(prior.size,
+                                                                             float)[j])
         obs = problem.obs
         share = [round(float(h), 4) for h in hidden_shares(params, obs.laser, obs.spots,
                                                             problem.lattice)]
-    return [{HIDDEN_SHARE_KEY: h, "size_held": bool(b)} for h, b in zip(share, held)]
+        side = params[:, [plate.WIDTH, plate.HEIGHT]].max(axis=1)
+        sd = [round(h * float(w) / 2, 4) for h, w in zip(share, side)]
+    return [{HIDDEN_SHARE_KEY: h, HIDDEN_SD_KEY: d, "size_held": bool(b)}
+            for h, d, b in zip(share, sd, held)]
