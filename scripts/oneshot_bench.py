@@ -261,6 +261,13 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     if args.child_stages:
         child_stages(*args.child_stages, args.profile)
+        from nlos_cl.apps import cli
+        if hasattr(cli, "run"):  # a tree with cli.run's quick exit leaves as `nlos-cl` does
+            import atexit
+            sys.stdout.flush()
+            sys.stderr.flush()
+            atexit._run_exitfuncs()
+            os._exit(0)
         return 0
     here = os.getcwd()
     with tempfile.TemporaryDirectory(prefix="oneshot_bench-") as folder:

@@ -77,3 +77,38 @@ def test_locate_and_track_take_the_targets_reflectance(tmp_path):
         out = run("locate", str(capture), *bad)
         assert out.returncode == 2 and field in out.stderr and "Fix" in out.stderr, out.stderr
         assert len(out.stderr.strip().splitlines()) == 1
+
+
+def test_the_quick_exit_keeps_every_output(tmp_path):
+    """`nlos-cl` leaves with os._exit once main returns (cli.run: no OpenCL and module
+    teardown, ~30 ms of a one-shot locate): the JSON on stdout is whole, a file written is
+    complete, atexit handlers still run, and the exit code is main's."""
+    capture, figure, ran = tmp_path / "c.h5", tmp_path / "map.npz", tmp_path / "atexit-ran"
+    assert run("simulate", "--out", str(capture), "--facet", "0.05").returncode == 0
+    code = ("import atexit, pathlib, sys; "
+            f"atexit.register(lambda: pathlib.Path({str(ran)!r}).write_text('ran')); "
+            f"sys.argv = ['nlos-cl', 'locate', {str(capture)!r}, '--json', '--map', "
+            f"{str(figure)!r}]; from nlos_cl.apps.cli import run; run()")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=600)
+    assert out.returncode == 0, out.stderr
+    assert len(json.loads(out.stdout)["position"]) == 3
+    import numpy as np
+    with np.load(figure) as written:  # a whole zip: its directory is written last
+        assert written["score"].size > 1000
+    assert ran.read_text() == "ran"
+    missing = run("locate", str(tmp_path / "none.h5"), "--json")
+    assert missing.returncode == 2 and "does not exist" in missing.stderr
+
+
+def test_a_reader_that_leaves_ends_the_command_quietly(tmp_path):
+    """`nlos-cl locate F --json | head -c 0`: the pipe breaks; exit 1, no traceback and no
+    'Exception ignored' (before: 'output: Broken pipe. Fix: pick a writable file path')."""
+    capture = tmp_path / "c.h5"
+    assert run("simulate", "--out", str(capture), "--facet", "0.05").returncode == 0
+    proc = subprocess.Popen([sys.executable, "-m", "nlos_cl.apps.cli", "locate", str(capture),
+                             "--json"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc.stdout.close()  # the reader leaves before the answer is written
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=600) == 1, err
+    assert "Traceback" not in err and "Exception ignored" not in err and "Fix" not in err

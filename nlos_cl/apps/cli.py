@@ -338,11 +338,40 @@ def main(argv=None) -> int:
               " Fix: a coarser facet_size_m, a smaller region or fewer spots, or raise the "
               "limit (ulimit -v, NLOS_CL_MEMORY_LIMIT)", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # `nlos-cl ... | head`: the reader left; nothing more to say
+        return 1
     except OSError as exc:  # an output path we could not write: say which and why
         print(f"nlos-cl: {exc.filename or 'output'}: {exc.strerror or exc}. Fix: pick a "
               "writable file path in an existing folder", file=sys.stderr)
         return 2
 
 
+def run() -> None:
+    """The console entry (`nlos-cl`, `python -m nlos_cl.apps.cli`): main(), then a quick exit.
+    When main returns, every output is written and closed; what Python's shutdown would still
+    do is tear down the OpenCL runtime and every module, ~30 ms of a one-shot `locate`'s ~380
+    (issue 23 item 4; nlos_cl/apps/bench/analysis.md). So stdout and stderr are flushed, the
+    atexit handlers run (temporary folders, logging, coverage), and the process leaves with
+    os._exit, unless another Python thread is alive (then the usual shutdown waits for it) or a
+    flush fails (then Python reports it as usual; a reader that left, `| head`, quietly).
+    main() itself returns: tests and scripts call it in-process."""
+    import atexit
+    import os
+    import threading
+    code = main()
+    try:
+        sys.stdout.flush()
+        sys.stderr.flush()
+    except BrokenPipeError:  # the reader left: no "Exception ignored" at shutdown either
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        code = code or 1
+    except (OSError, ValueError):
+        sys.exit(code)
+    if threading.active_count() > 1:
+        sys.exit(code)
+    atexit._run_exitfuncs()
+    os._exit(code or 0)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    run()
