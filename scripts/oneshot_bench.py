@@ -32,6 +32,7 @@ from pathlib import Path
 
 FLOOR = ("import numpy, h5py, pyopencl as cl; "
          "ctx = cl.create_some_context(interactive=False); q = cl.CommandQueue(ctx)")
+FLOOR_QUICK_EXIT = FLOOR + "; import os, sys; sys.stdout.flush(); os._exit(0)"
 NLOS_CL = [sys.executable, "-m", "nlos_cl.apps.cli"]
 SCRIPT = str(Path(__file__).resolve())
 
@@ -137,6 +138,8 @@ def variants(capture: str, env: dict, baseline: str | None, keep: bool, tmp: Pat
     """name: (argv, environment)."""
     locate = [*NLOS_CL, "locate", capture, "--json"]
     out = {"floor (imports, context, queue)": ([sys.executable, "-c", FLOOR], env),
+           # the same, leaving as `nlos-cl` does (cli.run): how much of the floor is its exit
+           "floor, leaving with os._exit": ([sys.executable, "-c", FLOOR_QUICK_EXIT], env),
            "locate --json": (locate, env),
            "locate --json --estimator paper": ([*locate, "--estimator", "paper"], env)}
     if baseline:
