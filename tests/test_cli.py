@@ -112,3 +112,19 @@ def test_a_reader_that_leaves_ends_the_command_quietly(tmp_path):
     err = proc.stderr.read().decode()
     assert proc.wait(timeout=600) == 1, err
     assert "Traceback" not in err and "Exception ignored" not in err and "Fix" not in err
+
+
+def test_the_quick_exit_copes_with_closed_streams_and_prints_what_atexit_says(tmp_path):
+    """Started with stdout closed (`>&-`): main's exit code, no traceback; what an atexit
+    handler prints still reaches a piped stdout (the handlers run before the flush)."""
+    code = ("import atexit, sys; atexit.register(lambda: print('from atexit')); "
+            "sys.argv = ['nlos-cl', 'locate', 'none.h5']; from nlos_cl.apps.cli import run; run()")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=600, cwd=tmp_path)
+    assert out.returncode == 2 and "from atexit" in out.stdout, out.stderr
+    closed = subprocess.run([sys.executable, "-c", code.replace("print('from atexit')",
+                                                                "None")],
+                            stdout=None, stderr=subprocess.PIPE, text=True, timeout=600,
+                            cwd=tmp_path, stdin=subprocess.DEVNULL,
+                            preexec_fn=lambda: __import__("os").close(1))
+    assert closed.returncode == 2 and "Traceback" not in closed.stderr, closed.stderr

@@ -60,9 +60,36 @@ def test_what_json_cannot_carry_is_written_as_yaml(value):
 
 
 @pytest.mark.parametrize("text", ['{"a": 1, "a": 2}', '{"a": NaN}', '{"a": Infinity}',
-                                  "a: 1\n", "[1, 2]", "{" * 5000 + "}" * 5000, "{broken"])
+                                  "a: 1\n", "[1, 2]", "{" * 5000 + "}" * 5000, "{broken",
+                                  '{"a": ' + "[" * 64 + "]" * 64 + "}",  # 65 deep
+                                  '{"a": ' + "[" * 499 + "]" * 499 + "}"])  # 500 deep
 def test_what_is_not_plain_json_goes_to_the_yaml_reader(text):
+    """Duplicate keys, NaN, not a JSON object, nesting beyond the YAML reader's MAX_DEPTH (64):
+    None, so that the YAML reader decides (and refuses the last in one line)."""
     assert load_json_yaml(text) is None
+
+
+def test_json_as_deep_as_the_yaml_reader_allows_is_read():
+    text = '{"a": ' + "[" * 63 + "]" * 63 + "}"  # 64 deep: the bound itself
+    assert load_json_yaml(text) is not None
+    assert load_json_yaml(text) == yaml.load(text, Loader=yaml_loader())  # noqa: S506
+
+
+def test_deep_json_scene_info_is_refused_in_one_line(tmp_path):
+    def deep(f):
+        del f["scene_info"]
+        f["scene_info"] = '{"original_format": "nlos_cl", "nlos_cl": ' + "[" * 200 + \
+            "]" * 200 + "}"
+    with pytest.raises(nl.InputError, match="scene_info: nests lists or mappings more than 64"):
+        nl.read_capture(capture_file(deep))
+
+
+def test_text_beyond_the_basic_plane_stays_json():
+    """An emoji or a CJK name: written raw as UTF-8 (PyYAML does not join json's escaped
+    surrogate pairs, which would send the text to block YAML and the reader back to PyYAML)."""
+    data = {"name": "plaque \U0001F600 標的", "n": 1}
+    text = dump_json_yaml(data)
+    assert text.startswith("{") and yaml.safe_load(text) == data == load_json_yaml(text)
 
 
 def test_a_key_twice_in_json_scene_info_is_refused_by_the_yaml_reader(tmp_path):
@@ -105,11 +132,17 @@ def test_a_one_shot_locate_imports_neither_pyyaml_nor_numpy_ma(tmp_path):
     assert out.stdout.strip() == "[]", out.stdout
 
 
-@pytest.mark.parametrize("shape", [(0,), (1,), (7,), (8,), (3, 5)])
+@pytest.mark.parametrize("shape", [(0,), (1,), (7,), (8,), (3, 5), (1000,)])
 def test_median_and_unique_are_numpys(shape):
+    """The same numbers as NumPy's, bit for bit: float64, float32 (np.median averages the
+    middle two in float32), integers, NaNs (unique keeps one, as np.unique's equal_nan)."""
     rng = np.random.default_rng(sum(shape))
-    for values in (rng.normal(size=shape), rng.integers(0, 4, size=shape)):
+    for values in (rng.normal(size=shape), rng.normal(size=shape).astype(np.float32),
+                   rng.integers(0, 4, size=shape), rng.integers(0, 4, size=shape) * 0.5):
         np.testing.assert_array_equal(unique_sorted(values), np.unique(values))
         if values.size:
             assert median(values) == float(np.median(values))
+    assert median(np.array([1, 1 + 2 ** -23], np.float32)) == 1.0  # float32's own mean
     assert math.isnan(median([1.0, math.nan, 2.0]))
+    with_nans = np.array([np.nan, 1.0, np.nan, 2.0, 1.0])
+    np.testing.assert_array_equal(unique_sorted(with_nans), np.unique(with_nans))

@@ -359,17 +359,18 @@ def run() -> None:
     import os
     import threading
     code = main()
-    try:
-        sys.stdout.flush()
-        sys.stderr.flush()
-    except BrokenPipeError:  # the reader left: no "Exception ignored" at shutdown either
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        code = code or 1
-    except (OSError, ValueError):
-        sys.exit(code)
     if threading.active_count() > 1:
         sys.exit(code)
-    atexit._run_exitfuncs()
+    atexit._run_exitfuncs()  # first: what they print is flushed below
+    try:
+        for stream in (sys.stdout, sys.stderr):
+            if stream is not None:  # None: started with the stream closed (`>&-`)
+                stream.flush()
+    except BrokenPipeError:  # the reader left: no "Exception ignored" at shutdown either
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        os._exit(code or 1)
+    except (OSError, ValueError):
+        sys.exit(code)
     os._exit(code or 0)
 
 

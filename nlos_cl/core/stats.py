@@ -15,22 +15,41 @@ from .errors import require
 
 
 def unique_sorted(values) -> np.ndarray:
-    """np.unique(values): the sorted distinct values of the flattened array. NumPy 2.x's
-    np.unique without return_* imports numpy.ma on its first call (~7 ms of a one-shot `nlos-cl
-    locate`, issue 23); a sort and a comparison of neighbours import nothing."""
+    """np.unique(values): the sorted distinct values of the flattened array, NaNs as one (as
+    np.unique's equal_nan). NumPy 2.x's np.unique without return_* imports numpy.ma on its
+    first call (~7 ms of a one-shot `nlos-cl locate`, issue 23); a sort and a comparison of
+    neighbours import nothing."""
     flat = np.sort(np.asarray(values).ravel())
-    return flat[np.concatenate(([True], flat[1:] != flat[:-1]))] if flat.size else flat
+    if not flat.size:
+        return flat
+    if flat.dtype.kind in "fc" and np.isnan(flat[-1]):  # sorted: NaNs last, kept once
+        first = int(np.argmax(np.isnan(flat)))
+        return np.concatenate([unique_sorted(flat[:first]), flat[first:first + 1]])
+    return flat[np.concatenate(([True], flat[1:] != flat[:-1]))]
 
 
 def median(values) -> float:
     """float(np.median(values)), the same number, without importing numpy.ma: NumPy 2.x's
-    median looks for NaNs through np.ma on its first call (~7 ms of a one-shot command)."""
-    flat = np.asarray(values, dtype=np.float64).reshape(1, -1)
-    return float(row_median(flat)[0]) if flat.size else float(np.median(flat))
+    median looks for NaNs through np.ma on its first call (~7 ms of a one-shot command). In the
+    values' own float type, as np.median (float32 rows: the mean of the middle two in float32);
+    integers in float64."""
+    flat = np.asarray(values).reshape(-1)
+    if flat.dtype.kind not in "fc":
+        flat = flat.astype(np.float64)
+    n = flat.size
+    if n == 0 or not np.isfinite(flat).all():
+        return float(np.median(flat))
+    part = flat.copy()
+    mid = n // 2
+    part.partition(mid)
+    if n % 2:
+        return float(part[mid])
+    return float((part[:mid].max() + part[mid]) / flat.dtype.type(2))
 
 
 def row_median(rows, *, overwrite=False) -> np.ndarray:
-    """np.median(rows, axis=1), the same numbers, ~10x faster on long rows: np.median also
+    """np.median(rows, axis=1) in float64 (the same numbers for float64 rows; float32 rows are
+    averaged in float64, np.median would in float32), ~10x faster on long rows: np.median also
     partitions at the last element to find NaNs (kth=[mid, -1]), which costs 2 ms on 3 x 60,000
     bins where one partition at the middle costs 0.2 ms. Rows holding NaN go to np.median.
     overwrite: rows is a temporary of the caller's, partitioned in place (no copy)."""

@@ -193,9 +193,22 @@ def load_json_yaml(text: str):
     if not text.lstrip().startswith("{"):
         return None
     try:
-        return json.loads(text, object_pairs_hook=_unique_keys, parse_constant=_not_yaml)
+        data = json.loads(text, object_pairs_hook=_unique_keys, parse_constant=_not_yaml)
     except (ValueError, RecursionError):  # RecursionError: deep nesting, which YAML refuses
         return None
+    return data if _depth(data) <= MAX_DEPTH else None  # the YAML reader's bound, and error
+
+
+def _depth(data) -> int:
+    """How deep lists and mappings nest in `data` (a parsed JSON value), without recursion."""
+    deepest, stack = 0, [(data, 1)]
+    while stack:
+        value, depth = stack.pop()
+        if isinstance(value, (dict, list)):
+            deepest = max(deepest, depth)
+            stack.extend((v, depth + 1) for v in (value.values() if isinstance(value, dict)
+                                                   else value))
+    return deepest
 
 
 def _json(value) -> str:
@@ -211,8 +224,8 @@ def _json(value) -> str:
         text = repr(float(value))
         mantissa, e, exponent = text.partition("e")
         return f"{mantissa}.0e{exponent}" if e and "." not in mantissa else text
-    if isinstance(value, str):
-        return json.dumps(value)
+    if isinstance(value, str):  # raw UTF-8 (PyYAML does not join json's surrogate pairs)
+        return json.dumps(value, ensure_ascii=False)
     if isinstance(value, dict):
         return "{" + ", ".join(f"{_json_key(k)}: {_json(v)}" for k, v in value.items()) + "}"
     if isinstance(value, (list, tuple)):
@@ -223,7 +236,7 @@ def _json(value) -> str:
 def _json_key(key) -> str:
     if not isinstance(key, str):
         raise TypeError("JSON keys are text")
-    return json.dumps(key)
+    return json.dumps(key, ensure_ascii=False)
 
 
 def _unique_keys(pairs):

@@ -106,15 +106,10 @@ def size_prior(problem, rows, sizes):
 
 def _nearest_rows(centres, prior_centres) -> list[tuple[int, int]]:
     """(result row, prior row) pairs: the one-to-one matching with the least summed centre
-    distance (a few targets: every permutation is cheap)."""
-    import itertools
-    n, m = len(centres), len(prior_centres)
+    distance (SciPy's linear_sum_assignment, which the tracker's association imports anyway)."""
+    from scipy.optimize import linear_sum_assignment
     gap = np.linalg.norm(centres[:, None] - prior_centres[None], axis=2)
-    if n <= m:
-        options = (list(zip(range(n), cols)) for cols in itertools.permutations(range(m), n))
-    else:
-        options = (list(zip(rows, range(m))) for rows in itertools.permutations(range(n), m))
-    return min(options, key=lambda pairs: sum(gap[k, j] for k, j in pairs))
+    return [(int(k), int(j)) for k, j in zip(*linear_sum_assignment(gap))]
 
 
 def checked_sizes(prior, k: int):
