@@ -138,7 +138,7 @@ def variants(capture: str, env: dict, baseline: str | None, keep: bool, tmp: Pat
     """name: (argv, environment)."""
     locate = [*NLOS_CL, "locate", capture, "--json"]
     out = {"floor (imports, context, queue)": ([sys.executable, "-c", FLOOR], env),
-           # the same, leaving as `nlos-cl` does (cli.run): how much of the floor is its exit
+           # the same, leaving as `nlos-cl` does (terminal.leave): how much of the floor is its exit
            "floor, leaving with os._exit": ([sys.executable, "-c", FLOOR_QUICK_EXIT], env),
            "locate --json": (locate, env),
            "locate --json --estimator paper": ([*locate, "--estimator", "paper"], env)}
@@ -264,8 +264,8 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     if args.child_stages:
         child_stages(*args.child_stages, args.profile)
-        from nlos_cl.apps import cli
-        if hasattr(cli, "run"):  # a tree with cli.run's quick exit leaves as `nlos-cl` does
+        from nlos_cl.apps import terminal
+        if hasattr(terminal, "leave"):  # a tree with the quick exit leaves as `nlos-cl` does
             import atexit
             sys.stdout.flush()
             sys.stderr.flush()

@@ -80,7 +80,7 @@ def test_locate_and_track_take_the_targets_reflectance(tmp_path):
 
 
 def test_the_quick_exit_keeps_every_output(tmp_path):
-    """`nlos-cl` leaves with os._exit once main returns (cli.run: no OpenCL and module
+    """`nlos-cl` leaves with os._exit once main returns (console.run: no OpenCL and module
     teardown, ~30 ms of a one-shot locate): the JSON on stdout is whole, a file written is
     complete, atexit handlers still run, and the exit code is main's."""
     capture, figure, ran = tmp_path / "c.h5", tmp_path / "map.npz", tmp_path / "atexit-ran"
@@ -88,7 +88,7 @@ def test_the_quick_exit_keeps_every_output(tmp_path):
     code = ("import atexit, pathlib, sys; "
             f"atexit.register(lambda: pathlib.Path({str(ran)!r}).write_text('ran')); "
             f"sys.argv = ['nlos-cl', 'locate', {str(capture)!r}, '--json', '--map', "
-            f"{str(figure)!r}]; from nlos_cl.apps.cli import run; run()")
+            f"{str(figure)!r}]; from nlos_cl.apps.console import run; run()")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          timeout=600)
     assert out.returncode == 0, out.stderr
@@ -118,7 +118,7 @@ def test_the_quick_exit_copes_with_closed_streams_and_prints_what_atexit_says(tm
     """Started with stdout closed (`>&-`): main's exit code, no traceback; what an atexit
     handler prints still reaches a piped stdout (the handlers run before the flush)."""
     code = ("import atexit, sys; atexit.register(lambda: print('from atexit')); "
-            "sys.argv = ['nlos-cl', 'locate', 'none.h5']; from nlos_cl.apps.cli import run; run()")
+            "sys.argv = ['nlos-cl', 'locate', 'none.h5']; from nlos_cl.apps.console import run; run()")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          timeout=600, cwd=tmp_path)
     assert out.returncode == 2 and "from atexit" in out.stdout, out.stderr

@@ -346,33 +346,5 @@ def main(argv=None) -> int:
         return 2
 
 
-def run() -> None:
-    """The console entry (`nlos-cl`, `python -m nlos_cl.apps.cli`): main(), then a quick exit.
-    When main returns, every output is written and closed; what Python's shutdown would still
-    do is tear down the OpenCL runtime and every module, ~30 ms of a one-shot `locate`'s ~380
-    (issue 23 item 4; nlos_cl/apps/bench/analysis.md). So stdout and stderr are flushed, the
-    atexit handlers run (temporary folders, logging, coverage), and the process leaves with
-    os._exit, unless another Python thread is alive (then the usual shutdown waits for it) or a
-    flush fails (then Python reports it as usual; a reader that left, `| head`, quietly).
-    main() itself returns: tests and scripts call it in-process."""
-    import atexit
-    import os
-    import threading
-    code = main()
-    if threading.active_count() > 1:
-        sys.exit(code)
-    atexit._run_exitfuncs()  # first: what they print is flushed below
-    try:
-        for stream in (sys.stdout, sys.stderr):
-            if stream is not None:  # None: started with the stream closed (`>&-`)
-                stream.flush()
-    except BrokenPipeError:  # the reader left: no "Exception ignored" at shutdown either
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        os._exit(code or 1)
-    except (OSError, ValueError):
-        sys.exit(code)
-    os._exit(code or 0)
-
-
 if __name__ == "__main__":
-    run()
+    terminal.leave(main())  # as `nlos-cl` (console.run) leaves

@@ -1,7 +1,7 @@
 """What `nlos-cl` prints besides its answer: Python warnings as one line each,
 `nlos-cl: warning: ...`, every distinct warning once per run and without Python's source line;
 and --verbose (the OpenCL compiler's output, which nlos_cl.device.runtime otherwise keeps off the
-terminal). Only the command line changes how warnings look: the library keeps Python's standard
+terminal); and how the command leaves (`leave`, after nlos_cl.apps.console.run). Only the command line changes how warnings look: the library keeps Python's standard
 warnings, so a program that imports nlos_cl filters and formats them as it likes.
 """
 from __future__ import annotations
@@ -67,3 +67,28 @@ def one_run(main):
             else:
                 os.environ["NLOS_CL_VERBOSE"] = env_before
     return run
+
+
+def leave(code) -> None:
+    """Exit with main's `code`, quickly. When main returns, every output is written and closed;
+    what Python's shutdown would still do is tear down the OpenCL runtime and every module,
+    ~30 ms of a one-shot `locate`'s ~380 (issue 23 item 4; nlos_cl/apps/bench/analysis.md). So
+    the atexit handlers run (temporary folders, logging, coverage), then stdout and stderr are
+    flushed, and the process leaves with os._exit, unless another Python thread is alive (then
+    the usual shutdown waits for it) or a flush fails (then Python reports it as usual; a
+    reader that left, `| head`, quietly)."""
+    import atexit
+    import threading
+    if threading.active_count() > 1:
+        sys.exit(code)
+    atexit._run_exitfuncs()  # first: what they print is flushed below
+    try:
+        for stream in (sys.stdout, sys.stderr):
+            if stream is not None:  # None: started with the stream closed (`>&-`)
+                stream.flush()
+    except BrokenPipeError:  # the reader left: no "Exception ignored" at shutdown either
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        os._exit(code or 1)
+    except (OSError, ValueError):
+        sys.exit(code)
+    os._exit(code or 0)
