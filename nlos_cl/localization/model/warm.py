@@ -153,14 +153,14 @@ def hidden_diagnostics(problem, result, prior=None) -> list[dict]:
         if prior and prior.size_sd is not None:
             rows = np.asarray(prior.rows, float).reshape(-1, params.shape[1])
             known = np.isfinite(np.asarray(prior.size_sd, float)).all(axis=1)
+            size = np.asarray(prior.size, float)
             for k, j in _nearest_rows(params[:, :3], rows[:, :3]):
                 if known[j]:
-                    params[k, SIZE] = np.maximum(params[k, SIZE], np.asarray(prior.size,
-                                                                             float)[j])
+                    params[k, SIZE] = np.maximum(params[k, SIZE], size[j])
         obs = problem.obs
         share = [round(float(h), 4) for h in hidden_shares(params, obs.laser, obs.spots,
                                                             problem.lattice)]
-        side = params[:, [plate.WIDTH, plate.HEIGHT]].max(axis=1)
+        side = params[:, SIZE].max(axis=1)
         sd = [round(h * float(w) / 2, 4) for h, w in zip(share, side)]
     return [{HIDDEN_SHARE_KEY: h, HIDDEN_SD_KEY: d, "size_held": bool(b)}
             for h, d, b in zip(share, sd, held)]
