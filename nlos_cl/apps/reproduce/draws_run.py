@@ -64,15 +64,29 @@ def _short(notes) -> str:
 
 
 def locate(hist, options: dict):
-    """(found positions, warnings, seconds); an estimator that fails is a row, not a crash."""
+    """(found positions, warnings, seconds, model columns); an estimator that fails is a row,
+    not a crash."""
     start = time.perf_counter()
     try:
         point = nl.locate_capture(hist, **options).points[0]
         found = [np.asarray(t.position, float) for t in point.location.targets]
         notes = list(point.warnings)
+        model = fit_columns(point.location.targets)
     except Exception as exc:  # the table says so, the run goes on
         found, notes = [], [f"failed: {type(exc).__name__}: {str(exc)[:100]}"]
-    return found, notes, time.perf_counter() - start
+        model = fit_columns([])
+    return found, notes, time.perf_counter() - start, model
+
+
+def fit_columns(targets) -> dict:
+    """The model selection's choice per target: the fitted shape's name ('' for the paper's
+    argmax) and, where closed shapes were tried, their BIC gain over the plate (the closed
+    margin's evidence: docs/model-estimator.md)."""
+    fits = [getattr(t, "fit", None) for t in targets]
+    gains = [(f.diagnostics or {}).get("closed_bic_gain") if f is not None else None
+             for f in fits]
+    return {"fitted": " ".join(f.shape if f is not None else "-" for f in fits),
+            "closed_gain": " ".join("-" if g is None else f"{g:.2f}" for g in gains)}
 
 
 def describe(d: dict) -> dict:
@@ -104,7 +118,7 @@ def run(d: dict, s: Settings) -> list[dict]:
     rows, base = [], describe(d)
     closed_truth = any(t["shape"] in CLOSED_SHAPES for t in d["targets"])
     for label, options in estimators(d):
-        found, notes, seconds = locate(frame, options)
+        found, notes, seconds, model = locate(frame, options)
         errors = matched_errors(found, truths)
         worst = max(errors) if not any(math.isnan(e) for e in errors) else math.nan
         rows.append({**base, "estimator": label, "k_found": len(found),
@@ -114,5 +128,5 @@ def run(d: dict, s: Settings) -> list[dict]:
                      "warned": _warned(notes, closed_truth),
                      "depth_unseen": depth_unseen(notes), "seconds": round(seconds, 3),
                      "sim_s": round(sim_s, 3), "warnings": _short(notes),
-                     "sim_notes": _short(sim_notes)})
+                     "sim_notes": _short(sim_notes), **model})
     return rows
