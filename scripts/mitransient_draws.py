@@ -1,0 +1,232 @@
+"""The estimators on independent renders of random scenes (issue 22): `reproduce draws`' one-target
+draws rendered by mitransient 1.3.1 (Mitsuba 3) instead of nlos_cl's forward model, then located
+exactly as `reproduce draws` locates its own simulations. Three steps, two venvs, like
+mitransient_check.py:
+
+  export  (.venv)              : each draw's target as PLY and what the render needs (spots,
+                                 the time axis as hidden path, the pulse)
+  render  (.venv-mitransient)  : per wall spot, one render of the hidden path r1 + r2 (laser spot
+                                 -> target -> that spot), first and last bounces excluded
+  locate  (.venv)              : each render convolved with the bin-integrated pulse, put in
+                                 place of nlos_cl's clean histograms (same layout and time axis),
+                                 scaled to nlos_cl's total energy (one constant per draw: the
+                                 estimators fit the amplitude, and the noise follows the draw's
+                                 SNR, so only the renders' shapes and per-spot ratios matter),
+                                 the draw's noise added (draws_scene.noisy), the paper's argmax
+                                 and the default located (draws_run.locate); errors as draws.py
+
+How a spot is rendered (nothing of nlos_cl's geometry enters): mitransient's nlos_capture_meter
+measures the wall at its film's pixel centres; with a 1 x 1 film on a relay-wall rectangle
+centred on the spot, that centre is the spot. The rectangle reaches past the laser spot O (the
+projector is focused there). The device sits high above the wall (DEVICE) so that no target
+shadows its rays; for a Lambertian wall the radiance a spot sends it does not depend on where it
+is. Hidden-geometry sampling (every drawn target is convex). The renders' Monte Carlo noise is
+reported beside each draw (two independent halves of the samples, `--splits 2`).
+
+Run through scripts/mitransient_draws.sh. Files stay in --out (default out/mitransient-draws),
+out of git.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+DEVICE = [0.0, 5.0, 20.0]  # m: the laser's and the meter's origin, far above every target
+FAMILY = "one"
+
+
+def _indices(args) -> range:
+    return range(args.start, args.start + args.count)
+
+
+def export(out: Path, indices):
+    import nlos_cl as nl
+    from nlos_cl.apps.reproduce import draws_gen, draws_scene
+    from nlos_cl.apps.reproduce.common import Settings
+    s = Settings.make()
+    for i in indices:
+        d = draws_gen.draw(FAMILY, i)
+        sc = draws_scene.scene(d, s)
+        for k, t in enumerate(d["targets"]):
+            draws_scene.mesh_of(t, s.facet_m).export(out / f"draw{i}_{k}.ply")
+        axis = nl.default_time_axis(sc.setup, s.dt_s)
+        c = nl.SPEED_OF_LIGHT
+        # nlos_cl's bin k holds light that left at t = t0 + k dt minus the pulse's peak delay
+        # and the two device legs: its hidden path
+        start_opl = c * (axis.t0_s - sc.setup.pulse.peak_delay_s) - 2 * sc.setup.device_distance_m
+        meta = {"draw": d, "spots": np.asarray(d["layout"]["spots"], float).tolist(),
+                "laser": [0.0, 0.0, 0.0], "n_targets": len(d["targets"]),
+                "brdf": 0.1284, "wall_brdf": float(sc.setup.wall_brdf),
+                "start_opl": start_opl, "bin_opl": c * axis.dt_s, "n_bins": axis.n_bins,
+                "sigma_m": c * sc.setup.pulse.sigma_s}
+        (out / f"draw{i}.json").write_text(json.dumps(meta))
+
+
+def render(out: Path, indices, spp: int, splits: int):
+    import mitsuba as mi
+    mi.set_variant("llvm_ad_mono" if "llvm_ad_mono" in mi.variants() else "llvm_ad_rgb")
+    import mitransient as mitr  # noqa: F401  (registers the plugins)
+    from mitsuba import ScalarTransform4f as T
+    for i in indices:
+        target = out / f"draw{i}_render.npy"
+        if target.exists():
+            continue
+        meta = json.loads((out / f"draw{i}.json").read_text())
+        t0 = time.perf_counter()
+        rows = []
+        for spot in meta["spots"]:
+            reach = max(abs(spot[0]), abs(spot[2])) + 0.5  # the rectangle covers O
+            wall = {"type": "rectangle", "id": "relay_wall",
+                    "to_world": T().translate(spot) @ T().rotate([1, 0, 0], -90)
+                    @ T().scale([reach, reach, 1.0]),
+                    "bsdf": {"type": "diffuse",
+                             "reflectance": {"type": "rgb", "value": meta["wall_brdf"] * math.pi}},
+                    "nlos_sensor": {"type": "nlos_capture_meter", "sensor_origin": DEVICE,
+                                    "film": {"type": "transient_hdr_film", "width": 1,
+                                             "height": 1, "temporal_bins": meta["n_bins"],
+                                             "bin_width_opl": meta["bin_opl"],
+                                             "start_opl": meta["start_opl"],
+                                             "rfilter": {"type": "box"}}}}
+            desc = {"type": "scene", "relay_wall": wall,
+                    "integrator": {"type": "transient_nlos_path", "max_depth": 3,
+                                   "nlos_laser_sampling": True,
+                                   "nlos_hidden_geometry_sampling": True,
+                                   "account_first_and_last_bounces": False},
+                    "laser": {"type": "projector", "id": "laser", "fov": 0.05,
+                              "to_world": T().translate(DEVICE), "irradiance": 1.0}}
+            for k in range(meta["n_targets"]):
+                desc[f"target_{k}"] = {
+                    "type": "ply", "filename": str(out / f"draw{i}_{k}.ply"), "face_normals": True,
+                    "bsdf": {"type": "diffuse",
+                             "reflectance": {"type": "rgb", "value": meta["brdf"] * math.pi}}}
+            scene = mi.load_dict(desc)
+            relay = [s for s in scene.shapes() if s.id() == "relay_wall"][0]
+            mitr.nlos.focus_emitter_at_relay_wall_3dpoint(mi.Point3f(*meta["laser"]), relay,
+                                                          scene.emitters()[0])
+            rows.append([np.array(mi.render(scene, spp=max(1, spp // splits), seed=seed)[1])
+                         [0, 0, :, 0] for seed in range(splits)])
+        np.save(target, np.array(rows, np.float32))  # (spots, splits, bins)
+        (out / f"draw{i}_render.json").write_text(json.dumps(
+            {"spp": splits * max(1, spp // splits), "seconds": time.perf_counter() - t0}))
+        print(f"draw {i}: {len(rows)} spots, {time.perf_counter() - t0:.1f} s", flush=True)
+
+
+def pulse_convolved(data, bin_m: float, sigma_m: float) -> np.ndarray:
+    """Each row convolved with the bin-integrated Gaussian pulse (nlos_cl's peak at its centre:
+    the time axis already holds the peak delay)."""
+    from scipy.signal import fftconvolve
+    from scipy.special import erf
+    half = int(math.ceil(6 * sigma_m / bin_m))
+    k = np.arange(-half, half + 1)
+    taps = 0.5 * (erf((k + 0.5) * bin_m / (math.sqrt(2) * sigma_m))
+                  - erf((k - 0.5) * bin_m / (math.sqrt(2) * sigma_m)))
+    return fftconvolve(np.asarray(data, float), taps[None], mode="same", axes=1)
+
+
+def locate_one(job) -> list[dict]:
+    """Both estimators on draw i's rendered frame: one row each ([] where it has no render)."""
+    out, i = job
+    from nlos_cl.apps.reproduce import draws_run, draws_scene
+    from nlos_cl.apps.reproduce.common import Settings
+    s = Settings.make()
+    rows = []
+    if (out / f"draw{i}_render.npy").exists():
+        meta = json.loads((out / f"draw{i}.json").read_text())
+        d = meta["draw"]
+        clean, _ = draws_scene.simulate(d, s)
+        parts = np.load(out / f"draw{i}_render.npy").astype(np.float64)  # (spots, splits, bins)
+        conv = np.stack([pulse_convolved(parts[:, j], meta["bin_opl"], meta["sigma_m"])
+                         for j in range(parts.shape[1])], axis=1)
+        render = conv.mean(axis=1)
+        scale = clean.data.sum() / render.sum()
+        render *= scale
+        peak = np.abs(clean.data).max(axis=1)
+        # the render against nlos_cl's own clean histograms (both at nlos_cl's total energy):
+        # the per-spot energy ratio and the largest shape difference, and the Monte Carlo
+        # noise of the same measure (the two halves of the samples)
+        energy = render.sum(axis=1) / clean.data.sum(axis=1)
+        shape = (np.abs(render - clean.data).max(axis=1) / peak).max()
+        mc = (np.abs(conv[:, 0] - conv[:, -1]).max(axis=1) * scale / 2 / peak).max() \
+            if conv.shape[1] > 1 else math.nan
+        frame = draws_scene.noisy(clean.with_data(render.astype(clean.data.dtype)), d)
+        truths = np.array([t["centre"] for t in d["targets"]], float)
+        closed = any(t["shape"] in draws_run.CLOSED_SHAPES for t in d["targets"])
+        base = draws_run.describe(d)
+        for label, options in draws_run.estimators(d):
+            found, notes, seconds, model = draws_run.locate(frame, options)
+            errors = draws_run.matched_errors(found, truths)
+            worst = max(errors) if not any(math.isnan(e) for e in errors) else math.nan
+            rows.append({**base, "estimator": label, "k_found": len(found),
+                         "error_m": round(worst, 5) if math.isfinite(worst) else math.nan,
+                         "warned": draws_run._warned(notes, closed),
+                         "depth_unseen": draws_run.depth_unseen(notes),
+                         "seconds": round(seconds, 3), "warnings": draws_run._short(notes),
+                         "energy_ratio_min": round(float(energy.min()), 4),
+                         "energy_ratio_max": round(float(energy.max()), 4),
+                         "shape_diff": round(float(shape), 4), "mc_shape_noise": round(float(mc), 4),
+                         **model})
+        print(f"draw {i}: " + ", ".join(f"{r['estimator']} {r['error_m']}" for r in rows[-2:]),
+              flush=True)
+    return rows
+
+
+def locate(out: Path, indices, jobs: int = 1):
+    from nlos_cl.apps.reproduce import draws_report
+    work = [(out, i) for i in indices]
+    if jobs > 1:
+        import multiprocessing as mp
+        with mp.get_context("spawn").Pool(jobs) as pool:
+            rows = [r for part in pool.map(locate_one, work, chunksize=1) for r in part]
+    else:
+        rows = [r for job in work for r in locate_one(job)]
+    if not rows:
+        raise SystemExit("no renders in " + str(out))
+    with open(out / "draws-rendered.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    lines = ["| layouts | estimator | n | median (m) | p90 (m) | worst (m) | failures (> 0.15 m) "
+             "| beyond 0.15 m without a warning |", "|---|---|---|---|---|---|---|---|"]
+    for name, keep in (("all", lambda r: True),
+                       ("off a line", lambda r: not str(r["layout"]).startswith("line"))):
+        for label in ("paper", "default"):
+            part = [r for r in rows if r["estimator"] == label and keep(r)]
+            if not part:
+                continue
+            st = draws_report.stats(part, 0.15)
+            lines.append(f"| {name} | {label} | {st['n']} | {st['median_m']:.4f} | "
+                         f"{st['p90_m']:.4f} | {st['worst_m']:.4f} | {st['failure_rate']:.1%} | "
+                         f"{st['unwarned_failures']} |")
+    table = "\n".join(lines) + "\n"
+    (out / "draws-rendered.md").write_text(table)
+    print(table)
+
+
+def main():
+    parser = argparse.ArgumentParser()
+    parser.add_argument("step", choices=("export", "render", "locate"))
+    parser.add_argument("--out", type=Path, default=Path("out/mitransient-draws"))
+    parser.add_argument("--start", type=int, default=0, help="first draw index")
+    parser.add_argument("--count", type=int, default=20, help="draws of the 'one' family")
+    parser.add_argument("--spp", type=int, default=2 ** 18, help="samples per spot")
+    parser.add_argument("--splits", type=int, default=2,
+                        help="independent renders per spot (their spread: the MC noise column)")
+    parser.add_argument("--jobs", type=int, default=1, help="locate: draws located at once")
+    args = parser.parse_args()
+    args.out.mkdir(parents=True, exist_ok=True)
+    if args.step == "export":
+        export(args.out, _indices(args))
+    elif args.step == "render":
+        render(args.out, _indices(args), args.spp, args.splits)
+    else:
+        locate(args.out, _indices(args), args.jobs)
+
+
+if __name__ == "__main__":
+    main()
