@@ -255,23 +255,35 @@ def page(rows, table: str, out: Path, seconds: float) -> str:
         ""])
 
 
+def write_page(out: Path, doc: Path):
+    """The page from a finished folder: its draws-rendered.csv and the locate step's time; the
+    CSV is copied beside the page."""
+    with open(out / "draws-rendered.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    table = (out / "draws-rendered.md").read_text()
+    seconds = json.loads((out / "locate.json").read_text())["seconds"]
+    doc.write_text(page(rows, table, out, seconds))
+    doc.with_suffix(".csv").write_text((out / "draws-rendered.csv").read_text())
+
+
 def _bool(v) -> bool:
     return v is True or str(v) == "True"
 
 
 def main():
     parser = argparse.ArgumentParser()
-    parser.add_argument("step", choices=("export", "render", "locate"))
+    parser.add_argument("step", choices=("export", "render", "locate", "page"))
     parser.add_argument("--out", type=Path, default=Path("out/mitransient-draws"))
     parser.add_argument("--start", type=int, default=0, help="first draw index")
-    parser.add_argument("--count", type=int, default=20, help="draws of the 'one' family")
+    parser.add_argument("--count", type=int, default=20, help="draws (of --family)")
     parser.add_argument("--spp", type=int, default=2 ** 18, help="samples per spot")
     parser.add_argument("--splits", type=int, default=2,
                         help="independent renders per spot (their spread: the MC noise column)")
     parser.add_argument("--family", choices=FAMILIES, default="one",
                         help="export: which draws (reproduce draws' families of one target)")
     parser.add_argument("--doc", type=Path, default=None,
-                        help="locate: also write this page (and its .csv beside it)")
+                        help="locate, page: write this page (and its .csv beside it) from "
+                        "--out's located draws")
     parser.add_argument("--jobs", type=int, default=1, help="locate: draws located at once")
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
@@ -279,15 +291,13 @@ def main():
         export(args.out, _indices(args), args.family)
     elif args.step == "render":
         render(args.out, _indices(args), args.spp, args.splits)
-    else:
+    elif args.step == "locate":
         start = time.perf_counter()
-        rows, table = locate(args.out, _indices(args), args.jobs)
-        if args.doc:
-            args.doc.write_text(page(rows, table, args.out, time.perf_counter() - start))
-            with open(args.doc.with_suffix(".csv"), "w", newline="") as f:
-                w = csv.DictWriter(f, fieldnames=list(rows[0]))
-                w.writeheader()
-                w.writerows(rows)
+        locate(args.out, _indices(args), args.jobs)
+        (args.out / "locate.json").write_text(json.dumps(
+            {"seconds": time.perf_counter() - start}))
+    if args.doc and args.step in ("locate", "page"):
+        write_page(args.out, args.doc)
 
 
 if __name__ == "__main__":
