@@ -252,7 +252,45 @@ def page(rows, table: str, out: Path, seconds: float) -> str:
         f"max {diff.max():.3f}, where the renders' own Monte Carlo noise on the same measure "
         f"(half the difference of two independent halves of the samples) is median "
         f"{np.nanmedian(mc):.3f}, max {np.nanmax(mc):.3f}.",
-        ""])
+        "", *paired(rows), ""])
+
+
+SIMULATED = Path(__file__).resolve().parents[1] / "docs" / "draws.csv"
+
+
+def paired(rows, sims: Path = SIMULATED) -> list[str]:
+    """The same draws as nlos_cl simulated them (docs/draws.csv, the default estimator): both
+    distributions over the draws rendered here, and every draw whose error moved by more than
+    2 cm between the two."""
+    if not sims.exists():
+        return []
+    with open(sims, newline="") as f:
+        sim = {(r["family"], r["index"]): r for r in csv.DictReader(f)
+               if r["estimator"] == "default"}
+    pairs = [(r, sim[(r["family"], r["index"])]) for r in rows
+             if r["estimator"] == "default" and (r["family"], r["index"]) in sim]
+    if not pairs:
+        return []
+    out = ["## The same draws, simulated by nlos_cl (docs/draws.csv, default estimator)", "",
+           "| family | layouts | n | rendered: median / p90 (m) | simulated: median / p90 (m) |",
+           "|---|---|---|---|---|"]
+    for family in sorted({r["family"] for r, _ in pairs}):
+        for name, keep in (("all", lambda r: True),
+                           ("off a line", lambda r: not str(r["layout"]).startswith("line"))):
+            part = [(a, b) for a, b in pairs if a["family"] == family and keep(a)]
+            ren = np.array([float(a["error_m"]) for a, _ in part])
+            sm = np.array([float(b["error_m"]) for _, b in part])
+            out.append(f"| {family} | {name} | {len(part)} | {np.median(ren):.4f} / "
+                       f"{np.percentile(ren, 90):.4f} | {np.median(sm):.4f} / "
+                       f"{np.percentile(sm, 90):.4f} |")
+    moved = [(a, b) for a, b in pairs if abs(float(a["error_m"]) - float(b["error_m"])) > 0.02]
+    out += ["", f"Draws whose error moved by more than 0.02 m ({len(moved)} of {len(pairs)}):", "",
+            "| family | index | target | layout | spots | SNR dB | rendered (m) | simulated (m) "
+            "| fitted (rendered) |", "|---|---|---|---|---|---|---|---|---|"]
+    out += [f"| {a['family']} | {a['index']} | {a['sub']} | {a['layout']} | {a['spots']} | "
+            f"{float(a['snr_db']):.1f} | {float(a['error_m']):.4f} | {float(b['error_m']):.4f} | "
+            f"{a.get('fitted', '')} |" for a, b in moved]
+    return out
 
 
 def write_page(out: Path, doc: Path):
