@@ -160,6 +160,24 @@ def test_the_curved_models_match_finely_cut_surfaces():
     assert np.all(rel < 0.005), rel
 
 
+def test_a_plate_kept_after_the_closed_fits_says_the_depth_was_not_found():
+    """The plate is what the answer reports, but the closed shapes were tried (the probe found
+    a box behind it cheaper, or the plate missed the data) and none fitted better: the answer
+    says its depth was not found (a box's centre lies behind the found surface). Seen depth,
+    closed not tried: quiet; an unseen depth keeps its own notice."""
+    from nlos_cl.localization.model import plate
+    from nlos_cl.localization.model.depth import NOT_FOUND_WARNING, unseen_note
+    prefix = NOT_FOUND_WARNING.split("{")[0]
+    probe = unseen_note(plate, None, None, {"depth_sd_m": 0.01, "box_probe_better": True,
+                                            "closed_tried": True})
+    assert probe.startswith(prefix) and "the depth probe" in probe
+    misfit = unseen_note(plate, None, None, {"closed_tried": True}, k=1)
+    assert misfit.startswith("the depth of target 2") and "does not explain" in misfit
+    assert unseen_note(plate, None, None, {"depth_sd_m": 0.01, "closed_tried": False}) is None
+    unseen = unseen_note(plate, None, None, {"depth_sd_m": 0.5, "closed_tried": True})
+    assert unseen.startswith(DEPTH_WARNING.split("{")[0])
+
+
 def test_a_box_whose_plate_went_wide_is_found_from_the_other_closed_fits_front():
     """A 0.78 x 0.45 m box 0.66 m deep facing a 6 x 5 SPAD patch 0.45 m across (one side lit
     and seen by a few spots), 4 dB: the plate goes 1.1 x 1.5 m wide to take up the side (Birge
