@@ -79,7 +79,7 @@ def locate(hist, options: dict):
 
 
 def fit_columns(targets) -> dict:
-    """The model selection's choice per target: the fitted shape's name ('' for the paper's
+    """The model selection's choice per target: the fitted shape's name ('-' for the paper's
     argmax) and, where closed shapes were tried, their BIC gain over the plate (the closed
     margin's evidence: docs/model-estimator.md)."""
     fits = [getattr(t, "fit", None) for t in targets]
