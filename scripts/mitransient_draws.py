@@ -32,10 +32,14 @@ import argparse
 import csv
 import json
 import math
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from mitransient_check import _pulse_convolve  # noqa: E402
 
 DEVICE = [0.0, 5.0, 20.0]  # m: the laser's and the meter's origin, far above every target
 # Families of single convex targets (hidden-geometry sampling is unbiased for them; several
@@ -120,15 +124,8 @@ def render(out: Path, indices, spp: int, splits: int):
 
 
 def pulse_convolved(data, bin_m: float, sigma_m: float) -> np.ndarray:
-    """Each row convolved with the bin-integrated Gaussian pulse (nlos_cl's peak at its centre:
-    the time axis already holds the peak delay)."""
-    from scipy.signal import fftconvolve
-    from scipy.special import erf
-    half = int(math.ceil(6 * sigma_m / bin_m))
-    k = np.arange(-half, half + 1)
-    taps = 0.5 * (erf((k + 0.5) * bin_m / (math.sqrt(2) * sigma_m))
-                  - erf((k - 0.5) * bin_m / (math.sqrt(2) * sigma_m)))
-    return fftconvolve(np.asarray(data, float), taps[None], mode="same", axes=1)
+    """mitransient_check's pulse (bin-integrated Gaussian, centred) at these renders' bins."""
+    return _pulse_convolve(data, sigma_m, bin_m)
 
 
 def locate_one(job) -> list[dict]:
@@ -157,22 +154,10 @@ def locate_one(job) -> list[dict]:
         mc = (np.abs(conv[:, 0] - conv[:, -1]).max(axis=1) * scale / 2 / peak).max() \
             if conv.shape[1] > 1 else math.nan
         frame = draws_scene.noisy(clean.with_data(render.astype(clean.data.dtype)), d)
-        truths = np.array([t["centre"] for t in d["targets"]], float)
-        closed = any(t["shape"] in draws_run.CLOSED_SHAPES for t in d["targets"])
-        base = draws_run.describe(d)
-        for label, options in draws_run.estimators(d):
-            found, notes, seconds, model = draws_run.locate(frame, options)
-            errors = draws_run.matched_errors(found, truths)
-            worst = max(errors) if not any(math.isnan(e) for e in errors) else math.nan
-            rows.append({**base, "estimator": label, "k_found": len(found),
-                         "error_m": round(worst, 5) if math.isfinite(worst) else math.nan,
-                         "warned": draws_run._warned(notes, closed),
-                         "depth_unseen": draws_run.depth_unseen(notes),
-                         "seconds": round(seconds, 3), "warnings": draws_run._short(notes),
-                         "energy_ratio_min": round(float(energy.min()), 4),
-                         "energy_ratio_max": round(float(energy.max()), 4),
-                         "shape_diff": round(float(shape), 4), "mc_shape_noise": round(float(mc), 4),
-                         **model})
+        rows = draws_run.located_rows(d, frame, {
+            "energy_ratio_min": round(float(energy.min()), 4),
+            "energy_ratio_max": round(float(energy.max()), 4),
+            "shape_diff": round(float(shape), 4), "mc_shape_noise": round(float(mc), 4)})
         print(f"draw {i}: " + ", ".join(f"{r['estimator']} {r['error_m']}" for r in rows[-2:]),
               flush=True)
     return rows
@@ -195,7 +180,8 @@ def locate(out: Path, indices, jobs: int = 1):
         w.writerows(rows)
     lines = ["| family | layouts | estimator | n | median (m) | p90 (m) | worst (m) "
              "| failures (> 0.15 m) | beyond 0.15 m without a warning |", "|---|---|---|---|---|---|---|---|---|"]
-    seen_two = lambda r: not str(r["layout"]).startswith("line") and not _bool(r["depth_unseen"])
+    seen_two = lambda r: (not str(r["layout"]).startswith("line")
+                          and not draws_report._bool(r["depth_unseen"]))
     for family in sorted({r["family"] for r in rows}):
         for name, keep in (("all", lambda r: True),
                            ("off a line", lambda r: not str(r["layout"]).startswith("line")),
@@ -302,10 +288,6 @@ def write_page(out: Path, doc: Path):
     seconds = json.loads((out / "locate.json").read_text())["seconds"]
     doc.write_text(page(rows, table, out, seconds))
     doc.with_suffix(".csv").write_text((out / "draws-rendered.csv").read_text())
-
-
-def _bool(v) -> bool:
-    return v is True or str(v) == "True"
 
 
 def main():

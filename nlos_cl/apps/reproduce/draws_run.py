@@ -114,6 +114,13 @@ def run(d: dict, s: Settings) -> list[dict]:
     clean, sim_notes = draws_scene.simulate(d, s)
     frame = draws_scene.noisy(clean, d)
     sim_s = time.perf_counter() - start
+    return located_rows(d, frame, {"sim_s": round(sim_s, 3), "sim_notes": _short(sim_notes)})
+
+
+def located_rows(d: dict, frame, extra: dict) -> list[dict]:
+    """One row per estimator of the draw's noisy `frame` (its errors, warnings, fitted shapes),
+    with the columns of `extra` (how the frame was made) in each: `run`'s simulations, and
+    scripts/mitransient_draws.py's renders of the same draws."""
     truths = np.array([t["centre"] for t in d["targets"]], float)
     rows, base = [], describe(d)
     closed_truth = any(t["shape"] in CLOSED_SHAPES for t in d["targets"])
@@ -127,6 +134,5 @@ def run(d: dict, s: Settings) -> list[dict]:
                      "missed": sum(math.isnan(e) for e in errors),
                      "warned": _warned(notes, closed_truth),
                      "depth_unseen": depth_unseen(notes), "seconds": round(seconds, 3),
-                     "sim_s": round(sim_s, 3), "warnings": _short(notes),
-                     "sim_notes": _short(sim_notes), **model})
+                     "warnings": _short(notes), **extra, **model})
     return rows
