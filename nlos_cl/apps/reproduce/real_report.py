@@ -107,6 +107,8 @@ def page(result, fig_dir: str) -> str:
             continue
         keys = [k for k in rows[0] if k != "met"]
         lines += _table(keys, [[_cell(r[k]) for k in keys] for r in rows])
+        if c.get("note"):
+            lines += [c["note"], ""]
         figure = {"keyhole": "real-keyhole.png", "walk": "real-walk.png"}.get(name)
         if figure in result.figures:
             lines += [f"![{name}]({fig_dir}/{figure})", ""]

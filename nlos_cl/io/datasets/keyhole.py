@@ -100,13 +100,22 @@ def read_keyhole(folder, *, dt_ps: float = BIN_PS, fps: float = FPS) -> tuple[li
     spot = np.zeros((1, 3))
     frames = [(k / fps, HistogramSet(signal[k:k + 1], axis, spot, spot,
                                      PathCalibration(SPEED_OF_LIGHT, [0.0]))) for k in range(n)]
-    ranges = np.sqrt((xpos - X_CENTRE_M) ** 2 + HEIGHT_BELOW_SPOT_M ** 2 + (Z_FAR_M - zpos) ** 2)
+    ranges = stage_range_m(xpos, zpos)
     return frames, {"fps": float(fps), "stage_range_m": ranges.tolist(),
                     "xpos_m": xpos.tolist(), "zpos_m": zpos.tolist(), "time_zero_bin": zero,
                     "time_zero_drift_bins": [round(float(d), 3) for d in drift],
                     "background_scale": scale.tolist(), "gate_bins": GATE_BINS,
                     "truth": "stage_range_m = sqrt((xpos - 0.5)^2 + 0.33^2 + (0.79 - zpos)^2): "
                              "the range to the centre of Demo.py's object grid"}
+
+
+def stage_range_m(xpos, zpos, lateral_m: float = 0.0) -> np.ndarray:
+    """The range (m) from the spot to a point of the object plane at the stage position
+    (xpos, zpos): the object grid's centre, or `lateral_m` beside it (where a letter's bright
+    middle may sit: the dataset does not say)."""
+    xpos, zpos = np.asarray(xpos, dtype=np.float64), np.asarray(zpos, dtype=np.float64)
+    return np.sqrt((xpos - X_CENTRE_M - lateral_m) ** 2 + HEIGHT_BELOW_SPOT_M ** 2
+                   + (Z_FAR_M - zpos) ** 2)
 
 
 def _time_zero_drift(folder: Path, after: np.ndarray, n: int) -> np.ndarray:
