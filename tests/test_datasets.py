@@ -98,7 +98,7 @@ def test_lct_is_confocal_on_the_documented_grid(tmp_path):
     (lambda p: nl.read_dataset(p, "lct", flip="y"), "flip: must be"),
     (lambda p: nl.read_dataset(p, "lct", gate_bins=50), "gate_bins: must be"),
     (lambda p: nl.read_dataset(p, "lct", grid_m=0.1), "lct options: \\['grid_m'\\]"),
-    (lambda p: nl.read_dataset(p, "fk"), "format: 'fk' is not one of"),
+    (lambda p: nl.read_dataset(p, "zaragoza"), "format: .zaragoza. is not one of"),
     (lambda p: nl.read_dataset(p.with_name("none.mat")), "does not exist"),
 ])
 def test_bad_dataset_calls_name_the_field(tmp_path, call, message):
@@ -108,9 +108,13 @@ def test_bad_dataset_calls_name_the_field(tmp_path, call, message):
 
 
 def test_mat_without_rect_data_is_not_guessed(tmp_path):
-    scipy.io.savemat(tmp_path / "a.mat", {"meas": np.zeros((2, 2, 4))})
-    with pytest.raises(nl.InputError, match="holds no variable rect_data.*--format"):
+    scipy.io.savemat(tmp_path / "a.mat", {"data": np.zeros((2, 2, 4))})
+    with pytest.raises(nl.InputError, match="holds no variable rect_data or meas.*--format"):
         nl.read_dataset(tmp_path / "a.mat")
+    # `meas` alone is f-k's layout, which needs its tof.mat
+    scipy.io.savemat(tmp_path / "b.mat", {"meas": np.zeros((2, 2, 4))})
+    with pytest.raises(nl.InputError, match="has no tof.mat"):
+        nl.read_dataset(tmp_path / "b.mat")
 
 
 def test_convert_writes_a_capture_that_reads_back(tmp_path, capsys):

@@ -7,7 +7,8 @@ import numpy as np
 
 # CLI option -> the readers' keyword (nlos_cl.io.datasets.<format>.read_<format>)
 OPTIONS = {"dt_ps": "dt_ps", "t0_ps": "t0_ps", "width": "width_m", "grid_m": "grid_m",
-           "transpose": "transpose", "flip": "flip", "gate_bins": "gate_bins", "fps": "fps"}
+           "transpose": "transpose", "flip": "flip", "gate_bins": "gate_bins", "fps": "fps",
+           "crop_bins": "crop_bins", "block": "block"}
 
 
 def main(args) -> int:

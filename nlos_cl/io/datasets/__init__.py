@@ -6,6 +6,7 @@ y = 0, hidden space y > 0, z up). `nlos-cl convert` writes what they return as a
 |---|---|---|
 | `ccsocr` | a folder with sub_Sig.mat, C_i.mat, C_d.mat (CC-SOCR, Liu et al. 2023): N lasers, one detector | ccsocr.py |
 | `lct` | a .mat with rect_data (Nx, Ny, T) and width (LCT, O'Toole et al. 2018): confocal | lct.py |
+| `fk` | a meas_*.mat (N, N, T) with its tof.mat, or their folder (f-k migration, Lindell et al. 2019): confocal, rectified by tofgrid | fk.py |
 | `consumer-nlos` | a folder of volume_*.npz frames (Somasundaram et al. 2026): a sequence of confocal frames | consumer_nlos.py |
 | `keyhole` | a folder with scan_*.mat, direct_after.mat, LongExpNoObject_after.mat (Metzler et al. 2021): a sequence of one confocal spot, range only (localization.ranges) | keyhole.py |
 
@@ -21,7 +22,8 @@ from pathlib import Path
 from ...core.errors import require
 
 FORMATS = {"ccsocr": "ccsocr:read_ccsocr", "lct": "lct:read_lct",
-           "consumer-nlos": "consumer_nlos:read_consumer_nlos", "keyhole": "keyhole:read_keyhole"}
+           "consumer-nlos": "consumer_nlos:read_consumer_nlos", "keyhole": "keyhole:read_keyhole",
+           "fk": "fk:read_fk"}
 SEQUENCES = {"consumer-nlos", "keyhole"}  # formats whose reader returns (frames, metadata)
 
 
@@ -41,7 +43,8 @@ def options_of(name: str) -> set:
 
 def detect(path) -> str:
     """The format of `path` where unambiguous: a folder with sub_Sig.mat is ccsocr, one with
-    volume_*.npz frames consumer-nlos, a .mat file holding rect_data is lct."""
+    volume_*.npz frames consumer-nlos, one with scan_*.mat keyhole, one with meas*.mat and
+    tof*.mat (or a .mat holding meas) fk, a .mat file holding rect_data is lct."""
     from .matfile import variables
     path = Path(path)
     require(path.exists(), f"dataset {path}", "does not exist", "pass the downloaded file or "
@@ -50,12 +53,17 @@ def detect(path) -> str:
         return "consumer-nlos"
     if path.is_dir() and any(path.glob("scan_*.mat")):
         return "keyhole"
+    if path.is_dir() and any(path.glob("meas*.mat")) and any(path.glob("tof*.mat")):
+        return "fk"
     if path.is_dir():
         require((path / "sub_Sig.mat").is_file(), f"dataset {path}", "is a folder without "
-                "sub_Sig.mat, volume_*.npz or scan_*.mat, so its format is unknown", "pass --format NAME "
-                f"({', '.join(sorted(FORMATS))})")
+                "sub_Sig.mat, volume_*.npz, scan_*.mat or meas*.mat with tof*.mat, so its "
+                "format is unknown", f"pass --format NAME ({', '.join(sorted(FORMATS))})")
         return "ccsocr"
-    require("rect_data" in variables(path), f"dataset {path}", "holds no variable rect_data, "
+    held = variables(path)
+    if "meas" in held and "rect_data" not in held:
+        return "fk"
+    require("rect_data" in held, f"dataset {path}", "holds no variable rect_data or meas, "
             "so its format is unknown", f"pass --format NAME ({', '.join(sorted(FORMATS))})")
     return "lct"
 

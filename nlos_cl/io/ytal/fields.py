@@ -97,7 +97,7 @@ def check_complete(path: Path) -> None:
     version = head[:19].decode("ascii", "replace") + (": HDF5 inside" * (b"7.3" in head[:20]))
     require(not head.startswith(b"MATLAB"), where, f"is a MATLAB .mat file ({version}), not a "
             "y-tal capture", "convert it first: nlos-cl convert FILE.mat --out F.h5 "
-            "(nl.read_dataset reads the formats it knows: lct, ccsocr, keyhole)")
+            "(nl.read_dataset reads the formats it knows: lct, fk, ccsocr, keyhole)")
     base = next((b for b in (0, 512, 1024, 2048) if head[b:b + 8] == HDF5_SIGNATURE), None)
     require(base is not None or (size >= 8 and not HDF5_SIGNATURE.startswith(head[:8])), where,
             f"incomplete or corrupted file: {size} bytes, shorter than an HDF5 header",

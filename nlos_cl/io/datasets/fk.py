@@ -1,0 +1,184 @@
+"""Confocal scans as f-k migration publishes them (Lindell, Wetzstein, O'Toole, "Wave-based
+non-line-of-sight imaging using fast f-k migration", ACM TOG 38(4), 2019;
+github.com/computational-imaging/nlos-fk, the data from its project page): a scene folder with
+`tof.mat` (variable `tofgrid`) and one or more `meas_<T>min.mat` (variable `meas`).
+
+Facts, from the upstream README.md, demo.m and cnlos_reconstruction.m:
+- `meas`: (N, N, T) photon counts, MATLAB's axes (y, x, t) (demo.m: "% y, x, t"): 512 x 512 x
+  2048 for the scenes, bins of 32 ps (`bin_resolution = 32e-12`);
+- `tofgrid`: (N, N) the time of flight in picoseconds to each scan point; upstream "rectifies"
+  every histogram by shifting it floor(tofgrid / 32) bins earlier (circshift), so that t = 0 is
+  the wall bounce, then keeps the first `crop` bins (512: cnlos_reconstruction's default);
+- the scan covers a 2 m x 2 m wall (`wall_size = 2`): N points evenly over [-1, 1] m on
+  each axis; the sensor is gated, so bins before the gate opens hold no counts.
+
+Our choices (upstream does not say): row i of `meas` is the wall height z = +width .. -width
+from the top (as MATLAB's images are shown), column j is x = -width .. +width; `transpose` and
+`flip` change that (a target's depth does not depend on it). A rectified bin runs past the end
+of the record as zeros (circshift would wrap the record's start round). The shift is whole bins,
+as upstream: each histogram's t = 0 is the wall bounce to within one bin (32 ps, 4.8 mm of
+range); bin 0 is t = 0 (`t0_ps` moves it).
+
+Size: a 512 x 512 scan is 262,144 histograms (4.3 GB as float64). By default blocks of
+`block` x `block` neighbouring scan points are summed into one histogram at their mean spot,
+`block` the smallest power of two dividing N that leaves at most MAX_SIDE x MAX_SIDE
+histograms, or the largest that divides N (512: 8,
+64 x 64 = 4,096, a block 31 mm wide, whose paths differ by less than that); the file is read a
+few bins at a time (h5py for MATLAB v7.3), so memory stays at ~CHUNK_BINS x N x N values.
+A 4-D `meas` (upstream's interactive captures: frames x y x x x t) is refused with a message.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ...core.constants import SPEED_OF_LIGHT
+from ...core.errors import require
+from ...core.histograms import HistogramSet
+from ...core.limits import require_memory
+from ...core.paths import PathCalibration, TimeAxis
+from .matfile import is_v73, load, variables
+
+BIN_PS = 32.0  # cnlos_reconstruction.m: bin_resolution = 32e-12
+WIDTH_M = 1.0  # demo.m: wall_size = 2 (m), width = wall_size / 2
+CROP_BINS = 512  # cnlos_reconstruction.m: crop = 512
+MAX_SIDE = 64  # histograms per side after the default block sum (at most 4,096)
+CHUNK_BINS = 16  # record bins read per pass
+
+
+def fk_files(path) -> tuple[Path, Path]:
+    """(meas file, tof file): `path` is a meas_*.mat file (its tof.mat, or tof_<suffix>.mat for
+    meas_<suffix>.mat, beside it) or a folder holding exactly one meas_*.mat."""
+    path = Path(path)
+    if path.is_dir():
+        found = sorted(path.glob("meas*.mat"))
+        require(len(found) == 1, f"dataset {path}", f"holds {len(found)} meas*.mat files "
+                f"({', '.join(p.name for p in found) or 'none'})", "pass one of them: "
+                "nlos-cl convert FOLDER/meas_10min.mat --out F.h5")
+        path = found[0]
+    suffix = path.stem[len("meas"):]
+    tof = next((p for p in (path.with_name(f"tof{suffix}.mat"), path.with_name("tof.mat"))
+                if p.is_file()), None)
+    require(tof is not None, f"dataset {path}", f"has no tof{suffix}.mat or tof.mat beside it "
+            "(the per-point time of flight that rectifies the histograms)", "keep the scene's "
+            "folder as downloaded")
+    return path, tof
+
+
+def read_fk(path, *, dt_ps: float = BIN_PS, t0_ps: float = 0.0, width_m: float = WIDTH_M,
+            crop_bins: int = CROP_BINS, block: int | None = None, transpose: bool = False,
+            flip: str = "") -> HistogramSet:
+    """An f-k scene (a meas_*.mat and its tof.mat) as a confocal HistogramSet: rectified by
+    tofgrid, the first `crop_bins` bins, blocks of `block` x `block` scan points summed (None:
+    the default, see the module docstring)."""
+    for name, value, default in (("dt_ps", dt_ps, BIN_PS), ("width_m", width_m, WIDTH_M)):
+        require(np.isfinite(value) and value > 0, name, f"must be positive, got {value}",
+                f"pass e.g. {default:g}")
+    require(np.isfinite(t0_ps), "t0_ps", f"must be finite, got {t0_ps}", "pass e.g. 0")
+    require(flip in ("", "x", "z", "xz", "zx"), "flip", f"must be x, z or xz, got {flip!r}",
+            "pass --flip x, z or xz")
+    meas_path, tof_path = fk_files(path)
+    declared = variables(meas_path)
+    require("meas" in declared, f"{meas_path}: meas", f"is missing (the file holds "
+            f"{sorted(declared)})", "pass the dataset's own, unmodified file")
+    shape = declared["meas"][0]
+    require(len(shape) != 4, f"{meas_path}: meas", f"is 4-D {shape}: an interactive capture "
+            "(frames x y x x x t), which nlos_cl does not read yet", "pass a scene's 3-D meas")
+    require(len(shape) == 3 and shape[0] == shape[1] and shape[2] >= 2, f"{meas_path}: meas",
+            f"is {shape}, expected (N, N, T): a square scan of histograms", "pass the "
+            "dataset's own, unmodified file")
+    n, n_t = int(shape[0]), int(shape[2])
+    require(int(crop_bins) == crop_bins and 1 <= crop_bins <= n_t, "crop_bins", f"must be a "
+            f"bin count in 1..{n_t}, got {crop_bins}", f"pass e.g. {min(CROP_BINS, n_t)}")
+    crop_bins = int(crop_bins)
+    block = _default_block(n) if block is None else block
+    require(int(block) == block and block >= 1 and n % block == 0, "block", f"must divide the "
+            f"scan's {n} points per side, got {block}", f"pass e.g. {_default_block(n)}")
+    block = int(block)
+    tof = load(tof_path, "tofgrid", 2)
+    require(tof.shape == (n, n), f"{tof_path}: tofgrid", f"is {tof.shape}, the scan {n} x {n}",
+            "pass the tof.mat of the same scene")
+    shift = np.floor(tof / dt_ps).astype(np.int64)
+    require(bool(np.all((shift >= 0) & (shift < n_t))), f"{tof_path}: tofgrid", "holds times "
+            f"outside the record (0 .. {n_t * dt_ps:g} ps)", "pass the tof.mat of the same scene")
+    cube = _rectified_blocks(meas_path, shift, n, n_t, crop_bins, block)
+    if transpose:
+        cube = cube.transpose(1, 0, 2)
+    side = n // block
+    # the block's mean position: the mean of its points' evenly spaced coordinates
+    u = np.linspace(-width_m, width_m, n).reshape(side, block).mean(axis=1)
+    # rows from the top, columns along x (after `transpose`, of the swapped cube)
+    x_of_j, z_of_i = u.copy(), u[::-1].copy()
+    x_of_j = x_of_j[::-1] if "x" in flip else x_of_j
+    z_of_i = z_of_i[::-1] if "z" in flip else z_of_i
+    z, x = np.meshgrid(z_of_i, x_of_j, indexing="ij")  # row k = (i, j), as reshape does
+    spots = np.column_stack([x.ravel(), np.zeros(x.size), z.ravel()])
+    axis = TimeAxis(t0_ps * 1e-12, dt_ps * 1e-12, crop_bins)
+    return HistogramSet(cube.reshape(side * side, crop_bins), axis, spots, spots,
+                        PathCalibration(SPEED_OF_LIGHT, [0.0]))
+
+
+def _default_block(n: int) -> int:
+    block = 1
+    while n // block > MAX_SIDE and n % (2 * block) == 0:
+        block *= 2
+    return block
+
+
+def _rectified_blocks(path, shift, n, n_t, crop, block) -> np.ndarray:
+    """(side, side, crop): meas[i, j, shift[i, j] + k] summed over each block, read
+    CHUNK_BINS record bins at a time (only the bins some histogram keeps)."""
+    side = n // block
+    require_memory(f"{path}: meas", 8.0 * 6 * CHUNK_BINS * n * n + 8.0 * side * side * crop,
+                   f"rectifying {n} x {n} histograms", "read the file on a machine with more "
+                   "memory")
+    cell = ((np.arange(n)[:, None] // block) * side + np.arange(n)[None, :] // block).ravel()
+    flat_shift = shift.ravel()
+    out = np.zeros(side * side * crop)
+    first, last = int(shift.min()), min(int(shift.max()) + crop, n_t)
+    with _Chunks(path, n, n_t) as chunks:
+        for t0 in range(first, last, CHUNK_BINS):
+            t1 = min(t0 + CHUNK_BINS, last)
+            values = chunks.read(t0, t1)  # (t1 - t0, n * n), point index i * n + j
+            k = np.arange(t0, t1)[:, None] - flat_shift[None, :]
+            keep = (k >= 0) & (k < crop)
+            if not keep.any():
+                continue
+            index = (cell[None, :] * crop + k)[keep]
+            out += np.bincount(index, values[keep], minlength=out.size)
+    return out.reshape(side, side, crop)
+
+
+class _Chunks:
+    """meas[:, :, t0:t1] as (t1 - t0, N * N) float64 rows (point index i * N + j), from a v7.3
+    file through h5py (a slab of the record's leading axis: MATLAB's last) or, from older .mat
+    files, from the array scipy.io loads once (its size checked first)."""
+
+    def __init__(self, path, n, n_t):
+        self.path, self.n, self.n_t = path, n, n_t
+        self._file = self._array = None
+
+    def __enter__(self):
+        if is_v73(self.path):
+            import h5py
+            self._file = h5py.File(self.path, "r")
+            self._dataset = self._file["meas"]  # h5py: (T, N, N) = MATLAB's axes reversed
+        else:
+            self._array = load(self.path, "meas", 3)
+        return self
+
+    def read(self, t0, t1) -> np.ndarray:
+        if self._file is not None:  # (t, j, i) -> rows of points i * N + j
+            part = np.asarray(self._dataset[t0:t1], dtype=np.float64).transpose(0, 2, 1)
+        else:
+            part = np.moveaxis(self._array[:, :, t0:t1], 2, 0)
+        part = part.reshape(t1 - t0, self.n * self.n)
+        require(bool(np.all(np.isfinite(part))), f"{self.path}: meas", "contains NaN or inf",
+                "pass the dataset's own, unmodified file")
+        return part
+
+    def __exit__(self, *exc):
+        if self._file is not None:
+            self._file.close()
+        return False
