@@ -102,7 +102,7 @@ def test_fk_orientation_options(tmp_path):
     ("two", "holds 2 meas\\*.mat files .*pass one of them"),
     ("no_tof", "has no tof_10min.mat or tof.mat beside it"),
     ("tof_shape", "tofgrid: is \\(4, 4\\), the scan 8 x 8"),
-    ("four_d", "is 4-D .*interactive capture"),
+    ("four_d", "is 4-D .*--format fk-interactive"),
     ("tof_late", "holds times outside the record"),
     ("crop", "crop_bins: must be a bin count in 1..1000"),
 ])
@@ -138,3 +138,52 @@ def test_fk_convert_then_locate_finds_the_point(tmp_path, capsys):
     # y-tal frame: the wall at Z = 0, depth along Z; the hidden point is 0.9 m deep
     position = np.asarray(answer["position"])
     assert abs(position[2] - HIDDEN[1]) <= 0.03, answer
+
+
+def walking(frames=3, n=N):
+    """A 4-D meas (F, n, n, T): the hidden point moving 0.1 m in x a frame."""
+    cubes, paths = [], []
+    global HIDDEN
+    keep = HIDDEN.copy()
+    try:
+        for f in range(frames):
+            HIDDEN = keep + [0.1 * f, 0.0, 0.0]
+            meas, tof, path = scene(n)
+            cubes.append(meas)
+            paths.append(path)
+    finally:
+        HIDDEN = keep
+    return np.stack(cubes), tof, paths
+
+
+def test_fk_interactive_is_a_sequence_of_rectified_frames(tmp_path, capsys):
+    meas, tof, paths = walking()
+    folder = tmp_path / "interactive"
+    folder.mkdir()
+    scipy.io.savemat(folder / "meas_8.mat", {"meas": meas})
+    scipy.io.savemat(folder / "tof_8.mat", {"tofgrid": tof})
+    with pytest.raises(nl.InputError, match="fps: is not known for a 8 x 8 interactive scan"):
+        nl.read_dataset(folder)  # detected from the 4-D meas; the README's rates are 32 / 64
+    frames, meta = nl.read_dataset(folder, fps=4.0)
+    assert [t for t, _ in frames] == [0.0, 0.25, 0.5] and meta["fps"] == 4.0
+    for (_, h), path in zip(frames, paths):
+        assert h.time_axis.n_bins == T  # the 1,024 bins kept by default: the record's 1,000
+        peak = h.hidden_path_axis()[np.arange(N * N), h.data.argmax(axis=1)]
+        assert np.all(np.abs(peak - path.ravel()) <= 0.5 * C * 32e-12 + 1e-12)
+    v73 = tmp_path / "v73"
+    v73.mkdir()
+    _mat73(v73 / "meas_8.mat", {"meas": meas})
+    _mat73(v73 / "tof_8.mat", {"tofgrid": tof})
+    again, _ = nl.read_dataset(v73 / "meas_8.mat", fps=4.0)
+    for (_, a), (_, b) in zip(frames, again):
+        np.testing.assert_array_equal(a.data, b.data)
+    out = tmp_path / "interactive.h5"
+    assert cli(["convert", str(folder), "--out", str(out), "--fps", "4"]) == 0
+    assert "fk-interactive, 3 frames at 4 Hz" in capsys.readouterr().out
+    assert cli(["track", str(out), "--json", "--no-progress"]) == 0
+    last = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    # y-tal frame (X, Y, Z) = (-x, z, depth): the point at x = 0.5 m in the last frame
+    truth = [-(HIDDEN[0] + 0.2), HIDDEN[2], HIDDEN[1]]
+    assert np.linalg.norm(np.asarray(last["measurements"][0]) - truth) <= 0.03, last
+    with pytest.raises(nl.InputError, match="--format fk-interactive"):
+        nl.read_dataset(folder, "fk")

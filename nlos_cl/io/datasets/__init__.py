@@ -7,6 +7,7 @@ y = 0, hidden space y > 0, z up). `nlos-cl convert` writes what they return as a
 | `ccsocr` | a folder with sub_Sig.mat, C_i.mat, C_d.mat (CC-SOCR, Liu et al. 2023): N lasers, one detector | ccsocr.py |
 | `lct` | a .mat with rect_data (Nx, Ny, T) and width (LCT, O'Toole et al. 2018): confocal | lct.py |
 | `fk` | a meas_*.mat (N, N, T) with its tof.mat, or their folder (f-k migration, Lindell et al. 2019): confocal, rectified by tofgrid | fk.py |
+| `fk-interactive` | the same with a 4-D meas (F, N, N, T): a sequence of confocal frames (f-k's interactive captures) | fk.py |
 | `consumer-nlos` | a folder of volume_*.npz frames (Somasundaram et al. 2026): a sequence of confocal frames | consumer_nlos.py |
 | `keyhole` | a folder with scan_*.mat, direct_after.mat, LongExpNoObject_after.mat (Metzler et al. 2021): a sequence of one confocal spot, range only (localization.ranges) | keyhole.py |
 
@@ -23,8 +24,8 @@ from ...core.errors import require
 
 FORMATS = {"ccsocr": "ccsocr:read_ccsocr", "lct": "lct:read_lct",
            "consumer-nlos": "consumer_nlos:read_consumer_nlos", "keyhole": "keyhole:read_keyhole",
-           "fk": "fk:read_fk"}
-SEQUENCES = {"consumer-nlos", "keyhole"}  # formats whose reader returns (frames, metadata)
+           "fk": "fk:read_fk", "fk-interactive": "fk:read_fk_interactive"}
+SEQUENCES = {"consumer-nlos", "keyhole", "fk-interactive"}  # formats whose reader returns (frames, metadata)
 
 
 def reader(name: str):
@@ -54,7 +55,8 @@ def detect(path) -> str:
     if path.is_dir() and any(path.glob("scan_*.mat")):
         return "keyhole"
     if path.is_dir() and any(path.glob("meas*.mat")) and any(path.glob("tof*.mat")):
-        return "fk"
+        found = sorted(path.glob("meas*.mat"))  # several: `fk` says to pass one of them
+        return _fk_kind(found[0]) if len(found) == 1 else "fk"
     if path.is_dir():
         require((path / "sub_Sig.mat").is_file(), f"dataset {path}", "is a folder without "
                 "sub_Sig.mat, volume_*.npz, scan_*.mat or meas*.mat with tof*.mat, so its "
@@ -62,10 +64,17 @@ def detect(path) -> str:
         return "ccsocr"
     held = variables(path)
     if "meas" in held and "rect_data" not in held:
-        return "fk"
+        return _fk_kind(path)
     require("rect_data" in held, f"dataset {path}", "holds no variable rect_data or meas, "
             "so its format is unknown", f"pass --format NAME ({', '.join(sorted(FORMATS))})")
     return "lct"
+
+
+def _fk_kind(path) -> str:
+    """fk for a 3-D meas (a scene), fk-interactive for a 4-D one (frames)."""
+    from .matfile import variables
+    shape = variables(path).get("meas", ((),))[0]
+    return "fk-interactive" if len(shape) == 4 else "fk"
 
 
 def read_dataset(path, format: str | None = None, **options):

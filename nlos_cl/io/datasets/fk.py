@@ -25,7 +25,9 @@ Size: a 512 x 512 scan is 262,144 histograms (4.3 GB as float64). By default blo
 histograms, or the largest that divides N (512: 8,
 64 x 64 = 4,096, a block 31 mm wide, whose paths differ by less than that); the file is read a
 few bins at a time (h5py for MATLAB v7.3), so memory stays at ~CHUNK_BINS x N x N values.
-A 4-D `meas` (upstream's interactive captures: frames x y x x x t) is refused with a message.
+A 4-D `meas` (upstream's interactive captures: frames x y x x x t, a person in a retroreflective
+outfit scanned at 32 x 32 and 4 fps or 64 x 64 and 2 fps) is the `fk-interactive` format: a
+sequence of such frames (`read_fk_interactive`), 1,024 bins kept (demo.m's crop for them).
 """
 from __future__ import annotations
 
@@ -45,6 +47,8 @@ WIDTH_M = 1.0  # demo.m: wall_size = 2 (m), width = wall_size / 2
 CROP_BINS = 512  # cnlos_reconstruction.m: crop = 512
 MAX_SIDE = 64  # histograms per side after the default block sum (at most 4,096)
 CHUNK_BINS = 16  # record bins read per pass
+INTERACTIVE_CROP_BINS = 1024  # demo.m: "crop = 1024; % crop measurements to 1024 bins"
+INTERACTIVE_FPS = {32: 4.0, 64: 2.0}  # README: "32 x 32 (4 fps), 64 x 64 (2 fps)"
 
 
 def fk_files(path) -> tuple[Path, Path]:
@@ -67,56 +71,99 @@ def fk_files(path) -> tuple[Path, Path]:
 
 
 def read_fk(path, *, dt_ps: float = BIN_PS, t0_ps: float = 0.0, width_m: float = WIDTH_M,
-            crop_bins: int = CROP_BINS, block: int | None = None, transpose: bool = False,
+            crop_bins: int | None = None, block: int | None = None, transpose: bool = False,
             flip: str = "") -> HistogramSet:
     """An f-k scene (a meas_*.mat and its tof.mat) as a confocal HistogramSet: rectified by
-    tofgrid, the first `crop_bins` bins, blocks of `block` x `block` scan points summed (None:
-    the default, see the module docstring)."""
-    for name, value, default in (("dt_ps", dt_ps, BIN_PS), ("width_m", width_m, WIDTH_M)):
-        require(np.isfinite(value) and value > 0, name, f"must be positive, got {value}",
-                f"pass e.g. {default:g}")
-    require(np.isfinite(t0_ps), "t0_ps", f"must be finite, got {t0_ps}", "pass e.g. 0")
-    require(flip in ("", "x", "z", "xz", "zx"), "flip", f"must be x, z or xz, got {flip!r}",
-            "pass --flip x, z or xz")
-    meas_path, tof_path = fk_files(path)
-    declared = variables(meas_path)
-    require("meas" in declared, f"{meas_path}: meas", f"is missing (the file holds "
-            f"{sorted(declared)})", "pass the dataset's own, unmodified file")
-    shape = declared["meas"][0]
-    require(len(shape) != 4, f"{meas_path}: meas", f"is 4-D {shape}: an interactive capture "
-            "(frames x y x x x t), which nlos_cl does not read yet", "pass a scene's 3-D meas")
-    require(len(shape) == 3 and shape[0] == shape[1] and shape[2] >= 2, f"{meas_path}: meas",
-            f"is {shape}, expected (N, N, T): a square scan of histograms", "pass the "
-            "dataset's own, unmodified file")
-    n, n_t = int(shape[0]), int(shape[2])
-    require(int(crop_bins) == crop_bins and 1 <= crop_bins <= n_t, "crop_bins", f"must be a "
-            f"bin count in 1..{n_t}, got {crop_bins}", f"pass e.g. {min(CROP_BINS, n_t)}")
-    crop_bins = int(crop_bins)
-    block = _default_block(n) if block is None else block
-    require(int(block) == block and block >= 1 and n % block == 0, "block", f"must divide the "
-            f"scan's {n} points per side, got {block}", f"pass e.g. {_default_block(n)}")
-    block = int(block)
-    tof = load(tof_path, "tofgrid", 2)
-    require(tof.shape == (n, n), f"{tof_path}: tofgrid", f"is {tof.shape}, the scan {n} x {n}",
-            "pass the tof.mat of the same scene")
-    shift = np.floor(tof / dt_ps).astype(np.int64)
-    require(bool(np.all((shift >= 0) & (shift < n_t))), f"{tof_path}: tofgrid", "holds times "
-            f"outside the record (0 .. {n_t * dt_ps:g} ps)", "pass the tof.mat of the same scene")
-    cube = _rectified_blocks(meas_path, shift, n, n_t, crop_bins, block)
-    if transpose:
-        cube = cube.transpose(1, 0, 2)
-    side = n // block
-    # the block's mean position: the mean of its points' evenly spaced coordinates
-    u = np.linspace(-width_m, width_m, n).reshape(side, block).mean(axis=1)
-    # rows from the top, columns along x (after `transpose`, of the swapped cube)
-    x_of_j, z_of_i = u.copy(), u[::-1].copy()
-    x_of_j = x_of_j[::-1] if "x" in flip else x_of_j
-    z_of_i = z_of_i[::-1] if "z" in flip else z_of_i
-    z, x = np.meshgrid(z_of_i, x_of_j, indexing="ij")  # row k = (i, j), as reshape does
-    spots = np.column_stack([x.ravel(), np.zeros(x.size), z.ravel()])
-    axis = TimeAxis(t0_ps * 1e-12, dt_ps * 1e-12, crop_bins)
-    return HistogramSet(cube.reshape(side * side, crop_bins), axis, spots, spots,
-                        PathCalibration(SPEED_OF_LIGHT, [0.0]))
+    tofgrid, the first `crop_bins` bins (None: CROP_BINS, or the record if shorter), blocks of
+    `block` x `block` scan points summed (None: the default, see the module docstring)."""
+    scan = _Scan(path, 3, dt_ps, t0_ps, width_m, crop_bins or CROP_BINS, block, flip,
+                 clip=crop_bins is None)
+    with _Chunks(scan.path, scan.n, 3) as chunks:
+        return scan.histograms(_rectified_blocks(scan, chunks), transpose)
+
+
+def read_fk_interactive(path, *, dt_ps: float = BIN_PS, t0_ps: float = 0.0,
+                        width_m: float = WIDTH_M, crop_bins: int | None = None,
+                        block: int | None = None, transpose: bool = False, flip: str = "",
+                        fps: float | None = None) -> tuple[list, dict]:
+    """f-k's interactive captures (meas_32.mat / meas_64.mat with tof_32.mat / tof_64.mat: a
+    4-D meas, frames x y x x x t) as (frames, metadata): frame k a confocal HistogramSet
+    rectified like a scene (`read_fk`), at t = k / fps (default: the README's 4 fps for
+    32 x 32 scans, 2 fps for 64 x 64; other sizes need fps); crop_bins None:
+    INTERACTIVE_CROP_BINS, or the record if shorter."""
+    scan = _Scan(path, 4, dt_ps, t0_ps, width_m, crop_bins or INTERACTIVE_CROP_BINS, block,
+                 flip, clip=crop_bins is None)
+    if fps is None:
+        fps = INTERACTIVE_FPS.get(scan.n)
+        require(fps is not None, "fps", f"is not known for a {scan.n} x {scan.n} interactive "
+                "scan (the README gives 4 fps for 32 x 32, 2 fps for 64 x 64)", "pass --fps")
+    require(np.isfinite(fps) and fps > 0, "fps", f"must be positive, got {fps}", "pass e.g. 4")
+    with _Chunks(scan.path, scan.n, 4) as chunks:
+        frames = [(k / fps, scan.histograms(_rectified_blocks(scan, chunks, k), transpose))
+                  for k in range(scan.n_frames)]
+    return frames, {"fps": float(fps), "scan_points": scan.n, "block": scan.block,
+                    "crop_bins": scan.crop}
+
+
+class _Scan:
+    """A meas file's declared geometry and its tofgrid's whole-bin shifts, checked."""
+
+    def __init__(self, path, ndim, dt_ps, t0_ps, width_m, crop_bins, block, flip, clip=False):
+        for name, value, default in (("dt_ps", dt_ps, BIN_PS), ("width_m", width_m, WIDTH_M)):
+            require(np.isfinite(value) and value > 0, name, f"must be positive, got {value}",
+                    f"pass e.g. {default:g}")
+        require(np.isfinite(t0_ps), "t0_ps", f"must be finite, got {t0_ps}", "pass e.g. 0")
+        require(flip in ("", "x", "z", "xz", "zx"), "flip", f"must be x, z or xz, got "
+                f"{flip!r}", "pass --flip x, z or xz")
+        self.path, tof_path = fk_files(path)
+        declared = variables(self.path)
+        require("meas" in declared, f"{self.path}: meas", f"is missing (the file holds "
+                f"{sorted(declared)})", "pass the dataset's own, unmodified file")
+        shape = declared["meas"][0]
+        other = {3: "a scene's 3-D meas: --format fk", 4: "an interactive capture's 4-D meas "
+                 "(frames x y x x x t): --format fk-interactive"}
+        require(len(shape) == ndim or len(shape) not in other, f"{self.path}: meas",
+                f"is {len(shape)}-D {shape}", f"read {other.get(len(shape))}")
+        scan = shape[-3:]
+        require(len(shape) == ndim and scan[0] == scan[1] and scan[2] >= 2, f"{self.path}: "
+                "meas", f"is {shape}, expected {'(F, ' if ndim == 4 else '('}N, N, T): a "
+                "square scan of histograms", "pass the dataset's own, unmodified file")
+        self.ndim, self.n_frames = ndim, int(shape[0]) if ndim == 4 else 1
+        self.n, self.n_t = int(scan[0]), int(scan[2])
+        n, n_t = self.n, self.n_t
+        crop_bins = min(crop_bins, n_t) if clip else crop_bins  # a default: the record at most
+        require(int(crop_bins) == crop_bins and 1 <= crop_bins <= n_t, "crop_bins", f"must be "
+                f"a bin count in 1..{n_t}, got {crop_bins}", f"pass e.g. {min(CROP_BINS, n_t)}")
+        self.crop = int(crop_bins)
+        block = _default_block(n) if block is None else block
+        require(int(block) == block and block >= 1 and n % block == 0, "block", f"must divide "
+                f"the scan's {n} points per side, got {block}", f"pass e.g. {_default_block(n)}")
+        self.block = int(block)
+        tof = load(tof_path, "tofgrid", 2)
+        require(tof.shape == (n, n), f"{tof_path}: tofgrid", f"is {tof.shape}, the scan {n} x "
+                f"{n}", "pass the tof.mat of the same scene")
+        self.shift = np.floor(tof / dt_ps).astype(np.int64)
+        require(bool(np.all((self.shift >= 0) & (self.shift < n_t))), f"{tof_path}: tofgrid",
+                f"holds times outside the record (0 .. {n_t * dt_ps:g} ps)", "pass the tof.mat "
+                "of the same scene")
+        self.dt_ps, self.t0_ps, self.width_m, self.flip = dt_ps, t0_ps, width_m, flip
+
+    def histograms(self, cube, transpose) -> HistogramSet:
+        """The (side, side, crop) rectified blocks as a confocal HistogramSet on the wall."""
+        if transpose:
+            cube = cube.transpose(1, 0, 2)
+        side = self.n // self.block
+        # a block's mean position: the mean of its points' evenly spaced coordinates
+        u = np.linspace(-self.width_m, self.width_m, self.n).reshape(side, self.block).mean(1)
+        # rows from the top, columns along x (after `transpose`, of the swapped cube)
+        x_of_j, z_of_i = u.copy(), u[::-1].copy()
+        x_of_j = x_of_j[::-1] if "x" in self.flip else x_of_j
+        z_of_i = z_of_i[::-1] if "z" in self.flip else z_of_i
+        z, x = np.meshgrid(z_of_i, x_of_j, indexing="ij")  # row k = (i, j), as reshape does
+        spots = np.column_stack([x.ravel(), np.zeros(x.size), z.ravel()])
+        axis = TimeAxis(self.t0_ps * 1e-12, self.dt_ps * 1e-12, self.crop)
+        return HistogramSet(cube.reshape(side * side, self.crop), axis, spots, spots,
+                            PathCalibration(SPEED_OF_LIGHT, [0.0]))
 
 
 def _default_block(n: int) -> int:
@@ -126,53 +173,56 @@ def _default_block(n: int) -> int:
     return block
 
 
-def _rectified_blocks(path, shift, n, n_t, crop, block) -> np.ndarray:
-    """(side, side, crop): meas[i, j, shift[i, j] + k] summed over each block, read
+def _rectified_blocks(scan, chunks, frame=None) -> np.ndarray:
+    """(side, side, crop): meas[(frame,) i, j, shift[i, j] + k] summed over each block, read
     CHUNK_BINS record bins at a time (only the bins some histogram keeps)."""
+    n, n_t, crop, block, shift = scan.n, scan.n_t, scan.crop, scan.block, scan.shift
     side = n // block
-    require_memory(f"{path}: meas", 8.0 * 6 * CHUNK_BINS * n * n + 8.0 * side * side * crop,
-                   f"rectifying {n} x {n} histograms", "read the file on a machine with more "
-                   "memory")
+    require_memory(f"{scan.path}: meas", 8.0 * 6 * CHUNK_BINS * n * n + 8.0 * side * side *
+                   crop, f"rectifying {n} x {n} histograms", "read the file on a machine "
+                   "with more memory")
     cell = ((np.arange(n)[:, None] // block) * side + np.arange(n)[None, :] // block).ravel()
     flat_shift = shift.ravel()
     out = np.zeros(side * side * crop)
     first, last = int(shift.min()), min(int(shift.max()) + crop, n_t)
-    with _Chunks(path, n, n_t) as chunks:
-        for t0 in range(first, last, CHUNK_BINS):
-            t1 = min(t0 + CHUNK_BINS, last)
-            values = chunks.read(t0, t1)  # (t1 - t0, n * n), point index i * n + j
-            k = np.arange(t0, t1)[:, None] - flat_shift[None, :]
-            keep = (k >= 0) & (k < crop)
-            if not keep.any():
-                continue
-            index = (cell[None, :] * crop + k)[keep]
-            out += np.bincount(index, values[keep], minlength=out.size)
+    for t0 in range(first, last, CHUNK_BINS):
+        t1 = min(t0 + CHUNK_BINS, last)
+        values = chunks.read(t0, t1, frame)  # (t1 - t0, n * n), point index i * n + j
+        k = np.arange(t0, t1)[:, None] - flat_shift[None, :]
+        keep = (k >= 0) & (k < crop)
+        if not keep.any():
+            continue
+        index = (cell[None, :] * crop + k)[keep]
+        out += np.bincount(index, values[keep], minlength=out.size)
     return out.reshape(side, side, crop)
 
 
 class _Chunks:
-    """meas[:, :, t0:t1] as (t1 - t0, N * N) float64 rows (point index i * N + j), from a v7.3
-    file through h5py (a slab of the record's leading axis: MATLAB's last) or, from older .mat
-    files, from the array scipy.io loads once (its size checked first)."""
+    """meas[(frame,) :, :, t0:t1] as (t1 - t0, N * N) float64 rows (point index i * N + j),
+    from a v7.3 file through h5py (a slab of the record's leading axis: MATLAB's last) or,
+    from older .mat files, from the array scipy.io loads once (its size checked first), for
+    every frame."""
 
-    def __init__(self, path, n, n_t):
-        self.path, self.n, self.n_t = path, n, n_t
+    def __init__(self, path, n, ndim):
+        self.path, self.n, self.ndim = path, n, ndim
         self._file = self._array = None
 
     def __enter__(self):
         if is_v73(self.path):
             import h5py
             self._file = h5py.File(self.path, "r")
-            self._dataset = self._file["meas"]  # h5py: (T, N, N) = MATLAB's axes reversed
+            self._dataset = self._file["meas"]  # h5py: MATLAB's axes reversed
         else:
-            self._array = load(self.path, "meas", 3)
+            self._array = load(self.path, "meas", self.ndim)
         return self
 
-    def read(self, t0, t1) -> np.ndarray:
-        if self._file is not None:  # (t, j, i) -> rows of points i * N + j
-            part = np.asarray(self._dataset[t0:t1], dtype=np.float64).transpose(0, 2, 1)
+    def read(self, t0, t1, frame=None) -> np.ndarray:
+        if self._file is not None:  # (t, j, i[, frame]) -> rows of points i * N + j
+            part = self._dataset[t0:t1] if frame is None else self._dataset[t0:t1, :, :, frame]
+            part = np.asarray(part, dtype=np.float64).transpose(0, 2, 1)
         else:
-            part = np.moveaxis(self._array[:, :, t0:t1], 2, 0)
+            cube = self._array if frame is None else self._array[frame]
+            part = np.moveaxis(cube[:, :, t0:t1], 2, 0)
         part = part.reshape(t1 - t0, self.n * self.n)
         require(bool(np.all(np.isfinite(part))), f"{self.path}: meas", "contains NaN or inf",
                 "pass the dataset's own, unmodified file")
