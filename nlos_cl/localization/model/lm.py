@@ -78,19 +78,68 @@ def least_squares(fun, x0, jac=None, bounds=(-np.inf, np.inf), x_scale=1.0, ftol
     statistical scale: a step that cannot lower chi^2 by 2 atol moves no parameter by more
     than ~sqrt(2 atol) of its sd, while finite-difference Jacobians leave ~1e-4 of cost that
     the relative ftol waits for in vain (rejected steps until max_nfev)."""
+    solver = solve(x0, bounds, x_scale, ftol, xtol, gtol, max_nfev, jac_update, tau, atol)
+    diff = _diff_steps(np.atleast_1d(np.asarray(x0, dtype=np.float64)), diff_step)
+    hi = np.broadcast_to(np.asarray(bounds[1], dtype=np.float64), diff.shape)
+
+    def column(x, j, r):  # forward differences use the residual at hand (r): no extra call
+        return jac_column(x, j) if jac_column is not None else \
+            _fd_column(fun, x, r, j, diff[j], hi[j])
+
+    def serve(request):
+        kind, x = request[0], request[1]
+        if kind == "fun":
+            return fun(x)
+        if kind == "col":
+            return column(x, request[2], request[3])
+        if jac is not None:
+            return jac(x)
+        return np.stack([column(x, j, request[2]) for j in range(len(x))], axis=1)
+    return drive(solver, serve)
+
+
+def drive(solver, serve) -> LMResult:
+    """Run a `solve` generator to its result, answering each of its requests with serve."""
+    try:
+        request = next(solver)
+        while True:
+            request = solver.send(serve(request))
+    except StopIteration as done:
+        return done.value
+
+
+def drive_together(solvers, serve_all) -> list:
+    """Run several `solve` generators in lockstep, their pending requests answered together
+    by serve_all([(index, request), ...]) -> [answer, ...] (e.g. one batched model call for
+    every fit's trial point): each solver sees exactly the answers it would alone."""
+    results = [None] * len(solvers)
+    pending = {}
+    for i, solver in enumerate(solvers):
+        try:
+            pending[i] = next(solver)
+        except StopIteration as done:
+            results[i] = done.value
+    while pending:
+        asked = list(pending.items())
+        for (i, _), answer in zip(asked, serve_all(asked)):
+            try:
+                pending[i] = solvers[i].send(answer)
+            except StopIteration as done:
+                results[i] = done.value
+                del pending[i]
+    return results
+
+
+def solve(x0, bounds=(-np.inf, np.inf), x_scale=1.0, ftol=1e-8, xtol=1e-8, gtol=1e-8,
+          max_nfev=None, jac_update="full", tau=TAU, atol=None):
+    """`least_squares` as a generator: it yields requests and is sent their answers, then
+    returns its LMResult. Requests: ("fun", x) the residual at x; ("jac", x, r) the
+    Jacobian at x (r: the residual there); ("col", x, j, r) column j of it (Broyden)."""
     x0, lo, hi, scale, max_nfev = _inputs(x0, bounds, x_scale, max_nfev, jac_update)
-    diff = _diff_steps(x0, diff_step)
-    s = _State(fun, np.clip(x0, lo, hi), lo, hi, scale)
+    s = _State(np.clip(x0, lo, hi), lo, hi, scale)
+    s.r = yield from s.evaluate(s.x, first=True)
     s.tau, s.atol = float(tau), atol
-    # forward differences use the residual at hand (s.r) for the base point: no extra call
-    s.column = jac_column or (lambda x, j: _fd_column(fun, x, s.r, j, diff[j], hi[j]))
-    if jac is None:
-        def jacobian(x):
-            return np.stack([s.column(x, j) for j in range(len(x))], axis=1)
-    else:
-        def jacobian(x):
-            return np.atleast_2d(np.asarray(jac(x), dtype=np.float64))
-    s.jac = jacobian(s.x)
+    s.jac = yield ("jac", s.x, s.r)
     s.njev += 1
     status = None
     while status is None:
@@ -98,22 +147,22 @@ def least_squares(fun, x0, jac=None, bounds=(-np.inf, np.inf), x_scale=1.0, ftol
         if status is None and s.nfev >= max_nfev:
             status = 0
         if status is None:
-            status = _iterate(s, jacobian, ftol, xtol, max_nfev, jac_update)
+            status = yield from _iterate(s, ftol, xtol, max_nfev, jac_update)
     return LMResult(s.x, s.r, 0.5 * float(s.r @ s.r), s.nfev, s.njev, status, s.ncol)
 
 
 class _State:
     """The current point, its residual and Jacobian, the damping, and the call counts."""
 
-    def __init__(self, fun, x, lo, hi, scale):
-        self.fun, self.x, self.lo, self.hi, self.scale = fun, x, lo, hi, scale
-        self.r = self.evaluate(x, first=True)
+    def __init__(self, x, lo, hi, scale):
+        self.x, self.lo, self.hi, self.scale = x, lo, hi, scale
+        self.r, self.nfev = None, 0
         self.jac, self.mu, self.nu = None, None, 2.0
         self.njev, self.ncol, self.next_col = 0, 0, 0
         self.fresh = True  # is self.jac a finite-difference Jacobian (not a Broyden update)?
 
     def evaluate(self, x, first=False):
-        r = np.atleast_1d(np.asarray(self.fun(x), dtype=np.float64))
+        r = np.atleast_1d(np.asarray((yield ("fun", x)), dtype=np.float64))
         self.nfev = 1 if first else self.nfev + 1
         require(bool(np.all(np.isfinite(r))) or not first, "x0",
                 "the residual is not finite at the start", "start inside the model's domain")
@@ -133,7 +182,7 @@ class _State:
         return 1 if not free.any() or np.max(np.abs(g[free])) < gtol else None
 
 
-def _iterate(s, jacobian, ftol, xtol, max_nfev, jac_update):
+def _iterate(s, ftol, xtol, max_nfev, jac_update):
     """Damped steps from s.x until one lowers the cost (then update the Jacobian) or a
     termination test holds; returns the status or None to go on. (s.js, s.g: from
     s.gradient_converged, called just before with the same point and Jacobian.)"""
@@ -148,7 +197,7 @@ def _iterate(s, jacobian, ftol, xtol, max_nfev, jac_update):
         x_new = np.clip(s.x + s.scale * h, s.lo, s.hi)
         h = (x_new - s.x) / s.scale  # the step actually taken, after projection
         predicted = -(g @ h + 0.5 * h @ a @ h)
-        r_new = s.evaluate(x_new)
+        r_new = yield from s.evaluate(x_new)
         new_cost = 0.5 * float(r_new @ r_new) if np.all(np.isfinite(r_new)) else np.inf
         actual = cost - new_cost
         ratio = actual / predicted if predicted > 0 else -1.0
@@ -159,27 +208,27 @@ def _iterate(s, jacobian, ftol, xtol, max_nfev, jac_update):
             s.mu *= max(1.0 / 3.0, 1.0 - (2.0 * ratio - 1.0) ** 3)
             s.nu = 2.0
             # no Jacobian where the loop ends anyway (SciPy computes one: n forward calls)
-            _take(s, x_new, r_new, jacobian, jac_update, status is None and s.nfev < max_nfev)
+            yield from _take(s, x_new, r_new, jac_update, status is None and s.nfev < max_nfev)
             return status
         s.mu *= s.nu
         s.nu *= 2.0
         if status is not None:
             return status
         if jac_update == "broyden" and not s.fresh:
-            s.jac, s.fresh = jacobian(s.x), True  # a rejected step: trust no stale slope
+            s.jac, s.fresh = (yield ("jac", s.x, s.r)), True  # a rejected step: no stale slope
             s.njev += 1
             return None
     return 0
 
 
-def _take(s, x_new, r_new, jacobian, jac_update, need_jacobian):
+def _take(s, x_new, r_new, jac_update, need_jacobian):
     """Move to x_new; the next Jacobian: a new one, or Broyden's update (and one column)."""
     dx, dr = x_new - s.x, r_new - s.r
     s.x, s.r = x_new, r_new
     if not need_jacobian:
         return
     if jac_update == "full":
-        s.jac = jacobian(s.x)
+        s.jac = yield ("jac", s.x, s.r)
         s.njev += 1
         return
     s.jac = s.jac + np.outer(dr - s.jac @ dx, dx) / max(float(dx @ dx), 1e-300)
@@ -187,7 +236,7 @@ def _take(s, x_new, r_new, jacobian, jac_update, need_jacobian):
     j = s.next_col
     s.next_col = (j + 1) % len(s.x)
     if abs(dx[j] / s.scale[j]) < 0.8 * np.linalg.norm(dx / s.scale):
-        s.jac[:, j] = s.column(s.x, j)
+        s.jac[:, j] = yield ("col", s.x, j, s.r)
         s.ncol += 1
 
 

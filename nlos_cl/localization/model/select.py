@@ -28,7 +28,7 @@ import numpy as np
 
 from ...core.stats import chi2_quantile
 from . import plate, starts
-from .fit import FitResult, covariance, fit
+from .fit import FitResult, covariance, fit, fit_together
 
 SHORT_NFEV = 6
 MIN_SHARE = 0.10
@@ -51,7 +51,7 @@ def best_of(problem, rows, free, final_nfev, fixed=None, keep=3):
     # (on the starts' coarser lattice the short fits saved 5 of 42 ms a paper's-scene frame
     # but moved 'mismatch' draws 19 and 4, ambient background, 0.084 -> 0.291 and
     # 0.053 -> 0.069 m: they stay on the fit's lattice)
-    short = [fit(problem, np.array(prefix + [p]), free, SHORT_NFEV) for p in chosen]
+    short = fit_together(problem, [np.array(prefix + [p]) for p in chosen], free, SHORT_NFEV)
     short.sort(key=lambda r: (not _plausible(r), r.cost))
     final = fit(problem, short[0].params, free, final_nfev)
     for other in short[1:]:  # a fit that drifted to implausible amplitudes: the next start
