@@ -104,7 +104,8 @@ def test_fk_orientation_options(tmp_path):
     ("tof_shape", "tofgrid: is \\(4, 4\\), the scan 8 x 8"),
     ("four_d", "is 4-D .*--format fk-interactive"),
     ("tof_late", "holds times outside the record"),
-    ("crop", "crop_bins: must be a bin count in 1..1000"),
+    ("crop", "crop_bins: must be a bin count in 2..1000"),
+    ("crop_zero", "crop_bins: must be a bin count in 2..1000, got 0"),
 ])
 def test_fk_refusals(tmp_path, case, message):
     meas, tof, _ = scene()
@@ -122,6 +123,8 @@ def test_fk_refusals(tmp_path, case, message):
         scipy.io.savemat(folder / "tof.mat", {"tofgrid": tof + T * DT_PS})
     elif case == "crop":
         options = {"crop_bins": T + 1}
+    elif case == "crop_zero":
+        options = {"crop_bins": 0}
     src = folder if case != "no_tof" else folder / "meas_10min.mat"
     with pytest.raises(nl.InputError, match=message):
         nl.read_dataset(src, "fk", **options)

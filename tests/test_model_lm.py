@@ -147,6 +147,12 @@ def test_bad_options_name_the_field(kwargs, field):
         least_squares(rosenbrock, [0.5, 0.5], **kwargs)
 
 
+def test_a_one_residual_jacobian_may_be_one_dimensional():
+    sol = least_squares(lambda x: np.array([x[0] + x[1] - 3.0]), [0.0, 0.0],
+                        jac=lambda x: np.array([1.0, 1.0]), **TIGHT)
+    assert sol.x.sum() == pytest.approx(3.0, abs=1e-9)
+
+
 def test_bad_start_names_x0():
     with pytest.raises(InputError, match="^x0:"):
         least_squares(rosenbrock, [math.nan, 0.0])
@@ -204,7 +210,7 @@ def test_fits_in_lockstep_give_each_fit_its_own_answer():
     it takes alone. Batched plates are summed in another order, so the numbers may differ in
     the last bits (1e-12 m here), not in any decision of the solver (same nfev)."""
     from nlos_cl.localization.model.batch import HostProblem
-    from nlos_cl.localization.model.fit import fit_together
+    from nlos_cl.localization.model.lockstep import fit_together
     problem, truth = _paper_problem(2)
     host = HostProblem(problem.obs, GAUSS_LATTICE)
     free = np.array([True, True, False, True, True, True])

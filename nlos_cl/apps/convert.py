@@ -3,7 +3,7 @@
 for a sequence format (consumer-nlos) into a sequence file that `nlos-cl track` reads."""
 from __future__ import annotations
 
-import numpy as np
+from .cli_types import MAX_FPS, MIN_FPS, number as _number  # cli imports this: no NumPy here
 
 # CLI option -> the readers' keyword (nlos_cl.io.datasets.<format>.read_<format>)
 OPTIONS = {"dt_ps": "dt_ps", "t0_ps": "t0_ps", "width": "width_m", "grid_m": "grid_m",
@@ -47,7 +47,48 @@ def _sequence(args, read, meta) -> int:
 
 
 def _describe(h) -> str:
+    import numpy as np
     kind = "confocal" if h.paired and np.allclose(h.laser_spots, h.detector_spots) else (
         "paired (a laser spot per histogram)" if h.paired else "one laser spot")
     return (f"{h.n_detectors} histograms x {h.time_axis.n_bins} bins of "
             f"{h.time_axis.dt_s * 1e12:g} ps, {kind}")
+
+
+def arguments(p):
+    """`nlos-cl convert`'s options (the readers' keywords: OPTIONS)."""
+    p.add_argument("src", help="the dataset as downloaded: a CC-SOCR folder (sub_Sig.mat, "
+                   "C_i.mat, C_d.mat), an LCT .mat (rect_data, width), an f-k meas_*.mat (with "
+                   "its tof.mat beside it) or its folder, or a consumer-nlos folder "
+                   "of volume_*.npz frames or a Keyhole folder (scan_*.mat; both written as "
+                   "sequences)")
+    p.add_argument("--out", required=True, help="the y-tal .h5 capture (or sequence) to write "
+                   "(atomically)")
+    p.add_argument("--format", choices=["ccsocr", "consumer-nlos", "fk", "fk-interactive", "keyhole", "lct"], default=None,
+                   help="the dataset's format (default: detected)")
+    p.add_argument("--force", action="store_true", help="replace a file that is not a capture")
+    p.add_argument("--dt-ps", type=_number("dt_ps", "pass picoseconds, e.g. 16", positive=True),
+                   default=None, help="bin width (ps; default: the dataset's, ccsocr 16, lct 4, "
+                   "fk 32, consumer-nlos 250)")
+    p.add_argument("--t0-ps", type=_number("t0_ps", "pass picoseconds, e.g. 0"), default=None,
+                   help="time of bin 0 after the wall bounce (ps; default 0)")
+    p.add_argument("--width", type=_number("width_m", "pass metres, e.g. 0.35", positive=True),
+                   default=None, help="lct, fk: half side of the scanned square (m; default: the "
+                   "file's `width`; fk 1)")
+    p.add_argument("--grid-m", type=_number("grid_m", "pass metres, e.g. 0.01", positive=True),
+                   default=None, help="ccsocr: metres per wall index (default 0.01)")
+    p.add_argument("--transpose", action="store_true", help="lct, fk: swap the scan's two axes")
+    p.add_argument("--flip", choices=["x", "z", "xz"], default=None,
+                   help="lct, fk: reverse these wall axes of the scan")
+    p.add_argument("--crop-bins", type=_number("crop_bins", "pass a bin count, e.g. 512",
+                                               minimum=2, integer=True), default=None,
+                   help="fk: bins kept after rectification (default 512, as upstream)")
+    p.add_argument("--block", type=_number("block", "pass a count of scan points, e.g. 8",
+                                           minimum=1, integer=True), default=None,
+                   help="fk: sum N x N neighbouring scan points into one histogram (default: "
+                   "the least power of two leaving <= 64 x 64 histograms)")
+    p.add_argument("--gate-bins", type=_number("gate_bins", "pass a bin count, e.g. 600",
+                                               minimum=0, integer=True), default=None,
+                   help="lct: zero the first N bins (the direct return; upstream zeroes 600)")
+    p.add_argument("--fps", type=_number("fps", "pass frames per second, e.g. 14",
+                                         minimum=MIN_FPS, maximum=MAX_FPS), default=None,
+                   help="sequences: frame rate, frame k at k / fps (consumer-nlos default 14)")

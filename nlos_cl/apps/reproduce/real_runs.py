@@ -158,7 +158,9 @@ def _walk_row(cfg, ours, reference, ids, per_frame, grid, read_s) -> dict:
     seen = ~np.isnan(ours[:, 0])
     distance = np.linalg.norm(ours[seen][:, top] - reference[seen][:, top], axis=1)
     fps = len(per_frame) / sum(per_frame)
-    jitter_ours, jitter_pf = _jitter(ours[:, top]), _jitter(reference[:, top])
+    # both over the frames where ours exists (a step across a gap is not counted in either)
+    both = np.where(seen[:, None], reference, np.nan)
+    jitter_ours, jitter_pf = _jitter(ours[:, top]), _jitter(both[:, top])
     n_ids = len(set(ids))
     return {"case": "walk", "frames": len(per_frame), "frames_per_s": round(fps, 1),
             "frame_ms_median": round(1e3 * float(np.median(per_frame)), 1),
@@ -169,8 +171,8 @@ def _walk_row(cfg, ours, reference, ids, per_frame, grid, read_s) -> dict:
             if len(distance) else None,
             "jitter_ours_m": jitter_ours, "jitter_pf_m": jitter_pf,
             "roughness_ours_m": _jitter(ours[:, top], order=2),
-            "roughness_pf_m": _jitter(reference[:, top], order=2),
-            "path_ours_m": _path(ours[:, top]), "path_pf_m": _path(reference[:, top]),
+            "roughness_pf_m": _jitter(both[:, top], order=2),
+            "path_ours_m": _path(ours[:, top]), "path_pf_m": _path(both[:, top]),
             "grid_cells": int(np.prod(grid.shape)), "grid_step_m": round(grid.step[0], 4),
             "read_s": round(read_s, 2),
             "met": {"fps": bool(fps >= cfg["goal"]["fps"]),

@@ -76,8 +76,8 @@ def read_fk(path, *, dt_ps: float = BIN_PS, t0_ps: float = 0.0, width_m: float =
     """An f-k scene (a meas_*.mat and its tof.mat) as a confocal HistogramSet: rectified by
     tofgrid, the first `crop_bins` bins (None: CROP_BINS, or the record if shorter), blocks of
     `block` x `block` scan points summed (None: the default, see the module docstring)."""
-    scan = _Scan(path, 3, dt_ps, t0_ps, width_m, crop_bins or CROP_BINS, block, flip,
-                 clip=crop_bins is None)
+    scan = _Scan(path, 3, dt_ps, t0_ps, width_m, CROP_BINS if crop_bins is None else crop_bins,
+                 block, flip, clip=crop_bins is None)
     with _Chunks(scan.path, scan.n, 3) as chunks:
         return scan.histograms(_rectified_blocks(scan, chunks), transpose)
 
@@ -91,13 +91,17 @@ def read_fk_interactive(path, *, dt_ps: float = BIN_PS, t0_ps: float = 0.0,
     rectified like a scene (`read_fk`), at t = k / fps (default: the README's 4 fps for
     32 x 32 scans, 2 fps for 64 x 64; other sizes need fps); crop_bins None:
     INTERACTIVE_CROP_BINS, or the record if shorter."""
-    scan = _Scan(path, 4, dt_ps, t0_ps, width_m, crop_bins or INTERACTIVE_CROP_BINS, block,
-                 flip, clip=crop_bins is None)
+    scan = _Scan(path, 4, dt_ps, t0_ps, width_m, INTERACTIVE_CROP_BINS if crop_bins is None
+                 else crop_bins, block, flip, clip=crop_bins is None)
     if fps is None:
         fps = INTERACTIVE_FPS.get(scan.n)
         require(fps is not None, "fps", f"is not known for a {scan.n} x {scan.n} interactive "
                 "scan (the README gives 4 fps for 32 x 32, 2 fps for 64 x 64)", "pass --fps")
     require(np.isfinite(fps) and fps > 0, "fps", f"must be positive, got {fps}", "pass e.g. 4")
+    side = scan.n // scan.block
+    require_memory(f"{scan.path}: meas", 8.0 * scan.n_frames * side * side * scan.crop,
+                   f"{scan.n_frames} frames of {side} x {side} histograms", "pass --block "
+                   "or --crop-bins to keep fewer values")
     with _Chunks(scan.path, scan.n, 4) as chunks:
         frames = [(k / fps, scan.histograms(_rectified_blocks(scan, chunks, k), transpose))
                   for k in range(scan.n_frames)]
@@ -119,7 +123,10 @@ class _Scan:
         declared = variables(self.path)
         require("meas" in declared, f"{self.path}: meas", f"is missing (the file holds "
                 f"{sorted(declared)})", "pass the dataset's own, unmodified file")
-        shape = declared["meas"][0]
+        shape, kind = declared["meas"]
+        require(kind in ("double", "single", "uint8", "uint16", "uint32", "int8", "int16",
+                         "int32"), f"{self.path}: meas", f"is declared {kind}, not numeric",
+                "pass the dataset's own, unmodified file")
         other = {3: "a scene's 3-D meas: --format fk", 4: "an interactive capture's 4-D meas "
                  "(frames x y x x x t): --format fk-interactive"}
         require(len(shape) == ndim or len(shape) not in other, f"{self.path}: meas",
@@ -132,8 +139,8 @@ class _Scan:
         self.n, self.n_t = int(scan[0]), int(scan[2])
         n, n_t = self.n, self.n_t
         crop_bins = min(crop_bins, n_t) if clip else crop_bins  # a default: the record at most
-        require(int(crop_bins) == crop_bins and 1 <= crop_bins <= n_t, "crop_bins", f"must be "
-                f"a bin count in 1..{n_t}, got {crop_bins}", f"pass e.g. {min(CROP_BINS, n_t)}")
+        require(int(crop_bins) == crop_bins and 2 <= crop_bins <= n_t, "crop_bins", f"must be "
+                f"a bin count in 2..{n_t}, got {crop_bins}", f"pass e.g. {min(CROP_BINS, n_t)}")
         self.crop = int(crop_bins)
         block = _default_block(n) if block is None else block
         require(int(block) == block and block >= 1 and n % block == 0, "block", f"must divide "
@@ -178,9 +185,10 @@ def _rectified_blocks(scan, chunks, frame=None) -> np.ndarray:
     CHUNK_BINS record bins at a time (only the bins some histogram keeps)."""
     n, n_t, crop, block, shift = scan.n, scan.n_t, scan.crop, scan.block, scan.shift
     side = n // block
-    require_memory(f"{scan.path}: meas", 8.0 * 6 * CHUNK_BINS * n * n + 8.0 * side * side *
-                   crop, f"rectifying {n} x {n} histograms", "read the file on a machine "
-                   "with more memory")
+    # a chunk's values, times and indices (~6 arrays of it), and the sums twice (bincount's)
+    require_memory(f"{scan.path}: meas", 8.0 * 6 * CHUNK_BINS * n * n + 16.0 * side * side *
+                   crop, f"rectifying {n} x {n} histograms", "pass --block or --crop-bins to "
+                   "keep fewer values")
     cell = ((np.arange(n)[:, None] // block) * side + np.arange(n)[None, :] // block).ravel()
     flat_shift = shift.ravel()
     out = np.zeros(side * side * crop)

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import plate
-from .lm import drive_together, least_squares, solve
+from .lm import least_squares
 
 JAC_UPDATE = "full"  # not "broyden": it took more forward calls here (nlos_cl.localization.model.lm)
 
@@ -89,31 +89,25 @@ class _Objective:
         r = self.problem.residual(cols, lin)
         return np.concatenate([r, self.prior_residual(theta)]) if self.at.size else r
 
-    def jac(self, theta):
+    def jac(self, theta, stepped=None):
         """Forward differences along every free parameter; the moved targets' histograms in
         one `column_batch` (what `column` computes, column by column), and with shadows those
-        of the targets each moved one can shadow (`stepped_columns`)."""
-        cols, _ = self._eval(theta)
-        moves = self._moves(theta)
-        return self._jac_from(theta, stepped_columns(self.problem, self.full(theta), cols,
-                                                     moves))
-
-    def _moves(self, theta):
-        """(k, row) per free parameter: target k with that parameter stepped."""
-        full, moves = self.full(theta), []
-        for f, step in zip(np.flatnonzero(self.free), self.steps):
-            k, i = divmod(int(f), self.shape.N_PARAMS)
-            row = full[k].copy()
-            row[i] += step
-            moves.append((k, row))
-        return moves
-
-    def _jac_from(self, theta, stepped):
+        of the targets each moved one can shadow (`stepped_columns`), or `stepped` if given."""
         cols, lin = self._eval(theta)
+        if stepped is None:
+            stepped = stepped_columns(self.problem, self.full(theta), cols, self.moves(theta))
         base = self.problem.residual(cols, lin)
         out = [(self.problem.residual(moved, self.problem.linear(moved, lin)) - base) / step
                for moved, step in zip(stepped, self.steps)]
         return self._with_prior(np.stack(out, axis=1))
+
+    def moves(self, theta):
+        """(k, row) per free parameter: target k with that parameter stepped."""
+        full, out = self.full(theta), []
+        for f, step in zip(np.flatnonzero(self.free), self.steps):
+            k, i = divmod(int(f), self.shape.N_PARAMS)
+            out.append((k, full[k] + step * (np.arange(len(full[k])) == i)))
+        return out
 
     def _with_prior(self, jac):
         """The data's Jacobian (rows: residuals) with the prior's rows below (exact: linear)."""
@@ -192,15 +186,6 @@ def stepped_columns(problem, params, cols, moves) -> np.ndarray:
     evaluated with params[k]'s cell statistics (`like`); with shadows (`shadowed_by`) so are
     those of the targets it can shadow (their own rows, shadowed by the moved one), the rest
     are cols' (where no shadow can fall, only the moved target is re-simulated)."""
-    plan = _stepped_plan(problem, params, moves)
-    rows, like, occluders, _ = plan
-    evaluated = problem.column_batch(rows, like,
-                                     **({} if occluders is None else {"occluders": occluders}))
-    return _stepped_fill(cols, len(moves), plan, evaluated)
-
-
-def _stepped_plan(problem, params, moves):
-    """(rows, like, occluders or None, where): what stepped_columns evaluates, in one call."""
     params = np.asarray(params, np.float64)
     shadowed = shadowed_by(problem, params)
     rows, like, occluders, where = [], [], [], []
@@ -213,12 +198,10 @@ def _stepped_plan(problem, params, moves):
             like.append(params[j])
             occluders.append(None if shadowed is None else moved[shadowed[j]])
             where.append((m, j))
-    return np.array(rows), np.array(like), None if shadowed is None else occluders, where
-
-
-def _stepped_fill(cols, n_moves, plan, evaluated) -> np.ndarray:
-    out = np.repeat(np.asarray(cols)[None], n_moves, axis=0)
-    for (m, j), col in zip(plan[3], evaluated):
+    evaluated = problem.column_batch(np.array(rows), np.array(like),
+                                     **({} if shadowed is None else {"occluders": occluders}))
+    out = np.repeat(np.asarray(cols)[None], len(moves), axis=0)
+    for (m, j), col in zip(where, evaluated):
         out[m, j] = col
     return out
 
@@ -241,63 +224,6 @@ def fit(problem, params0, free, max_nfev=30, tau=None, atol=None, prior=None) ->
     pr = obj.prior_residual(sol.x)
     return FitResult(obj.full(sol.x), lin, float(r @ r), int(r.size), int(sol.nfev),
                      prior=prior if obj.at.size else None, prior_cost=float(pr @ pr))
-
-
-def fit_together(problem, starts, free, max_nfev=30) -> list[FitResult]:
-    """`fit` from each of `starts` (a list of (K, N_PARAMS) params0), the same answers, with
-    the fits run in lockstep (model.lm.drive_together): every fit's trial point in one
-    `column_batch`, every fit's Jacobian plates in another. Where the problem models the
-    shadows of K >= 2 plates (none batched here), the fits run one after another."""
-    objs = [_Objective(problem, p, free) for p in starts]
-    if len(objs) < 2 or (getattr(problem, "shadows", False) and len(objs[0].base) > 1):
-        return [fit(problem, p, free, max_nfev) for p in starts]
-    shape, k = objs[0].shape, len(objs[0].base)
-    lo, hi = (np.tile(b, k)[objs[0].free] for b in (shape.LOWER, shape.UPPER))
-    solvers = [solve(np.clip(o.base.reshape(-1)[o.free], lo + 1e-6, hi - 1e-6), (lo, hi),
-                     np.tile(shape.X_SCALE, k)[o.free], ftol=1e-7, xtol=1e-5,
-                     max_nfev=max_nfev, jac_update=JAC_UPDATE) for o in objs]
-    results = drive_together(solvers, lambda asked: _serve_together(problem, objs, asked))
-    out = []
-    for obj, sol in zip(objs, results):
-        cols, lin = obj._eval(sol.x)
-        r = problem.residual(cols, lin)
-        out.append(FitResult(obj.full(sol.x), lin, float(r @ r), int(r.size), int(sol.nfev)))
-    return out
-
-
-def _serve_together(problem, objs, asked) -> list:
-    """Answers to the lockstep fits' requests (model.lm.solve): the residuals' plates (those
-    not already evaluated) in one column_batch, then the Jacobians' moved plates in one."""
-    fresh = [(i, r[1]) for i, r in asked if r[0] in ("fun", "jac")
-             and objs[i]._key != np.asarray(r[1]).tobytes()]
-    if fresh:
-        rows = [objs[i].full(x) for i, x in fresh]
-        cols = problem.column_batch(np.concatenate(rows))
-        at = np.cumsum([0] + [len(r) for r in rows])
-        for (i, x), a, b in zip(fresh, at[:-1], at[1:]):
-            obj = objs[i]
-            obj._lin = problem.linear(cols[a:b], obj._warm(cols[a:b]))
-            obj._key, obj._cols = np.asarray(x).tobytes(), cols[a:b]
-    jacs = [(i, r[1]) for i, r in asked if r[0] == "jac"]
-    stepped = {}
-    if jacs:
-        plans = [(objs[i], x, objs[i]._moves(x)) for i, x in jacs]
-        plans = [(o, x, moves, _stepped_plan(problem, o.full(x), moves)) for o, x, moves in plans]
-        evaluated = problem.column_batch(np.concatenate([p[3][0] for p in plans]),
-                                         np.concatenate([p[3][1] for p in plans]))
-        at = np.cumsum([0] + [len(p[3][0]) for p in plans])
-        for (i, _), (o, x, moves, plan), a, b in zip(jacs, plans, at[:-1], at[1:]):
-            stepped[i] = o._jac_from(x, _stepped_fill(o._eval(x)[0], len(moves), plan,
-                                                      evaluated[a:b]))
-    answers = []
-    for i, r in asked:
-        if r[0] == "fun":
-            answers.append(objs[i].residual(r[1]))
-        elif r[0] == "jac":
-            answers.append(stepped[i])
-        else:  # ("col", ...): not asked with jac_update="full"
-            answers.append(objs[i].column(r[1], r[2]))
-    return answers
 
 
 def _mean_jacobian(problem, params, lin, free):

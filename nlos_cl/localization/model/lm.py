@@ -93,19 +93,24 @@ def least_squares(fun, x0, jac=None, bounds=(-np.inf, np.inf), x_scale=1.0, ftol
         if kind == "col":
             return column(x, request[2], request[3])
         if jac is not None:
-            return jac(x)
+            return np.atleast_2d(np.asarray(jac(x), dtype=np.float64))
         return np.stack([column(x, j, request[2]) for j in range(len(x))], axis=1)
     return drive(solver, serve)
 
 
 def drive(solver, serve) -> LMResult:
-    """Run a `solve` generator to its result, answering each of its requests with serve."""
+    """Run a `solve` generator to its result, answering each of its requests with serve (a
+    StopIteration raised by serve is not taken for the solver's end)."""
     try:
         request = next(solver)
-        while True:
-            request = solver.send(serve(request))
     except StopIteration as done:
         return done.value
+    while True:
+        answer = serve(request)
+        try:
+            request = solver.send(answer)
+        except StopIteration as done:
+            return done.value
 
 
 def drive_together(solvers, serve_all) -> list:
@@ -121,7 +126,8 @@ def drive_together(solvers, serve_all) -> list:
             results[i] = done.value
     while pending:
         asked = list(pending.items())
-        for (i, _), answer in zip(asked, serve_all(asked)):
+        answers = list(serve_all(asked))  # outside the try: not the solvers' StopIteration
+        for (i, _), answer in zip(asked, answers):
             try:
                 pending[i] = solvers[i].send(answer)
             except StopIteration as done:

@@ -28,7 +28,8 @@ import numpy as np
 
 from ...core.stats import chi2_quantile
 from . import plate, starts
-from .fit import FitResult, covariance, fit, fit_together
+from .fit import FitResult, covariance, fit
+from .lockstep import fit_together
 
 SHORT_NFEV = 6
 MIN_SHARE = 0.10
