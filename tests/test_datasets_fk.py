@@ -190,3 +190,11 @@ def test_fk_interactive_is_a_sequence_of_rectified_frames(tmp_path, capsys):
     assert np.linalg.norm(np.asarray(last["measurements"][0]) - truth) <= 0.03, last
     with pytest.raises(nl.InputError, match="--format fk-interactive"):
         nl.read_dataset(folder, "fk")
+
+
+def test_an_fk_file_read_as_lct_says_which_format(tmp_path):
+    meas, tof, _ = scene()
+    folder = folder_v5(tmp_path, meas, tof)
+    with pytest.raises(nl.InputError, match="rect_data: is missing; the file holds `meas`.*"
+                                            "--format fk"):
+        nl.read_dataset(folder / "meas_10min.mat", "lct")

@@ -22,7 +22,7 @@ from ...core.constants import SPEED_OF_LIGHT
 from ...core.errors import require
 from ...core.histograms import HistogramSet
 from ...core.paths import PathCalibration, TimeAxis
-from .matfile import load
+from .matfile import load, variables
 
 BIN_PS = 4.0  # cnlos_reconstruction.m: bin_resolution = 4e-12
 
@@ -36,6 +36,9 @@ def read_lct(path, *, dt_ps: float = BIN_PS, t0_ps: float = 0.0, width_m: float 
     require(np.isfinite(t0_ps), "t0_ps", f"must be finite, got {t0_ps}", "pass e.g. 0")
     require(flip in ("", "x", "z", "xz", "zx"), "flip", f"must be x, z or xz, got {flip!r}",
             "pass --flip x, z or xz")
+    held = variables(path)
+    require("rect_data" in held or "meas" not in held, f"{path}: rect_data", "is missing; the "
+            "file holds `meas`, f-k migration's layout", "pass --format fk (or no --format)")
     cube = load(path, "rect_data", 3)
     require(int(gate_bins) == gate_bins and 0 <= gate_bins < cube.shape[2], "gate_bins",
             f"must be a bin count in 0..{cube.shape[2] - 1}, got {gate_bins}", "pass e.g. 600")
