@@ -79,18 +79,56 @@ def test_consumer_nlos_options_and_refusals(tmp_path, capsys):
     bad = tmp_path / "bad"
     bad.mkdir()
     raw = npz(FIXTURE / "volume_000000.npz")
-    np.savez(bad / "volume_000000.npz", hists=raw["hists"], pt_cloud=raw["pt_cloud"])
-    with pytest.raises(nl.InputError, match=r"lacks \['particles'\].*Fix:"):
+    np.savez(bad / "volume_000000.npz", hists=raw["hists"])
+    with pytest.raises(nl.InputError, match=r"lacks \['pt_cloud'\].*Fix:"):
         read_dataset(bad)
+    np.savez(bad / "volume_000000.npz", hists=raw["hists"], pt_cloud=raw["pt_cloud"])
+    frames, meta = read_dataset(bad)  # no particles: no reference, still a sequence
+    assert len(frames) == 1 and "reference_positions" not in meta
     np.savez(bad / "volume_000000.npz", **raw)
     np.savez(bad / "volume_000001.npz", **{**raw, "pt_cloud": raw["pt_cloud"] + 0.01})
-    with pytest.raises(nl.InputError, match=r"volume_000001.npz: pt_cloud: differs.*Fix:"):
+    with pytest.raises(nl.InputError, match=r"volume_000001.npz: pt_cloud: differs.*Fix: pass "
+                                            r"--static"):
         read_dataset(bad)
     np.savez(bad / "volume_000001.npz", **{**raw, "hists": raw["hists"][:, :64]})
     with pytest.raises(nl.InputError, match=r"volume_000001.npz: hists: has shape.*Fix:"):
         read_dataset(bad)
     with pytest.raises(nl.InputError, match="holds no volume_.*Fix:"):
         read_dataset(tmp_path, "consumer-nlos")
+
+
+def test_consumer_nlos_moving_sensor_pooled_with_static(tmp_path, capsys):
+    """A sensor that moves past a scene that does not (upstream cam_localization.py's capture:
+    pt_cloud per frame, cam_z, no particles): --static pools every frame's zones, each at its
+    own wall spot, into one confocal capture, which locate finds the hidden point from."""
+    C = nl.SPEED_OF_LIGHT
+    hidden = np.array([-0.4, 0.05, 0.9])  # theirs (X, Y, Z): Z away from the wall
+    grid = np.stack(np.meshgrid(np.linspace(-0.15, 0.15, 4), np.linspace(-0.15, 0.15, 4)),
+                    -1).reshape(16, 2)
+    folder = tmp_path / "moving"
+    folder.mkdir()
+    for k in range(6):  # the sensor's spots slide 0.1 m a frame along X
+        pt = np.column_stack([grid[:, 0] + 0.1 * k - 0.25, grid[:, 1], np.zeros(16)])
+        hists = np.zeros((16, 128))
+        bins = (2 * np.linalg.norm(hidden - pt, axis=1) / (C * 250e-12)).astype(int)
+        hists[np.arange(16), bins] = 40.0
+        hists[np.arange(16), bins + 1] = 20.0
+        np.savez(folder / f"volume_{k:06d}.npz", hists=hists, pt_cloud=pt, cam_z=np.array(0.5))
+    with pytest.raises(nl.InputError, match="pass --static"):
+        read_dataset(folder)
+    pooled = read_dataset(folder, static=True)
+    # 96 zones on 36 distinct spots: a spot seen again in a later frame is summed into one
+    assert pooled.n_detectors == 36 and pooled.paired
+    assert np.array_equal(pooled.laser_spots, pooled.detector_spots)
+    assert pooled.data.sum() == pytest.approx(96 * 60.0)  # nothing lost in the sums
+    out = tmp_path / "pooled.h5"
+    assert cli(["convert", str(folder), "--out", str(out), "--static"]) == 0
+    assert "consumer-nlos, 36 histograms x 128 bins of 250 ps, confocal" in \
+        capsys.readouterr().out
+    assert cli(["locate", str(out), "--json"]) == 0
+    position = np.array(json.loads(capsys.readouterr().out)["position"])
+    # 250 ps bins (3.75 cm of range each) over a 0.9 m x 0.3 m aperture: a bin and a half
+    assert np.linalg.norm(position - hidden) < 0.05, position  # measured 0.023 m
 
 
 def track(seq_path, capsys, *extra):

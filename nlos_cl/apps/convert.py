@@ -8,7 +8,7 @@ from .cli_types import MAX_FPS, MIN_FPS, number as _number  # cli imports this: 
 # CLI option -> the readers' keyword (nlos_cl.io.datasets.<format>.read_<format>)
 OPTIONS = {"dt_ps": "dt_ps", "t0_ps": "t0_ps", "width": "width_m", "grid_m": "grid_m",
            "transpose": "transpose", "flip": "flip", "gate_bins": "gate_bins", "fps": "fps",
-           "crop_bins": "crop_bins", "block": "block"}
+           "crop_bins": "crop_bins", "block": "block", "static": "static"}
 
 
 def main(args) -> int:
@@ -24,7 +24,7 @@ def main(args) -> int:
             "format", "drop it (`nlos-cl convert --help` says which options each format takes)")
     meta = {"converted_from": str(args.src), "dataset_format": name, "options": given}
     read = read_dataset(args.src, name, **given)
-    if name in SEQUENCES:
+    if name in SEQUENCES and isinstance(read, tuple):  # (consumer-nlos --static: one capture)
         return _sequence(args, read, meta)
     from ..io.ytal.capture import write_capture
     h = read
@@ -89,6 +89,9 @@ def arguments(p):
     p.add_argument("--gate-bins", type=_number("gate_bins", "pass a bin count, e.g. 600",
                                                minimum=0, integer=True), default=None,
                    help="lct: zero the first N bins (the direct return; upstream zeroes 600)")
+    p.add_argument("--static", action="store_true",
+                   help="consumer-nlos: pool every frame into one capture of a scene that does "
+                   "not move while the sensor does (each frame's zones at its own wall spots)")
     p.add_argument("--fps", type=_number("fps", "pass frames per second, e.g. 14",
                                          minimum=MIN_FPS, maximum=MAX_FPS), default=None,
                    help="sequences: frame rate, frame k at k / fps (consumer-nlos default 14)")

@@ -12,7 +12,8 @@ y = 0, hidden space y > 0, z up). `nlos-cl convert` writes what they return as a
 | `keyhole` | a folder with scan_*.mat, direct_after.mat, LongExpNoObject_after.mat (Metzler et al. 2021): a sequence of one confocal spot, range only (localization.ranges) | keyhole.py |
 
 A sequence format (SEQUENCES) returns (frames, metadata) instead: frames a list of (t_s,
-HistogramSet[, truths]) that write_sequence takes, metadata what the file keeps beside them.
+HistogramSet[, truths]) that write_sequence takes, metadata what the file keeps beside them
+(consumer-nlos with static=True pools its frames into one HistogramSet: a moving sensor).
 """
 from __future__ import annotations
 

@@ -47,7 +47,9 @@ from ...core.paths import PathCalibration, TimeAxis
 BIN_PS = 250.0  # configs/tracking.yaml: t_res 250e-12
 FPS = 14.0  # the upstream video writer's fps (README): the capture rate
 PATTERN = re.compile(r"volume_(\d+)\.npz$")
-FIELDS = ("hists", "pt_cloud", "particles")
+FIELDS = ("hists", "pt_cloud")  # every frame has these
+OPTIONAL = ("particles", "cam_z")  # the person-tracking capture's particles; the moving
+# camera's height in cam_localization.py's capture (upstream data/dataloader.py, cam_track)
 # theirs (X, Y, Z) -> ours (x, y, z) = (-X, Z, Y): rows are our axes in terms of theirs
 TO_INTERNAL = np.array([[-1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0]])
 
@@ -64,13 +66,19 @@ def frame_files(folder) -> list[tuple[int, Path]]:
     return found
 
 
-def read_consumer_nlos(folder, *, dt_ps: float = BIN_PS, t0_ps: float = 0.0, fps: float = FPS
-                       ) -> tuple[list, dict]:
+def read_consumer_nlos(folder, *, dt_ps: float = BIN_PS, t0_ps: float = 0.0, fps: float = FPS,
+                       static: bool = False):
     """A consumer-nlos capture folder as (frames, metadata): frames a list of (t_s,
     HistogramSet) pairs (confocal: laser spots = detector spots, one per zone; write_sequence
     takes them as they are), metadata {"fps", "reference_positions" (F, 3) the authors'
-    particle means in their frame, "reference": what they are, ...}. dt_ps: bin width; t0_ps:
-    bin 0's start after light leaves the wall; fps: frames per second (frame k at k / fps)."""
+    particle means in their frame where the files hold particles, "reference": what they are,
+    "cam_z" where they hold it, ...}. dt_ps: bin width; t0_ps: bin 0's start after light
+    leaves the wall; fps: frames per second (frame k at k / fps).
+    static: every frame's zones pooled into ONE confocal HistogramSet (F x 16 histograms, each
+    at its own frame's wall spot), for a scene that does not move while the sensor does (the
+    motion-induced aperture the paper is named after); a sequence needs one wall layout, so
+    frames whose pt_cloud differs are refused without it. Zones of several frames on one wall
+    spot are summed into one histogram (`_pooled`)."""
     for name, value, default in (("dt_ps", dt_ps, BIN_PS), ("fps", fps, FPS)):
         require(np.isfinite(value) and value > 0, name, f"must be positive, got {value}",
                 f"pass e.g. {default:g}")
@@ -81,23 +89,51 @@ def read_consumer_nlos(folder, *, dt_ps: float = BIN_PS, t0_ps: float = 0.0, fps
     per_frame = sum(8.0 * np.prod(shape) for shape, _ in first.values())
     require_memory(f"dataset {folder}", 2.0 * per_frame * len(files), f"reading {len(files)} "
                    "frames", "convert a folder holding fewer frames")
-    spots0 = _load(files[0][1], n_zones, n_t)[1]
-    wall, offset = _wall_spots(spots0, files[0][1])
+    spots0 = _load(files[0][1], n_zones, n_t)["pt_cloud"]
     axis = TimeAxis(t0_ps * 1e-12, dt_ps * 1e-12, n_t)
-    frames, means = [], []
+    frames, walls, means, cam_z, offset = [], [], [], [], 0.0
     for k, path in files:
-        hists, spots, particles = _load(path, n_zones, n_t)
-        require(np.array_equal(spots, spots0), f"{path}: pt_cloud", "differs from the first "
-                "frame's, but a sequence holds one wall layout", "convert the frames of one "
-                "sensor pose together")
-        frames.append((k / fps, HistogramSet(hists, axis, wall, wall,
+        got = _load(path, n_zones, n_t)
+        require(static or np.array_equal(got["pt_cloud"], spots0), f"{path}: pt_cloud",
+                "differs from the first frame's (the sensor moved), but a sequence holds one "
+                "wall layout", "pass --static to pool every frame into one capture of a scene "
+                "that does not move, or convert the frames of one sensor pose together")
+        wall, moved = _wall_spots(got["pt_cloud"], path)
+        offset = max(offset, moved)
+        walls.append(wall)
+        frames.append((k / fps, HistogramSet(got["hists"], axis, wall, wall,
                                              PathCalibration(SPEED_OF_LIGHT, [0.0]))))
-        means.append(particles.mean(axis=0))
-    return frames, {"fps": float(fps), "frame_numbers": [k for k, _ in files],
-                    "wall_offset_max_m": offset,
-                    "reference_positions": np.asarray(means).tolist(),
-                    "reference": "the authors' particle-filter mean per frame (their "
-                                 "estimate, not ground truth), in the file's (X, Y, Z)"}
+        if "particles" in got:
+            means.append(got["particles"].mean(axis=0))
+        if "cam_z" in got:
+            cam_z.append(got["cam_z"].ravel().tolist())
+    if static:
+        return _pooled(np.concatenate([h.data for _, h in frames]), np.concatenate(walls), axis)
+    meta = {"fps": float(fps), "frame_numbers": [k for k, _ in files],
+            "wall_offset_max_m": offset}
+    if len(means) == len(files):
+        meta.update(reference_positions=np.asarray(means).tolist(),
+                    reference="the authors' particle-filter mean per frame (their estimate, "
+                              "not ground truth), in the file's (X, Y, Z)")
+    if len(cam_z) == len(files):
+        meta["cam_z"] = cam_z
+    return frames, meta
+
+
+def _pooled(data, spots, axis) -> HistogramSet:
+    """One confocal HistogramSet of every frame's zones; zones of different frames on one wall
+    spot (within SAME_SPOT_M: the capture reader's test) summed into one histogram at their
+    mean spot, since the same spot measured twice is one measurement, longer."""
+    from ..ytal.frames import SAME_SPOT_M
+    _, group = np.unique(np.round(spots / SAME_SPOT_M), axis=0, return_inverse=True)
+    group = group.ravel()
+    n = int(group.max()) + 1
+    summed = np.zeros((n, data.shape[1]))
+    np.add.at(summed, group, data)
+    centre = np.zeros((n, 3))
+    np.add.at(centre, group, spots)
+    centre /= np.bincount(group, minlength=n)[:, None]
+    return HistogramSet(summed, axis, centre, centre, PathCalibration(SPEED_OF_LIGHT, [0.0]))
 
 
 def _declared(path) -> dict:
@@ -106,7 +142,8 @@ def _declared(path) -> dict:
     try:
         with zipfile.ZipFile(path) as z:
             members = {n.removesuffix(".npy"): n for n in z.namelist()}
-            out = {name: _header(z, members[name]) for name in FIELDS if name in members}
+            out = {name: _header(z, members[name]) for name in FIELDS + OPTIONAL
+                   if name in members}
     except (zipfile.BadZipFile, ValueError, OSError) as exc:
         require(False, f"{path}", f"is not a readable .npz file ({type(exc).__name__}: {exc})",
                 "download the file again")
@@ -114,8 +151,10 @@ def _declared(path) -> dict:
     require(not missing, f"{path}", f"lacks {missing} (it holds {sorted(members)})",
             "pass the dataset's own, unmodified volume_*.npz files")
     for name, (shape, dtype) in out.items():
-        require(len(shape) == 2 and dtype.kind in "fiu", f"{path}: {name}", f"is declared "
-                f"{dtype} {shape}, expected a numeric 2-D array", "pass the dataset's own file")
+        small = name == "cam_z" and int(np.prod(shape)) <= 3  # a height: any small shape
+        require((len(shape) == 2 or small) and dtype.kind in "fiu", f"{path}: {name}",
+                f"is declared {dtype} {shape}, expected a numeric 2-D array", "pass the "
+                "dataset's own file")
     return out
 
 
@@ -130,20 +169,22 @@ def _header(z, member) -> tuple:
 
 
 def _load(path, n_zones, n_t):
-    """One frame's hists (Z, T), pt_cloud (Z, 3) and particles (P, 3) as float64, their
-    declared shapes checked against the first frame's before reading."""
+    """One frame's {hists (Z, T), pt_cloud (Z, 3), and where present particles (P, 3) and
+    cam_z} as float64, their declared shapes checked against the first frame's before
+    reading."""
     declared = _declared(path)
     for name, want in (("hists", (n_zones, n_t)), ("pt_cloud", (n_zones, 3))):
         require(declared[name][0] == want, f"{path}: {name}", f"has shape "
                 f"{declared[name][0]}, expected {want} (as the first frame's hists)",
                 "convert the frames of one capture together")
-    require(declared["particles"][0][1:] == (3,), f"{path}: particles", f"has shape "
-            f"{declared['particles'][0]}, expected (P, 3)", "pass the dataset's own file")
+    require("particles" not in declared or declared["particles"][0][1:] == (3,),
+            f"{path}: particles", f"has shape {declared.get('particles', ((),))[0]}, "
+            "expected (P, 3)", "pass the dataset's own file")
     require_memory(f"{path}", 16.0 * sum(np.prod(s) for s, _ in declared.values()),
                    "reading one frame", "pass the dataset's own files")
     with np.load(path, allow_pickle=False) as f:
-        out = [np.asarray(f[name], dtype=np.float64) for name in FIELDS]
-    for name, value in zip(FIELDS, out):
+        out = {name: np.asarray(f[name], dtype=np.float64) for name in declared}
+    for name, value in out.items():
         require(bool(np.all(np.isfinite(value))), f"{path}: {name}", "contains NaN or inf",
                 "pass the dataset's own, unmodified file")
     return out
