@@ -198,3 +198,37 @@ def test_an_fk_file_read_as_lct_says_which_format(tmp_path):
     with pytest.raises(nl.InputError, match="rect_data: is missing; the file holds `meas`.*"
                                             "--format fk"):
         nl.read_dataset(folder / "meas_10min.mat", "lct")
+
+
+def test_fk_nonplanar_scan_is_planarized_as_upstream_does(tmp_path, capsys):
+    """upstream's `nonplanar` scene: calibration.mat holds z_offset (each scan point's offset
+    towards the hidden side) and width (the scan's full side). The reader applies upstream's
+    naive correction (each histogram 2 floor(z_offset / (c bin)) bins later) and takes the
+    side from width; locate then finds the point (the correction is exact along the normal,
+    2 z (1 - cos theta) of path off elsewhere: up to 4.4 cm here)."""
+    n, width = 16, 1.0
+    u = np.linspace(-width / 2, width / 2, n)
+    x, z = u[None, :].repeat(n, 0), u[::-1, None].repeat(n, 1)
+    z_off = 0.1 * (1.0 - (x ** 2 + z ** 2) / 0.5)  # a bowl up to 0.1 m towards the scene
+    spots = np.stack([x, z_off, z], -1)
+    path = 2 * np.linalg.norm(spots - HIDDEN, axis=-1)
+    tof = np.random.default_rng(4).uniform(3000.0, 6000.0, (n, n))
+    meas = np.zeros((n, n, T))
+    k = np.floor(tof / DT_PS).astype(int) + np.floor(path / (C * DT_PS * 1e-12)).astype(int)
+    meas[np.arange(n)[:, None], np.arange(n)[None, :], k] = 50.0
+    folder = folder_v5(tmp_path, meas, tof)
+    scipy.io.savemat(folder / "calibration.mat", {"z_offset": z_off, "width": [[width]]})
+    h = nl.read_dataset(folder)
+    assert np.allclose(h.detector_spots[[0, n - 1], 0], [-0.5, 0.5])  # the side from width
+    planar = 2 * np.linalg.norm(np.stack([x, 0 * x, z], -1) - HIDDEN, axis=-1).ravel()
+    peak = h.hidden_path_axis()[np.arange(n * n), h.data.argmax(axis=1)]
+    # as if on the plane, to the naive correction's own error 2 z (1 - cos theta) plus the
+    # bins it and the record round to (3 bins of path)
+    cos = (HIDDEN[1] - z_off) / np.linalg.norm(spots - HIDDEN, axis=-1)
+    bound = 2 * z_off * (1 - cos) + 3 * C * DT_PS * 1e-12
+    assert np.all(np.abs(peak - planar) <= bound.ravel() + 1e-9)
+    out = tmp_path / "nonplanar.h5"
+    assert cli(["convert", str(folder), "--out", str(out)]) == 0
+    assert cli(["locate", str(out), "--json"]) == 0
+    position = np.asarray(json.loads(capsys.readouterr().out.splitlines()[-1])["position"])
+    assert np.linalg.norm(position - [-HIDDEN[0], HIDDEN[2], HIDDEN[1]]) <= 0.03, position

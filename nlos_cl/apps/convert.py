@@ -73,7 +73,7 @@ def arguments(p):
                    help="time of bin 0 after the wall bounce (ps; default 0)")
     p.add_argument("--width", type=_number("width_m", "pass metres, e.g. 0.35", positive=True),
                    default=None, help="lct, fk: half side of the scanned square (m; default: the "
-                   "file's `width`; fk 1)")
+                   "file's `width`; fk 1, or half calibration.mat's width)")
     p.add_argument("--grid-m", type=_number("grid_m", "pass metres, e.g. 0.01", positive=True),
                    default=None, help="ccsocr: metres per wall index (default 0.01)")
     p.add_argument("--transpose", action="store_true", help="lct, fk: swap the scan's two axes")

@@ -19,6 +19,13 @@ of the record as zeros (circshift would wrap the record's start round). The shif
 as upstream: each histogram's t = 0 is the wall bounce to within one bin (32 ps, 4.8 mm of
 range); bin 0 is t = 0 (`t0_ps` moves it).
 
+Non-planar scans (upstream's `nonplanar` scene: a calibration.mat beside the meas file holds
+`z_offset`, each scan point's offset from the plane, and `width`, the scan's full side): the
+relay wall here is a plane, so each histogram gets upstream's naive correction
+(nonplanar_reconstruction.m, `use_naive`: 2 floor(z_offset / (c x bin)) bins later, as if
+measured on the plane; exact for a target along the wall's normal, 2 z_offset (1 - cos theta)
+off at theta from it) and the scan's side comes from `width`.
+
 Size: a 512 x 512 scan is 262,144 histograms (4.3 GB as float64). By default blocks of
 `block` x `block` neighbouring scan points are summed into one histogram at their mean spot,
 `block` the smallest power of two dividing N that leaves at most MAX_SIDE x MAX_SIDE
@@ -70,7 +77,7 @@ def fk_files(path) -> tuple[Path, Path]:
     return path, tof
 
 
-def read_fk(path, *, dt_ps: float = BIN_PS, t0_ps: float = 0.0, width_m: float = WIDTH_M,
+def read_fk(path, *, dt_ps: float = BIN_PS, t0_ps: float = 0.0, width_m: float | None = None,
             crop_bins: int | None = None, block: int | None = None, transpose: bool = False,
             flip: str = "") -> HistogramSet:
     """An f-k scene (a meas_*.mat and its tof.mat) as a confocal HistogramSet: rectified by
@@ -83,7 +90,7 @@ def read_fk(path, *, dt_ps: float = BIN_PS, t0_ps: float = 0.0, width_m: float =
 
 
 def read_fk_interactive(path, *, dt_ps: float = BIN_PS, t0_ps: float = 0.0,
-                        width_m: float = WIDTH_M, crop_bins: int | None = None,
+                        width_m: float | None = None, crop_bins: int | None = None,
                         block: int | None = None, transpose: bool = False, flip: str = "",
                         fps: float | None = None) -> tuple[list, dict]:
     """f-k's interactive captures (meas_32.mat / meas_64.mat with tof_32.mat / tof_64.mat: a
@@ -114,8 +121,8 @@ class _Scan:
 
     def __init__(self, path, ndim, dt_ps, t0_ps, width_m, crop_bins, block, flip, clip=False):
         for name, value, default in (("dt_ps", dt_ps, BIN_PS), ("width_m", width_m, WIDTH_M)):
-            require(np.isfinite(value) and value > 0, name, f"must be positive, got {value}",
-                    f"pass e.g. {default:g}")
+            require(value is None or (np.isfinite(value) and value > 0), name,
+                    f"must be positive, got {value}", f"pass e.g. {default:g}")
         require(np.isfinite(t0_ps), "t0_ps", f"must be finite, got {t0_ps}", "pass e.g. 0")
         require(flip in ("", "x", "z", "xz", "zx"), "flip", f"must be x, z or xz, got "
                 f"{flip!r}", "pass --flip x, z or xz")
@@ -153,7 +160,11 @@ class _Scan:
         require(bool(np.all((self.shift >= 0) & (self.shift < n_t))), f"{tof_path}: tofgrid",
                 f"holds times outside the record (0 .. {n_t * dt_ps:g} ps)", "pass the tof.mat "
                 "of the same scene")
-        self.dt_ps, self.t0_ps, self.width_m, self.flip = dt_ps, t0_ps, width_m, flip
+        self.planarized, half = _nonplanar(self.path, n, dt_ps)
+        if self.planarized is not None:  # the naive correction: each histogram d bins later
+            self.shift = self.shift - self.planarized
+        self.width_m = width_m if width_m is not None else half
+        self.dt_ps, self.t0_ps, self.flip = dt_ps, t0_ps, flip
 
     def histograms(self, cube, transpose) -> HistogramSet:
         """The (side, side, crop) rectified blocks as a confocal HistogramSet on the wall."""
@@ -171,6 +182,26 @@ class _Scan:
         axis = TimeAxis(self.t0_ps * 1e-12, self.dt_ps * 1e-12, self.crop)
         return HistogramSet(cube.reshape(side * side, self.crop), axis, spots, spots,
                             PathCalibration(SPEED_OF_LIGHT, [0.0]))
+
+
+def _nonplanar(meas_path, n, dt_ps):
+    """(bins (N, N) or None, the scan's half side, m): for a non-planar scan (a calibration.mat
+    beside the meas file with `z_offset` (N, N), m, and `width`, the scan's full side:
+    nonplanar_reconstruction.m's x = linspace(-width / 2, width / 2)) upstream's naive
+    correction, each histogram 2 floor(z_offset / (c x bin)) bins later (its `use_naive`
+    circshift), as if measured on the plane; (None, WIDTH_M) for a planar scene."""
+    path = meas_path.with_name("calibration.mat")
+    if not path.is_file() or "z_offset" not in variables(path):
+        return None, WIDTH_M
+    z_offset = load(path, "z_offset", 2)
+    require(z_offset.shape == (n, n), f"{path}: z_offset", f"is {z_offset.shape}, the scan "
+            f"{n} x {n}", "pass the calibration.mat of the same scene")
+    held = variables(path)
+    half = 0.5 * float(load(path, "width", 2).ravel()[0]) if "width" in held else WIDTH_M
+    require(np.isfinite(half) and half > 0, f"{path}: width", f"must be a positive side in "
+            f"metres, got {2 * half}", "pass the calibration.mat of the same scene")
+    bins = 2 * np.floor(z_offset / (SPEED_OF_LIGHT * dt_ps * 1e-12)).astype(np.int64)
+    return bins, half
 
 
 def _default_block(n: int) -> int:
@@ -192,7 +223,7 @@ def _rectified_blocks(scan, chunks, frame=None) -> np.ndarray:
     cell = ((np.arange(n)[:, None] // block) * side + np.arange(n)[None, :] // block).ravel()
     flat_shift = shift.ravel()
     out = np.zeros(side * side * crop)
-    first, last = int(shift.min()), min(int(shift.max()) + crop, n_t)
+    first, last = max(int(shift.min()), 0), min(int(shift.max()) + crop, n_t)
     for t0 in range(first, last, CHUNK_BINS):
         t1 = min(t0 + CHUNK_BINS, last)
         values = chunks.read(t0, t1, frame)  # (t1 - t0, n * n), point index i * n + j
