@@ -18,7 +18,8 @@ import nlos_cl as nl
 from nlos_cl.physics import layouts
 from nlos_cl.localization.model import data, height_observable
 from nlos_cl.localization.model.estimator import GAUSS_LATTICE
-from nlos_cl.localization.model.fit import centre_covariance, covariance, fit
+from nlos_cl.localization.model.covariance import centre_covariance, covariance
+from nlos_cl.localization.model.fit import fit
 from nlos_cl.localization.model.likelihood import Problem
 
 PAPER_SPOTS = [[-0.5, 0, 0], [-1.0, 0, 0], [-1.5, 0, 0]]

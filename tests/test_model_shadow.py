@@ -9,7 +9,8 @@ import pytest
 import nlos_cl as nl
 from nlos_cl.localization.estimate import Scored
 from nlos_cl.localization.model import ModelEstimator, plate, shadow
-from nlos_cl.localization.model.fit import covariance, fit, shadowed_by, stepped_columns
+from nlos_cl.localization.model.covariance import covariance
+from nlos_cl.localization.model.fit import fit, shadowed_by, stepped_columns
 from nlos_cl.localization.model.likelihood import Problem
 from nlos_cl.physics import layouts
 from nlos_cl.physics.visibility import any_hit_brute, visibility

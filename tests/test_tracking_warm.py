@@ -77,6 +77,7 @@ def test_jacobian_plates_borrow_the_base_plate_statistics(scored, cold, monkeypa
     (the covariance's analytic derivatives freeze the statistics too:
     tests/test_model_derivatives.py)."""
     from nlos_cl.localization.model import fit as model_fit
+    from nlos_cl.localization.model.covariance import covariance
     monkeypatch.setattr(model_fit, "ANALYTIC", False)
     est = ModelEstimator()
     obs = est.observation(scored)
@@ -89,11 +90,11 @@ def test_jacobian_plates_borrow_the_base_plate_statistics(scored, cold, monkeypa
     theta = p[free]
     borrowed = objective.jac(theta)
     result = model_fit.fit(host, p[None], free, 10)
-    cov_borrowed = model_fit.covariance(host, result, free)[0]
+    cov_borrowed = covariance(host, result, free)[0]
     own = HostProblem.column_batch  # the exact derivatives: every moved plate its own
     host.column_batch = lambda rows, like=None, **kw: own(host, rows, **kw)
     exact = objective.jac(theta)
-    cov_exact = model_fit.covariance(host, result, free)[0]
+    cov_exact = covariance(host, result, free)[0]
     err = np.linalg.norm(borrowed - exact, axis=0) / np.linalg.norm(exact, axis=0)
     assert err.max() <= 5e-3 and err.max() > 0  # > 0: the two paths did differ
     sd_b, sd_e = (np.sqrt(np.diag(c)[:6][free]) for c in (cov_borrowed, cov_exact))
@@ -189,7 +190,8 @@ def test_gate_fallback_sees_a_warm_fit_outside_every_gate():
 def test_a_plate_the_data_want_none_of_has_no_information(scored, cold):
     """A second plate held at amplitude 0 (the non-negative bound) has zero derivatives; its
     parameters are unknown, so their variance is infinite, not the 0 a pseudo-inverse gives."""
-    from nlos_cl.localization.model.fit import FitResult, covariance
+    from nlos_cl.localization.model.covariance import covariance
+    from nlos_cl.localization.model.fit import FitResult
     est = ModelEstimator()
     obs = est.observation(scored)
     host = HostProblem(obs, est.lattice_for(obs))

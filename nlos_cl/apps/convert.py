@@ -13,7 +13,7 @@ OPTIONS = {"dt_ps": "dt_ps", "t0_ps": "t0_ps", "width": "width_m", "grid_m": "gr
 
 def main(args) -> int:
     from ..core.errors import require
-    from ..io.datasets import SEQUENCES, detect, options_of, read_dataset
+    from ..io.datasets import detect, options_of, read_dataset
     name = args.format or detect(args.src)
     # not `not in (None, False)`: 0 == False, and --t0-ps 0 or --gate-bins 0 was dropped
     given = {key: value for opt, key in OPTIONS.items()
@@ -24,7 +24,7 @@ def main(args) -> int:
             "format", "drop it (`nlos-cl convert --help` says which options each format takes)")
     meta = {"converted_from": str(args.src), "dataset_format": name, "options": given}
     read = read_dataset(args.src, name, **given)
-    if name in SEQUENCES and isinstance(read, tuple):  # (consumer-nlos --static: one capture)
+    if isinstance(read, tuple):  # a sequence format's (frames, metadata)
         return _sequence(args, read, meta)
     from ..io.ytal.capture import write_capture
     h = read

@@ -11,9 +11,10 @@ y = 0, hidden space y > 0, z up). `nlos-cl convert` writes what they return as a
 | `consumer-nlos` | a folder of volume_*.npz frames (Somasundaram et al. 2026): a sequence of confocal frames | consumer_nlos.py |
 | `keyhole` | a folder with scan_*.mat, direct_after.mat, LongExpNoObject_after.mat (Metzler et al. 2021): a sequence of one confocal spot, range only (localization.ranges) | keyhole.py |
 
-A sequence format (SEQUENCES) returns (frames, metadata) instead: frames a list of (t_s,
-HistogramSet[, truths]) that write_sequence takes, metadata what the file keeps beside them
-(consumer-nlos with static=True pools its frames into one HistogramSet: a moving sensor).
+A sequence format (consumer-nlos, keyhole, fk-interactive) returns (frames, metadata): frames a
+list of (t_s, HistogramSet[, truths]) that write_sequence takes, metadata what the file keeps
+beside them (consumer-nlos with static=True pools its frames into one HistogramSet instead: a
+moving sensor).
 """
 from __future__ import annotations
 
@@ -26,7 +27,6 @@ from ...core.errors import require
 FORMATS = {"ccsocr": "ccsocr:read_ccsocr", "lct": "lct:read_lct",
            "consumer-nlos": "consumer_nlos:read_consumer_nlos", "keyhole": "keyhole:read_keyhole",
            "fk": "fk:read_fk", "fk-interactive": "fk:read_fk_interactive"}
-SEQUENCES = {"consumer-nlos", "keyhole", "fk-interactive"}  # formats whose reader returns (frames, metadata)
 
 
 def reader(name: str):
@@ -79,7 +79,7 @@ def _fk_kind(path) -> str:
 
 
 def read_dataset(path, format: str | None = None, **options):
-    """A measured dataset as one HistogramSet (internal frame), or for a format of SEQUENCES a
+    """A measured dataset as one HistogramSet (internal frame), or for a sequence format a
     (frames, metadata) pair. `format`: a name of FORMATS, or None to detect it; `options`: the
     reader's geometry constants (e.g. dt_ps, t0_ps)."""
     name = detect(path) if format is None else format

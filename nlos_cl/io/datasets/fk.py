@@ -47,7 +47,7 @@ from ...core.errors import require
 from ...core.histograms import HistogramSet
 from ...core.limits import require_memory
 from ...core.paths import PathCalibration, TimeAxis
-from .matfile import is_v73, load, variables
+from .matfile import NUMERIC, is_v73, load, variables
 
 BIN_PS = 32.0  # cnlos_reconstruction.m: bin_resolution = 32e-12
 WIDTH_M = 1.0  # demo.m: wall_size = 2 (m), width = wall_size / 2
@@ -120,9 +120,10 @@ class _Scan:
     """A meas file's declared geometry and its tofgrid's whole-bin shifts, checked."""
 
     def __init__(self, path, ndim, dt_ps, t0_ps, width_m, crop_bins, block, flip, clip=False):
-        for name, value, default in (("dt_ps", dt_ps, BIN_PS), ("width_m", width_m, WIDTH_M)):
-            require(value is None or (np.isfinite(value) and value > 0), name,
-                    f"must be positive, got {value}", f"pass e.g. {default:g}")
+        require(np.isfinite(dt_ps) and dt_ps > 0, "dt_ps", f"must be positive, got {dt_ps}",
+                f"pass e.g. {BIN_PS:g}")
+        require(width_m is None or (np.isfinite(width_m) and width_m > 0), "width_m",
+                f"must be positive, got {width_m}", f"pass e.g. {WIDTH_M:g}")
         require(np.isfinite(t0_ps), "t0_ps", f"must be finite, got {t0_ps}", "pass e.g. 0")
         require(flip in ("", "x", "z", "xz", "zx"), "flip", f"must be x, z or xz, got "
                 f"{flip!r}", "pass --flip x, z or xz")
@@ -131,8 +132,7 @@ class _Scan:
         require("meas" in declared, f"{self.path}: meas", f"is missing (the file holds "
                 f"{sorted(declared)})", "pass the dataset's own, unmodified file")
         shape, kind = declared["meas"]
-        require(kind in ("double", "single", "uint8", "uint16", "uint32", "int8", "int16",
-                         "int32"), f"{self.path}: meas", f"is declared {kind}, not numeric",
+        require(kind in NUMERIC, f"{self.path}: meas", f"is declared {kind}, not numeric",
                 "pass the dataset's own, unmodified file")
         other = {3: "a scene's 3-D meas: --format fk", 4: "an interactive capture's 4-D meas "
                  "(frames x y x x x t): --format fk-interactive"}
@@ -160,9 +160,9 @@ class _Scan:
         require(bool(np.all((self.shift >= 0) & (self.shift < n_t))), f"{tof_path}: tofgrid",
                 f"holds times outside the record (0 .. {n_t * dt_ps:g} ps)", "pass the tof.mat "
                 "of the same scene")
-        self.planarized, half = _nonplanar(self.path, n, dt_ps)
-        if self.planarized is not None:  # the naive correction: each histogram d bins later
-            self.shift = self.shift - self.planarized
+        later, half = _nonplanar(self.path, n, dt_ps)
+        if later is not None:  # the naive correction: each histogram that many bins later
+            self.shift = self.shift - later
         self.width_m = width_m if width_m is not None else half
         self.dt_ps, self.t0_ps, self.flip = dt_ps, t0_ps, flip
 
@@ -191,12 +191,12 @@ def _nonplanar(meas_path, n, dt_ps):
     correction, each histogram 2 floor(z_offset / (c x bin)) bins later (its `use_naive`
     circshift), as if measured on the plane; (None, WIDTH_M) for a planar scene."""
     path = meas_path.with_name("calibration.mat")
-    if not path.is_file() or "z_offset" not in variables(path):
+    held = variables(path) if path.is_file() else {}
+    if "z_offset" not in held:
         return None, WIDTH_M
     z_offset = load(path, "z_offset", 2)
     require(z_offset.shape == (n, n), f"{path}: z_offset", f"is {z_offset.shape}, the scan "
             f"{n} x {n}", "pass the calibration.mat of the same scene")
-    held = variables(path)
     half = 0.5 * float(load(path, "width", 2).ravel()[0]) if "width" in held else WIDTH_M
     require(np.isfinite(half) and half > 0, f"{path}: width", f"must be a positive side in "
             f"metres, got {2 * half}", "pass the calibration.mat of the same scene")

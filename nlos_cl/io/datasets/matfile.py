@@ -12,6 +12,8 @@ from ...core.limits import require_memory
 
 
 HDF5_AT_512 = b"\x89HDF\r\n\x1a\n"  # a v7.3 file's HDF5 signature, after MATLAB's header
+NUMERIC = ("double", "single", "uint8", "uint16", "uint32", "int8", "int16", "int32",
+           "logical")  # the MATLAB classes read as numbers
 
 
 def is_v73(path) -> bool:
@@ -67,8 +69,7 @@ def load(path, name: str, ndim: int) -> np.ndarray:
     require(name in declared, f"{path}: {name}", f"is missing (the file holds "
             f"{sorted(declared)})", "pass the dataset's own, unmodified file")
     shape, kind = declared[name]
-    require(len(shape) == ndim and kind in ("double", "single", "uint8", "uint16", "uint32",
-                                            "int8", "int16", "int32", "logical"),
+    require(len(shape) == ndim and kind in NUMERIC,
             f"{path}: {name}", f"is declared {kind} {shape}, expected a numeric {ndim}-D array",
             "pass the dataset's own, unmodified file")
     require_memory(f"{path}: {name}", 16.0 * float(np.prod(shape, dtype=np.float64)),

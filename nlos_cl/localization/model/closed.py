@@ -9,7 +9,8 @@ import math
 import numpy as np
 
 from . import box, cylinder, depth, ellipsoid, plate, starts
-from .fit import covariance, fit
+from .covariance import covariance
+from .fit import fit
 from .select import best_of, kappa, misfit
 from .shape import name_of
 

@@ -5,7 +5,7 @@ Gaussian (AWGN) data are compared after the paper's Gauss filter (sigma_f = h / 
 every sigma_f / 3: the model is the forward model with the pulse widened by the filter (widths
 added in quadrature), so a coarse facet lattice is smooth enough. The filtered noise is
 correlated; `rho` is its correlation between samples j apart (from the filter's taps), which the
-covariance (model.fit) uses. Photon counts are compared bin by bin with a Poisson
+covariance (model.covariance) uses. Photon counts are compared bin by bin with a Poisson
 likelihood; the model is widened by the detector's timing jitter instead.
 """
 from __future__ import annotations

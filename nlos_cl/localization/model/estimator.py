@@ -20,7 +20,7 @@ from ..paper import PaperArgmax
 from ..region import unseen_axis
 from . import data, plate
 from .warm import checked_sizes, hidden_diagnostics
-from .fit import centre_covariance, covariance
+from .covariance import centre_covariance, covariance
 from .likelihood import Problem
 from .depth import unseen_note
 from .sanity import checked, unfittable_line

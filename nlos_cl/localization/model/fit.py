@@ -1,5 +1,6 @@
 """The nonlinear fit (bounded Levenberg-Marquardt, model.lm) of K targets, the linear
-factors profiled out at every step (variable projection), and the covariance of the result.
+factors profiled out at every step (variable projection); the covariance of the result is
+model.covariance's.
 
 The target's shape is the problem's `shape` module (default model.plate): its N_PARAMS,
 LOWER, UPPER, STEPS and X_SCALE are read from there, so a new shape needs no edit here.
@@ -8,13 +9,7 @@ works in float32, so relative steps (~1e-8) would differentiate rounding noise. 
 column re-simulates only the target whose parameter moved, and, where K >= 2 plates can shadow
 each other (model.shadow, HostProblem only), the targets the moved one can shadow.
 
-Covariance. AWGN: the sandwich (J'J)^-1 J' C J (J'J)^-1 of weighted least squares on filtered
-samples whose noise correlation C comes from the filter's taps (no free factor), times the
-Birge ratio max(1, RSS / E[RSS]) where E[RSS] = tr((I - H) C): when the model does not explain
-the data to within the noise, the covariance grows by the measured excess. Photon counts: the
-inverse Fisher information of the Poisson likelihood. Both include the linear factors.
-
-Jacobians and covariances tell `column_batch` which row each moved plate steps from (`like`);
+Jacobians (and model.covariance's derivatives) tell `column_batch` which row each moved plate steps from (`like`);
 the host's HostProblem then evaluates the moved plates with the unmoved plate's cell
 statistics (nlos_cl.localization.model.batch):
 derivatives at frozen blur and shift, within 0.2 % of the exact ones per column and per sd
@@ -28,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import plate
-from .lm import least_squares
+from .lm import drive, solve
 
 JAC_UPDATE = "full"  # not "broyden": it took more forward calls here (nlos_cl.localization.model.lm)
 
@@ -62,6 +57,28 @@ class _Objective:
         self._key, self._cols, self._lin = None, None, None
         # the prior's residuals (theta[at] - mean) / sd, over the free parameters it bounds
         self.at, self.mean, self.sd = _prior_terms(prior, self.base.shape, self.free)
+        self.prior = prior if self.at.size else None
+
+    def solver(self, max_nfev, tau=None, atol=None):
+        """model.lm.solve over the free parameters, from the start put inside the bounds."""
+        shape, k = self.shape, len(self.base)
+        lo, hi = (np.tile(b, k)[self.free] for b in (shape.LOWER, shape.UPPER))
+        theta0 = np.clip(self.base.reshape(-1)[self.free], lo + 1e-6, hi - 1e-6)
+        return solve(theta0, (lo, hi), np.tile(shape.X_SCALE, k)[self.free], ftol=1e-7,
+                     xtol=1e-5, max_nfev=max_nfev, jac_update=JAC_UPDATE, atol=atol,
+                     **({} if tau is None else {"tau": tau}))
+
+    def answer(self, request):
+        """What the solver asks for (model.lm.solve): the residual, Jacobian or a column."""
+        kind, theta = request[0], request[1]
+        return self.residual(theta) if kind == "fun" else self.jac(theta) if kind == "jac" \
+            else self.column(theta, request[2])
+
+    def result(self, sol) -> FitResult:
+        cols, lin = self._eval(sol.x)
+        r, pr = self.problem.residual(cols, lin), self.prior_residual(sol.x)
+        return FitResult(self.full(sol.x), lin, float(r @ r), int(r.size), int(sol.nfev),
+                         prior=self.prior, prior_cost=float(pr @ pr))
 
     def prior_residual(self, theta):
         return (np.asarray(theta)[self.at] - self.mean) / self.sd
@@ -71,10 +88,12 @@ class _Objective:
         p[self.free] = theta
         return p.reshape(self.base.shape)
 
-    def _eval(self, theta):
+    def _eval(self, theta, cols=None):
+        """(columns, linear factors) at theta, kept for the next call at the same theta; cols:
+        the columns there where the caller has them (model.lockstep's batches)."""
         key = np.asarray(theta).tobytes()
         if key != self._key:
-            cols = self.problem.columns(self.full(theta))
+            cols = self.problem.columns(self.full(theta)) if cols is None else cols
             self._lin = self.problem.linear(cols, self._warm(cols))
             self._key, self._cols = key, cols
         return self._cols, self._lin
@@ -212,138 +231,4 @@ def fit(problem, params0, free, max_nfev=30, tau=None, atol=None, prior=None) ->
     or (mean, sd), each (K, N_PARAMS) (sd inf: no prior on that parameter): a Gaussian prior
     on the parameters, its residuals (p - mean) / sd minimised with the data's (a MAP fit)."""
     obj = _Objective(problem, params0, free, prior)
-    shape, k = obj.shape, len(obj.base)
-    lo, hi = (np.tile(b, k)[obj.free] for b in (shape.LOWER, shape.UPPER))
-    theta0 = np.clip(obj.base.reshape(-1)[obj.free], lo + 1e-6, hi - 1e-6)
-    sol = least_squares(obj.residual, theta0, jac=obj.jac, bounds=(lo, hi),
-                        x_scale=np.tile(shape.X_SCALE, k)[obj.free], max_nfev=max_nfev,
-                        ftol=1e-7, xtol=1e-5, jac_update=JAC_UPDATE, jac_column=obj.column,
-                        atol=atol, **({} if tau is None else {"tau": tau}))
-    cols, lin = obj._eval(sol.x)
-    r = problem.residual(cols, lin)
-    pr = obj.prior_residual(sol.x)
-    return FitResult(obj.full(sol.x), lin, float(r @ r), int(r.size), int(sol.nfev),
-                     prior=prior if obj.at.size else None, prior_cost=float(pr @ pr))
-
-
-def _mean_jacobian(problem, params, lin, free):
-    """d mu / d (free target parameters, linear factors): (D, n, P). Analytic where
-    `analytic_derivatives` has them (host plates that cannot shadow each other), else central
-    differences."""
-    steps = shape_of(problem).STEPS
-    which = [(k, i) for k in range(len(params)) for i in np.flatnonzero(free)]
-    slopes = analytic_derivatives(problem, params)
-    if slopes is not None:
-        cols = problem.columns(params)
-        blocks = [lin[k] * slopes[k, i] for k, i in which]
-    elif shadowed_by(problem, params) is not None:
-        blocks, cols = _shadowed_blocks(problem, params, lin, which, steps)
-    else:
-        rows = [p.copy() for p in params]  # the targets, then hi, lo, parameter after parameter
-        like = list(params)  # the row each one steps from
-        for k, i in which:
-            for sign in (1.0, -1.0):
-                rows.append(params[k].copy())
-                rows[-1][i] += sign * steps[i]
-                like.append(params[k])
-        evaluated = problem.column_batch(np.array(rows), np.array(like))
-        cols, moved = evaluated[:len(params)], evaluated[len(params):]
-        blocks = [lin[k] * (moved[2 * n] - moved[2 * n + 1]) / (2 * steps[i])
-                  for n, (k, i) in enumerate(which)]
-    blocks.extend(cols)
-    if problem.obs.mode == "poisson":
-        n_det = problem.obs.y.shape[0]
-        blocks.extend(np.eye(n_det)[:, :, None] * problem.obs.valid[None])
-    return cols, np.stack(blocks, axis=-1)
-
-
-def _shadowed_blocks(problem, params, lin, which, steps):
-    """`_mean_jacobian`'s derivative blocks where targets shadow each other: moving target k
-    changes the columns of the targets it shadows too, so d mu = sum_j a_j d(column j)."""
-    cols = problem.columns(params)
-    moves = []
-    for k, i in which:
-        for sign in (1.0, -1.0):
-            row = params[k].copy()
-            row[i] += sign * steps[i]
-            moves.append((k, row))
-    moved = stepped_columns(problem, params, cols, moves)
-    amp = np.asarray(lin[:len(params)])
-    return [np.tensordot(amp, moved[2 * n] - moved[2 * n + 1], 1) / (2 * steps[i])
-            for n, (k, i) in enumerate(which)], list(cols)
-
-
-def _correlated_terms(obs, j):
-    """J^T C J and trace(C) for the correlation C of the weighted residuals, which is block
-    diagonal (one Toeplitz block per detector: the filter correlates a detector's samples, not
-    two detectors'), summed block by block: a 1,024-detector patch never builds the dense
-    (samples x samples) matrix (93,184^2 floats, 65 GiB)."""
-    idx = np.arange(obs.n)
-    toeplitz = obs.rho[np.abs(idx[:, None] - idx[None, :])]
-    meat, trace, at = np.zeros((j.shape[1], j.shape[1])), 0.0, 0
-    for v in obs.valid:  # j's rows are the valid samples, detector after detector
-        block = toeplitz[np.ix_(v, v)]
-        rows = j[at:at + len(block)]
-        meat += rows.T @ block @ rows
-        trace += float(np.trace(block))
-        at += len(block)
-    return meat, trace
-
-
-def _scaled_pinv(a) -> np.ndarray:
-    """Pseudo-inverse of a normal matrix whose columns differ by many orders of magnitude
-    (metres, radians, amplitudes in any unit): equilibrated first, so that pinv's relative
-    cut-off drops only real degeneracies, not small units."""
-    s = np.sqrt(np.maximum(np.diag(a), 1e-300))
-    return np.linalg.pinv(a / np.outer(s, s)) / np.outer(s, s)
-
-
-def covariance(problem, result: FitResult, free) -> tuple[np.ndarray, dict]:
-    """Covariance of every target parameter (K*N_PARAMS square; inf on fixed ones) and
-    diagnostics."""
-    obs, params = problem.obs, result.params
-    cols, jmu = _mean_jacobian(problem, params, result.linear, free)
-    mu = problem.mean(cols, result.linear)
-    n_free = int(np.count_nonzero(free)) * len(params)
-    # a MAP fit's prior adds its precision to the information (model.fit's `prior`)
-    precision = np.zeros(jmu.shape[-1])
-    at, _, sd = _prior_terms(result.prior, params.shape, np.tile(np.asarray(free, bool),
-                                                                 len(params)))
-    precision[at] = 1.0 / sd ** 2  # the free target parameters come first, as in _prior_terms
-    if obs.mode == "gauss":
-        j = (jmu / obs.noise[:, None, None])[obs.valid]
-        meat, trace = _correlated_terms(obs, j)
-        inv = _scaled_pinv(j.T @ j + np.diag(precision))
-        cov = inv @ (meat + np.diag(precision)) @ inv
-        r = ((obs.y - mu) / obs.noise[:, None])[obs.valid]
-        expected = float(trace - np.trace(inv @ meat))
-        birge = float(r @ r) / max(expected, 1.0)
-        cov = cov * max(1.0, birge)
-        info = {"birge_ratio": birge}
-    else:
-        lam = np.maximum(mu, 1e-12)[obs.valid]
-        j = jmu[obs.valid]
-        cov = _scaled_pinv(j.T @ (j / lam[:, None]) + np.diag(precision))
-        info = {"deviance": result.cost, "n_bins": int(obs.valid.sum())}
-    full = np.full((params.size, params.size), np.inf)
-    mask = np.tile(np.asarray(free, bool), len(params))
-    full[np.ix_(mask, mask)] = cov[:n_free, :n_free]
-    n = shape_of(problem).N_PARAMS
-    for k in np.flatnonzero(np.asarray(result.linear[:len(params)]) <= 0):
-        # amplitude 0 (held at the bound: the data want none of this target): its parameters'
-        # derivatives are 0, so pinv gave them a variance of 0, not the infinity they have
-        full[k * n:(k + 1) * n, :] = np.inf
-        full[:, k * n:(k + 1) * n] = np.inf
-    return full, info
-
-
-def centre_covariance(cov_all, k, shape=plate) -> np.ndarray:
-    """The (x, y, z) block of target k (rows of shape.N_PARAMS parameters, x, y, z first); an
-    unobservable (fixed) axis has infinite variance and no correlation with the others."""
-    s = slice(k * shape.N_PARAMS, k * shape.N_PARAMS + 3)
-    c = np.array(cov_all[s, s], dtype=np.float64)
-    fixed = ~np.isfinite(np.diag(c))
-    c[fixed, :] = 0.0
-    c[:, fixed] = 0.0
-    c[fixed, fixed] = np.inf
-    return c
+    return obj.result(drive(obj.solver(max_nfev, tau, atol), obj.answer))

@@ -99,18 +99,8 @@ def least_squares(fun, x0, jac=None, bounds=(-np.inf, np.inf), x_scale=1.0, ftol
 
 
 def drive(solver, serve) -> LMResult:
-    """Run a `solve` generator to its result, answering each of its requests with serve (a
-    StopIteration raised by serve is not taken for the solver's end)."""
-    try:
-        request = next(solver)
-    except StopIteration as done:
-        return done.value
-    while True:
-        answer = serve(request)
-        try:
-            request = solver.send(answer)
-        except StopIteration as done:
-            return done.value
+    """Run a `solve` generator to its result, answering each of its requests with serve."""
+    return drive_together([solver], lambda asked: [serve(request) for _, request in asked])[0]
 
 
 def drive_together(solvers, serve_all) -> list:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .fit import JAC_UPDATE, FitResult, _Objective, fit
+from .fit import FitResult, _Objective, fit
 from .lm import drive_together, solve
 
 
@@ -24,18 +24,9 @@ def fit_together(problem, starts, free, max_nfev=30) -> list[FitResult]:
     if len(objs) < 2 or problem.obs.mode != "gauss" or (
             getattr(problem, "shadows", False) and len(objs[0].base) > 1):
         return [fit(problem, p, free, max_nfev) for p in starts]
-    shape, k = objs[0].shape, len(objs[0].base)
-    lo, hi = (np.tile(b, k)[objs[0].free] for b in (shape.LOWER, shape.UPPER))
-    solvers = [solve(np.clip(o.base.reshape(-1)[o.free], lo + 1e-6, hi - 1e-6), (lo, hi),
-                     np.tile(shape.X_SCALE, k)[o.free], ftol=1e-7, xtol=1e-5,
-                     max_nfev=max_nfev, jac_update=JAC_UPDATE) for o in objs]
-    results = drive_together(solvers, lambda asked: _answers(problem, objs, asked))
-    out = []
-    for obj, sol in zip(objs, results):
-        cols, lin = obj._eval(sol.x)
-        r = problem.residual(cols, lin)
-        out.append(FitResult(obj.full(sol.x), lin, float(r @ r), int(r.size), int(sol.nfev)))
-    return out
+    results = drive_together([o.solver(max_nfev) for o in objs],
+                             lambda asked: _answers(problem, objs, asked))
+    return [obj.result(sol) for obj, sol in zip(objs, results)]
 
 
 def _answers(problem, objs, asked) -> list:
@@ -48,9 +39,7 @@ def _answers(problem, objs, asked) -> list:
         rows = [objs[i].full(x) for i, x in fresh]
         cols = problem.column_batch(np.concatenate(rows))
         for (i, x), a, b in _spans(fresh, [len(r) for r in rows]):
-            obj = objs[i]  # what _Objective._eval keeps, as if it had evaluated x itself
-            obj._lin = problem.linear(cols[a:b], obj._warm(cols[a:b]))
-            obj._key, obj._cols = np.asarray(x).tobytes(), cols[a:b]
+            objs[i]._eval(x, cols[a:b])  # kept, as if the fit had evaluated x itself
     jacs = [(i, r[1]) for i, r in asked if r[0] == "jac"]
     stepped = {}
     if jacs:
@@ -58,13 +47,12 @@ def _answers(problem, objs, asked) -> list:
         rows = [row for m in moves for _, row in m]
         like = [objs[i].full(x)[k] for (i, x), m in zip(jacs, moves) for k, _ in m]
         evaluated = problem.column_batch(np.array(rows), np.array(like))
-        for ((i, x), a, b), m in zip(_spans(jacs, [len(m) for m in moves]), moves):
-            out = np.repeat(objs[i]._cols[None], len(m), axis=0)  # no shadows: only the
-            for n, (k, _) in enumerate(m):  # moved plate's column changes
+        for ((i, x), a, _), m in zip(_spans(jacs, [len(m) for m in moves]), moves):
+            out = np.repeat(objs[i]._eval(x)[0][None], len(m), axis=0)  # no shadows: only
+            for n, (k, _) in enumerate(m):  # the moved plate's column changes
                 out[n, k] = evaluated[a + n]
             stepped[i] = objs[i].jac(x, stepped=out)
-    return [objs[i].residual(r[1]) if r[0] == "fun" else stepped[i] if r[0] == "jac"
-            else objs[i].column(r[1], r[2]) for i, r in asked]
+    return [stepped[i] if r[0] == "jac" else objs[i].answer(r) for i, r in asked]
 
 
 def _spans(items, sizes):

@@ -28,7 +28,8 @@ import numpy as np
 
 from ...core.stats import chi2_quantile
 from . import plate, starts
-from .fit import FitResult, covariance, fit
+from .covariance import covariance
+from .fit import FitResult, fit
 from .lockstep import fit_together
 
 SHORT_NFEV = 6

@@ -22,7 +22,8 @@ import numpy as np
 
 from ...core.errors import require
 from . import plate
-from .fit import covariance, fit
+from .covariance import covariance
+from .fit import fit
 
 # Stop when a step's predicted cost decrease (cost = chi^2 / 2 for whitened residuals, or the
 # deviance / 2) is below this: what is left moved the centre by <= 0.015 sd (starts 0.5-4 sd
