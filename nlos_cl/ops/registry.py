@@ -3,7 +3,7 @@ definition, OpenCL launcher and float64 NumPy twin, with example inputs and tole
 line below. Backends call them by name (`backend.call("gauss_filter", ...)`, or
 `backend.gauss_filter(...)`); tests, self-check, bench and the oclgrind check walk this list."""
 from . import (add_awgn, argmax, argmax_patch, ellipse_score, forward, fused_search, gauss_filter,
-               max_filter, row_stats, stats_dilate, subtract_background)
+               max_filter, plate_model, row_stats, stats_dilate, subtract_background)
 from .base import Operation
 
 OPERATIONS: dict[str, Operation] = {op.name: op for op in (
@@ -18,6 +18,7 @@ OPERATIONS: dict[str, Operation] = {op.name: op for op in (
     argmax_patch.OP,
     fused_search.OP,
     stats_dilate.OP,
+    plate_model.OP,
 )}
 
 

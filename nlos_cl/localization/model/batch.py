@@ -42,6 +42,7 @@ from .shadow import occluders_of, shade
 # way). A warm stream frame: 24.8 -> 23.0 ms (chunks of 3, 4, 5, 8: 24.1-24.4 ms).
 CHUNK_ROWS = 6
 HISTS_BYTES = 32 * 2 ** 20  # the remembered histograms at most (HostProblem._hists)
+MAX_KERNEL_CELLS = 1024  # the plate_model kernel keeps a plate's 4 x cells points in local memory
 
 
 class HostProblem(Problem):
@@ -51,11 +52,16 @@ class HostProblem(Problem):
     the unmoved plate's cell statistics: d(model)/d(parameter) at frozen blur, shift and
     pull-in, half the work of a column; residuals use each plate's own."""
 
-    def __init__(self, obs, lattice=(16, 24), backend=None, reflectance=None):
+    def __init__(self, obs, lattice=(16, 24), backend=None, reflectance=None, kernel=False):
         # backend: for the closed shapes' Problems. reflectance: None (Lambertian) or a model
         # with factor_of_cosine (its factor from l.v alone: Retroreflective), applied to the
-        # points' weights; the cell statistics (pull-in, blur, shift) stay Lambertian's
+        # points' weights; the cell statistics (pull-in, blur, shift) stay Lambertian's.
+        # kernel: evaluate the plates with the plate_model operation on `backend` (the same
+        # model in float32, many plates a launch: ops/plate_model.py) where it has them: a
+        # Lambertian plate no other plate shadows, on a lattice of <= MAX_KERNEL_CELLS cells
         super().__init__(obs, backend, lattice, reflectance=reflectance)
+        self.kernel = bool(kernel) and backend is not None and reflectance is None and \
+            lattice[0] * lattice[1] <= MAX_KERNEL_CELLS
         keep_freed_memory()  # core.allocator: the deposit's passes 4x faster with it
         self.shadows = True  # False: every plate alone, as likelihood.Problem (comparisons)
         self._factor = None if reflectance is None else reflectance.factor_of_cosine
@@ -84,7 +90,7 @@ class HostProblem(Problem):
         got = self._coarser.get(tuple(lattice))
         if got is None:
             got = self._coarser[tuple(lattice)] = HostProblem(
-                self.obs, lattice, self.backend, self.reflectance)
+                self.obs, lattice, self.backend, self.reflectance, self.kernel)
         return got
 
     def column_batch(self, rows, like=None, occluders=None) -> np.ndarray:
@@ -119,6 +125,8 @@ class HostProblem(Problem):
         return out
 
     def _evaluate(self, rows, like, occluders=None) -> np.ndarray:
+        if self.kernel and (occluders is None or all(o is None for o in occluders)):
+            return _on_device(self, rows, like)
         t = time.perf_counter()
         obs = self.obs
         stats = None if like is None else self._statistics_of(np.atleast_2d(like))
@@ -179,6 +187,25 @@ class HostProblem(Problem):
             return None
         which = occluders_of(rows, self.obs.laser, self.obs.spots, self.lattice)
         return None if not any(len(w) for w in which) else [rows[w] for w in which]
+
+
+def _on_device(problem, rows, like) -> np.ndarray:
+    """HostProblem._evaluate by the plate_model operation on the problem's backend: each plate
+    with the cell statistics of its `like` row (or its own), computed on the device for the
+    distinct rows that lend them."""
+    t = time.perf_counter()
+    obs = problem.obs
+    lenders = rows if like is None else like
+    stat_rows, stat_of = np.unique(lenders, axis=0, return_inverse=True)
+    affine = np.eye(len(obs.spots)) if problem._affine is None else \
+        problem._affine[0] @ problem._affine[1]
+    hist = problem.backend.to_numpy(problem.backend.call(
+        "plate_model", rows, stat_rows, stat_of.reshape(-1), obs.spots, problem._stat_spots,
+        affine, obs.laser, obs.edge0, obs.dpath, obs.sigma0_m ** 2 - obs.box_excess_m2, obs.n,
+        problem.os, problem.lattice, plate.BLUR_SHARE, plate.GAUSS_2))
+    problem.calls += len(rows)
+    problem.model_s += time.perf_counter() - t
+    return np.where(obs.valid[None], hist, 0.0)
 
 
 def _cells(rows, lattice):

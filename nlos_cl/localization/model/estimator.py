@@ -50,7 +50,7 @@ WARM_NFEV = 10
 # (model.host_shapes; any laser layout): a Jacobian's 8 columns 40-70 -> 10-13 ms on 6 spots,
 # 140-220 -> 40-65 ms on 42 (one-target draws 1 and 173).
 HOST_DETECTORS = 64
-MODEL_ON = ("auto", "host", "device")
+MODEL_ON = ("auto", "host", "kernel", "device")
 
 
 class ModelEstimator:
@@ -59,14 +59,14 @@ class ModelEstimator:
     filter of window h_s), 'poisson' (photon counts in `raw`), or 'auto' (counts when `raw`
     holds non-negative whole numbers). `backend`: where the forward model runs while fitting
     (default: the scored frame's backend). model_on: 'device' (the forward op on `backend`),
-    'host' (plates evaluated in float64 NumPy, many per call: model.batch) or 'auto'
-    (host for up to HOST_DETECTORS detectors, plates and closed shapes). warm_nfev:
-    the evaluation budget of a warm-started fit (`estimate(scored, start=...)`). sanity: check
-    each fit's size, misfit and place against the paper's argmax and, for one target, report
-    the argmax instead of a fit that fails (model.sanity; False: report every fit as is).
-    reflectance: the targets' reflectance model (nlos_cl.physics.reflectance: None or a
-    Lambertian BRDF, GGX, Retroreflective), known, not fitted; the amplitude absorbs its scale.
-    GGX is evaluated only by the forward op on the device."""
+    'host' (plates in float64 NumPy, many per call: model.batch), 'kernel' (as host, its
+    unshadowed plates by the plate_model op on `backend`) or 'auto' (host for up to
+    HOST_DETECTORS detectors, plates and closed shapes). warm_nfev: the evaluation budget of a
+    warm-started fit (`estimate(scored, start=...)`). sanity: check each fit's size, misfit and
+    place against the paper's argmax and, for one target, report the argmax instead of a fit
+    that fails (model.sanity; False: report every fit as is). reflectance: the targets'
+    reflectance model (nlos_cl.physics.reflectance: None or a Lambertian BRDF, GGX,
+    Retroreflective), known, not fitted; the amplitude absorbs its scale (GGX: device only)."""
 
     name = "model"
     # The scored frame is used only for the paper's estimate (the starts' second candidate, the
@@ -85,7 +85,7 @@ class ModelEstimator:
                 f"{closed!r}", "pass 'auto' (a box where one plate misses the data), True or "
                 "False")
         require(model_on in MODEL_ON, "model_on", f"must be one of {MODEL_ON}, got "
-                f"{model_on!r}", "pass 'auto' (host for small problems), 'host' or 'device'")
+                f"{model_on!r}", "pass 'auto' (host for small problems), 'host', 'kernel' or 'device'")
         self.closed, self.model_on, self.sanity = closed, model_on, bool(sanity)
         self.targets, self.likelihood, self.h_s = targets, likelihood, float(h_s)
         self.pulse_sigma_s = float(pulse_fwhm_s) / FWHM_PER_SIGMA
@@ -162,13 +162,13 @@ class ModelEstimator:
         from .host_shapes import host_can
         lattice = self.lattice_for(obs)
         refl = self.reflectance
-        on_host = host_can(refl) and (self.model_on == "host" or (
+        on_host = host_can(refl) and (self.model_on in ("host", "kernel") or (
             self.model_on == "auto" and len(obs.spots) <= HOST_DETECTORS))
         # paired: the host's batched plates know one laser spot (its closed shapes know
         # any); GGX: only the kernel has it
         if on_host and obs.laser.ndim == 1:
             from .batch import HostProblem
-            problem = HostProblem(obs, lattice, backend=backend, reflectance=refl)
+            problem = HostProblem(obs, lattice, backend, refl, self.model_on == "kernel")
         else:
             problem = Problem(obs, backend, lattice, reflectance=refl)
         problem.closed_on_host = on_host  # model.host_shapes.shape_problem

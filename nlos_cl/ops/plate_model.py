@@ -1,0 +1,230 @@
+"""plate_model (kernels/plate_model.cl): the model fit's plates evaluated on the device, many per
+call: the host model of nlos_cl/localization/model/batch.py (HostProblem(kernel=True) calls
+this; tests/test_plate_model.py holds the two together), its float64 twin here written out
+plate by plate.
+
+plate_model(rows (B, 6), stat_rows (R, 6), stat_of (B,), spots (D, 3), stat_spots (S, 3),
+affine (D, S), laser (3,), edge0 (D,), dpath (D,), sigma0sq, n_bins, os_, lattice, blur_share,
+gauss_2) -> (B, D,
+n_bins) unit-amplitude histograms: plate b with the cell statistics (pull-in, blur, shift at
+the S statistics spots, carried to the D spots by `affine`) of stat_rows[stat_of[b]] (its own,
+or a Jacobian's unmoved plate's), the pulse's sigma^2 = sigma0sq + blur^2 (sigma0sq: the
+observation's sigma0^2 less its box excess), bins of dpath[d] metres of path from edge0[d],
+os_ sub-bins a bin; blur_share and gauss_2: the plate model's constants (model.plate). No
+mask: the caller zeroes the bins outside the record.
+
+Why: a warm tracker frame is ~9 host-model calls (residuals of one plate, Jacobians of five),
+each ~100 NumPy passes over ~5,000 values: 0.8-1.1 ms whatever the arithmetic. Here a call is
+two launches, four small uploads and one read.
+
+The window's pad (bins each side) is taken from an upper bound of the pulse's width (the
+blur^2 is at most BLUR_SHARE x (2 |Gauss offset|)^2: a point's path moves by at most twice its
+offset from the cell centre), where the twin takes the batch's widest actual pulse; the two
+differ only in what lies beyond REACH_SIGMAS (2e-9 of a pulse's energy).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .base import Example, Operation
+from .pulse import REACH_SIGMAS
+
+WORK_GROUP = 64  # work items per plate (stats) and per (plate, detector) (histograms)
+SIGMA0 = 0.0655  # the examples' pulse (m of path): the paper's 70 ps pulse after its Gauss filter
+WIDTH, HEIGHT, YAW = 3, 4, 5  # a row's (x, y, z, width, height, yaw): localization.model.plate
+
+
+def pad_bound(rows, lattice, sigma0sq, dpath, blur_share, gauss_2) -> int:
+    """Bins each side of the window: REACH_SIGMAS of the widest pulse any of `rows` can have."""
+    nu, nv = lattice
+    rows = np.atleast_2d(rows)
+    offset2 = gauss_2 ** 2 * ((rows[:, WIDTH] / nu) ** 2 + (rows[:, HEIGHT] / nv) ** 2)
+    sigma = math.sqrt(max(sigma0sq + blur_share * 4.0 * float(np.max(offset2)), 1e-300))
+    return int(math.ceil(REACH_SIGMAS * sigma / float(np.min(dpath)))) + 1
+
+
+def _points(row, lattice, gauss_2):
+    """A plate's cell centres (C, 3), its Gauss points' offsets from them (4, C, 3), its
+    normal and the area each point stands for (plate.plate_facets' cell order)."""
+    nu, nv = lattice
+    x, w, h, yaw = row[:3], row[WIDTH], row[HEIGHT], row[YAW]
+    normal = np.array([math.cos(yaw), math.sin(yaw), 0.0])
+    across = np.array([-math.sin(yaw), math.cos(yaw), 0.0])
+    up = np.array([0.0, 0.0, 1.0])
+    u = ((np.arange(nu) + 0.5) / nu - 0.5) * w
+    v = ((np.arange(nv) + 0.5) / nv - 0.5) * h
+    centres = (x + u[:, None, None] * across + v[None, :, None] * up).reshape(-1, 3)
+    eu, ev = across * w / nu, up * h / nv
+    offsets = np.array([gauss_2 * (su * eu + sv * ev) for su in (-1, 1) for sv in (-1, 1)])
+    return centres, np.broadcast_to(offsets[:, None], (4, len(centres), 3)), normal, \
+        w * h / (nu * nv) / 4.0
+
+
+def _legs(points, normal, area, centre, spot, laser):
+    """Path r1 + r2 and weight cos a1 cos b1 cos a2 cos b2 area / (r1^2 r2^2) (the relay wall
+    is y = 0; a plate facing away from the laser spot or the wall spot sends nothing)."""
+    v1, v2 = points - laser, spot - points
+    r1, r2 = np.linalg.norm(v1, axis=-1), np.linalg.norm(v2, axis=-1)
+    cos_b1 = max(float(normal @ (laser - centre)), 0.0) / r1
+    cos_a2 = max(float(normal @ (spot - centre)), 0.0) / r2
+    return r1 + r2, np.abs(v1[..., 1]) / r1 * cos_b1 * np.abs(v2[..., 1]) / r2 * cos_a2 * area \
+        / (r1 * r1 * r2 * r2)
+
+
+def _statistics(row, lattice, stat_spots, laser, blur_share, gauss_2):
+    """(keep (C,), blur^2, shift (S,)): each cell's pull-in, the shared blur and the shift at
+    each statistics spot (plate.cell_model's rule, written out plate by plate)."""
+    centres, offsets, normal, area = _points(row, lattice, gauss_2)
+    mean, var, wsum = [], [], []
+    for spot in stat_spots:
+        path, weight = _legs(centres + offsets, normal, area, row[:3], spot, laser)
+        centre_path = np.linalg.norm(centres - laser, axis=1) + \
+            np.linalg.norm(spot - centres, axis=1)
+        total = weight.sum(axis=0)
+        m = (weight * path).sum(axis=0) / np.maximum(total, 1e-300)
+        var.append((weight * (path - m) ** 2).sum(axis=0) / np.maximum(total, 1e-300))
+        mean.append(m - centre_path)
+        wsum.append(total)
+    mean, var, wsum = np.array(mean), np.array(var), np.array(wsum)  # (S, C)
+    var_c = (var * wsum).sum(axis=0) / np.maximum(wsum.sum(axis=0), 1e-300)
+    lit = wsum.sum(axis=0) > 0
+    blur2 = blur_share * float(var_c[lit].mean()) if lit.any() else 0.0
+    keep = np.sqrt(np.clip(1.0 - blur2 / np.maximum(var_c, 1e-300), 0.0, 1.0))
+    shift = ((1.0 - keep ** 2) * mean * wsum).sum(axis=1) / np.maximum(wsum.sum(axis=1), 1e-300)
+    return keep, blur2, shift
+
+
+def numpy(rows, stat_rows, stat_of, spots, stat_spots, affine, laser, edge0, dpath, sigma0sq,
+          n_bins, os_, lattice, blur_share, gauss_2):
+    """The twin, written plate by plate and detector by detector: each point's pulse integrated
+    over each bin exactly (erf differences), where the kernel (and the host model,
+    localization/model/batch.py) split it between two sub-bins first (the tolerance below)."""
+    from ..core.erf import erf
+    rows, stat_rows = (np.atleast_2d(np.asarray(r, np.float64)) for r in (rows, stat_rows))
+    spots, laser = np.asarray(spots, np.float64), np.asarray(laser, np.float64)
+    stats = [_statistics(r, lattice, np.asarray(stat_spots, np.float64), laser, blur_share,
+                         gauss_2) for r in stat_rows]
+    out = np.zeros((len(rows), len(spots), int(n_bins)))
+    for b, row in enumerate(rows):
+        keep, blur2, shift = stats[int(np.asarray(stat_of)[b])]
+        centres, offsets, normal, area = _points(row, lattice, gauss_2)
+        points = (centres + keep[:, None] * offsets).reshape(-1, 3)
+        scale = 1.0 / math.sqrt(2.0 * (sigma0sq + blur2))
+        for d, spot in enumerate(spots):
+            path, weight = _legs(points, normal, area, row[:3], spot, laser)
+            edges = edge0[d] - float(np.asarray(affine)[d] @ shift) + dpath[d] * np.arange(
+                int(n_bins) + 1)
+            e = erf((edges[None, :] - path[:, None]) * scale)
+            out[b, d] = weight @ (e[:, 1:] - e[:, :-1])
+    return out
+
+
+def opencl(rt, rows, stat_rows, stat_of, spots, stat_spots, affine, laser, edge0, dpath,
+           sigma0sq, n_bins, os_, lattice, blur_share, gauss_2, out=None):
+    from ..device.runtime import float4
+    rows, stat_rows = (np.atleast_2d(np.asarray(r, np.float64)) for r in (rows, stat_rows))
+    spots, stat_spots = np.asarray(spots, np.float64), np.asarray(stat_spots, np.float64)
+    edge0, dpath = np.asarray(edge0, np.float64), np.asarray(dpath, np.float64)
+    laser = np.asarray(laser, np.float64)
+    n_b, n_r, n_det, n_stat = len(rows), len(stat_rows), len(spots), len(stat_spots)
+    n_bins, os_ = int(n_bins), int(os_)
+    nu, nv = (int(v) for v in lattice)
+    pad = pad_bound(np.vstack([rows, stat_rows]), (nu, nv), sigma0sq, dpath, blur_share, gauss_2)
+    length = (n_bins + 2 * pad) * os_
+    # the centre's path relative to the window's first sub-bin edge, in float64 here: the
+    # kernel adds only each point's (small) path difference from the centre
+    centre = rows[:, None, :3]
+    centre_path = (np.linalg.norm(centre - laser, axis=-1)
+                   + np.linalg.norm(spots[None] - centre, axis=-1)
+                   - (edge0 - pad * dpath)[None])
+    defines = dict(NU=nu, NV=nv, OS=os_, WG=WORK_GROUP, BLUR_SHARE=f"{float(blur_share)!r}f",
+                   GAUSS_2=f"{float(gauss_2)!r}f")
+    # what changes from call to call in one upload (each costs ~0.1 ms on PoCL): the statistics
+    # rows, the rows (float8 each), the centres' paths and each row's statistics row (exact in
+    # float32: far fewer than 2^24 rows)
+    packed = np.concatenate([np.hstack([stat_rows, np.zeros((n_r, 2))]).ravel(),
+                             np.hstack([rows, np.zeros((n_b, 2))]).ravel(),
+                             centre_path.ravel(), np.asarray(stat_of, np.float64)])
+    per_call = rt.from_numpy(packed)
+    at = [0, 8 * n_r, 8 * (n_r + n_b), 8 * (n_r + n_b) + n_b * n_det]
+    keep = rt.empty((n_r, nu * nv))
+    stats = rt.empty((n_r, 1 + n_stat))
+    rt.run(rt.kernel("plate_model", "plate_stats", **defines), (n_r * WORK_GROUP,),
+           per_call, rt.constant(np.hstack([stat_spots, np.zeros((n_stat, 1))])),
+           np.int32(n_stat), float4(laser), keep, stats, local_size=(WORK_GROUP,))
+    hist = out if out is not None and getattr(out, "shape", None) == (n_b, n_det, n_bins) \
+        else rt.empty((n_b, n_det, n_bins))
+    dep = rt.empty((n_b * n_det * length,), np.uint32)
+    taps = rt.empty((n_b * n_det * os_ * (2 * pad + 1),))
+    rt.run(rt.kernel("plate_model", "plate_hist", **defines), (n_b * WORK_GROUP, n_det),
+           per_call, np.int32(at[1] // 8), np.int32(at[2]), np.int32(at[3]), keep, stats,
+           rt.constant(affine), np.int32(n_stat),
+           rt.constant(np.hstack([spots, np.zeros((n_det, 1))])), float4(laser),
+           rt.constant(os_ / dpath), np.float32(sigma0sq), np.int32(n_bins), np.int32(pad), dep,
+           taps, hist, local_size=(WORK_GROUP, 1))
+    return hist
+
+
+def _scene(n_plates, n_det, n_stat, lattice, n_bins, os_, seed=0, away=False):
+    """The paper's geometry (a laser spot and wall spots on y = 0, plates ~2-3 m out) with
+    plates near one another, as a Jacobian's: the first carries the statistics of the rest."""
+    rng = np.random.default_rng(seed)
+    base = np.array([2.0, 2.8, 0.1, 0.3, 1.6, -math.pi / 2 + 0.3])  # facing the wall
+    rows = base + np.vstack([np.zeros(6), rng.normal(0, [0.002, 0.002, 0.002, 0.002, 0.002,
+                                                         0.004], (n_plates - 1, 6))])
+    if away:
+        rows[1, 5] += math.pi
+    laser = np.array([-0.5, 0.0, 0.0])
+    spots = np.column_stack([np.linspace(-1.2, -0.4, n_det), np.zeros(n_det),
+                             np.linspace(-0.3, 0.3, n_det)])
+    some = np.unique(np.linspace(0, n_det - 1, n_stat).round().astype(int))
+    if len(some) < n_det:  # HostProblem's affine spread of the shift
+        basis = np.hstack([np.ones((n_det, 1)), spots - spots.mean(axis=0)])
+        affine = basis @ np.linalg.pinv(basis[some])
+    else:
+        affine = np.eye(n_det)
+    dpath = np.full(n_det, 0.021)
+    near = np.linalg.norm(rows[0, :3] - laser) + np.linalg.norm(spots - rows[0, :3], axis=1)
+    edge0 = near - 0.5 * n_bins * 0.021  # the plate's returns mid-window
+    stat_of = np.zeros(n_plates, int) if not away else np.arange(n_plates)
+    return (rows, rows[:1] if not away else rows, stat_of, spots, spots[some], affine, laser,
+            edge0, dpath, SIGMA0 ** 2, n_bins, os_, lattice, 0.5, 0.5 / math.sqrt(3.0))
+
+
+def _inputs(*scene_args, **kw):
+    args = _scene(*scene_args, **kw)
+    return lambda be: args
+
+
+def _tolerance(dpath, os_):
+    """The linear split's bound, (dsub / sigma)^2 / 8 of the peak (the twin integrates each
+    point's pulse exactly; the kernel splits it between two sub-bins of dsub first), plus 2e-5
+    for float32 (path differences, the 2^30 fixed-point deposit, A&S erf taps: ~1e-6 measured
+    against the host model, tests/test_plate_model.py)."""
+    return (dpath / os_ / SIGMA0) ** 2 / 8.0 + 2e-5
+
+
+def examples(size):
+    if size == "tiny":  # a 2 x 3 lattice, a short window, 4 sub-bins (not the 8-wide path),
+        # and a plate turned away from the wall (no weight: the deposit's zero-sum branch)
+        return [Example("2 plates x 2 det x 24 bins, lattice 2 x 3",
+                        _inputs(2, 2, 2, (2, 3), 24, 4), _tolerance(0.021, 4)),
+                Example("a plate facing away beside one facing the wall",
+                        _inputs(2, 2, 2, (2, 3), 24, 4, away=True), _tolerance(0.021, 4))]
+    return [Example("a Jacobian: 6 plates x 3 det x 80 bins, lattice 16 x 24, 8 sub-bins",
+                    _inputs(6, 3, 3, (16, 24), 80, 8), _tolerance(0.021, 8), work=6 * 3 * 1536,
+                    unit="point-detectors"),
+            Example("6 plates x 40 det (32 statistics spots, affine) x 80 bins",
+                    _inputs(6, 40, 32, (16, 24), 80, 8), _tolerance(0.021, 8),
+                    work=6 * 40 * 1536, unit="point-detectors")]
+
+
+OP = Operation(
+    "plate_model", "plate_model", opencl, numpy, examples,
+    tolerance_note="the linear split's (dsub / sigma)^2 / 8 of the peak (the twin integrates "
+    "each point's pulse exactly) plus 2e-5 for float32: path differences from the plate's "
+    "centre (its path in float64 on the host), a 2^30 fixed-point deposit, A&S erf taps. "
+    "Against the host model (the same split): ~1e-6, tests/test_plate_model.py.",
+    bound="launches and one read per call (a few thousand points)")
