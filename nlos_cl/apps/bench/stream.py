@@ -52,6 +52,8 @@ def _cases(rt, clean, frames, grid, smoke):
     paper = Tracker(clean.layout, grid, estimator="paper", backend=rt)
     model = Tracker(clean.layout, grid, estimator="model", backend=rt)
     cold = Tracker(clean.layout, grid, estimator="model", backend=rt, warm_start=False)
+    from ...localization.model import ModelEstimator
+    kernel = Tracker(clean.layout, grid, estimator=ModelEstimator(model_on="kernel"), backend=rt)
     k = len(frames)
 
     def twin_tracker(estimator):
@@ -69,6 +71,9 @@ def _cases(rt, clean, frames, grid, smoke):
                                      twin_tracker("paper")),
         "tracker, model estimator": (lambda i: model.update(frames[i % k]), 4 if smoke else 40,
                                      None),
+        # the same fits with the plates on the device (ops/plate_model.py): issue 23 item 1
+        "tracker, model estimator, model_on='kernel'": (lambda i: kernel.update(frames[i % k]),
+                                                        4 if smoke else 40, None),
         "tracker, model estimator, warm_start=False": (lambda i: cold.update(frames[i % k]),
                                                        2 if smoke else 10, None),
     }
