@@ -29,51 +29,43 @@
 #define CELLS (NU * NV)
 #define POINTS (4 * CELLS)  // in local memory: the host allows at most MAX_CELLS cells
 
-// A plate's frame: its centre, normal, the unit vector across it, its cell's two edge vectors
-// (across and up: plate.UP is z) and the cells' extent (batch._cells).
-typedef struct {
-    float3 x, normal, across, eu, ev;
-    float w, h;
-} Frame;
-
-inline Frame frame_of(const float8 row)
-{
-    Frame f;
-    f.x = row.s012;
-    f.normal = (float3)(cos(row.s5), sin(row.s5), 0.0f);
-    f.across = (float3)(-sin(row.s5), cos(row.s5), 0.0f);
-    f.w = row.s3;
-    f.h = row.s4;
-    f.eu = f.across * (row.s3 / NU);
-    f.ev = (float3)(0.0f, 0.0f, row.s4 / NV);
-    return f;
-}
+// Points and vectors are float4s with w = 0, never float3s: Intel's CPU OpenCL 2024 vectorizer
+// returned float3 values wrong in all lanes but some (-cl-opt-disable gave the right numbers).
+// A plate's frame, as plain vectors:
+// its centre x, normal, the unit vector across it, its cells' edge vectors eu (across) and
+// ev (up: plate.UP is z), and its width and height (batch._cells).
+#define FRAME_OF(row) \
+    const float4 f_x = (float4)((row).s012, 0.0f); \
+    const float4 f_normal = (float4)(cos((row).s5), sin((row).s5), 0.0f, 0.0f); \
+    const float4 f_across = (float4)(-sin((row).s5), cos((row).s5), 0.0f, 0.0f); \
+    const float f_w = (row).s3, f_h = (row).s4; \
+    const float4 f_eu = f_across * (f_w / NU), f_ev = (float4)(0.0f, 0.0f, f_h / NV, 0.0f)
 
 // Offset of cell c's centre from the plate's centre (batch._cells' order: u outer, v inner).
-inline float3 cell_offset(const Frame *f, const int c)
+inline float4 cell_offset(const float4 across, const float w, const float h, const int c)
 {
     const int i = c / NV, j = c % NV;
-    const float u = ((i + 0.5f) / NU - 0.5f) * f->w;
-    const float v = ((j + 0.5f) / NV - 0.5f) * f->h;
-    return u * f->across + (float3)(0.0f, 0.0f, v);
+    const float u = ((i + 0.5f) / NU - 0.5f) * w;
+    const float v = ((j + 0.5f) / NV - 0.5f) * h;
+    return u * across + (float4)(0.0f, 0.0f, v, 0.0f);
 }
 
 // Gauss point q's offset from its cell's centre (batch._gauss_offsets' order: su outer).
-inline float3 gauss_offset(const Frame *f, const int q)
+inline float4 gauss_offset(const float4 eu, const float4 ev, const int q)
 {
     const float su = (q < 2) ? -1.0f : 1.0f, sv = (q & 1) ? 1.0f : -1.0f;
-    return GAUSS_2 * (su * f->eu + sv * f->ev);
+    return GAUSS_2 * (su * eu + sv * ev);
 }
 
 // |a + e| - |a| without forming either length's rounding: (2 a.e + e.e) / (|a + e| + |a|).
-inline float leg_change(const float3 a, const float ra, const float3 e, const float rae)
+inline float leg_change(const float4 a, const float ra, const float4 e, const float rae)
 {
     return (2.0f * dot(a, e) + dot(e, e)) / (rae + ra);
 }
 
 // One point's weight to spot s (batch._paths): |v1y| (n.(O - X))+ / r1^4 x |v2y| (n.(S - X))+
 // / r2^4 x area, where v1 = P - O and v2 = S - P (the relay wall is y = 0).
-inline float point_weight(const float3 v1, const float3 v2, const float front_o,
+inline float point_weight(const float4 v1, const float4 v2, const float front_o,
                           const float faces, const float area)
 {
     const float r1sq = dot(v1, v1), r2sq = dot(v2, v2);
@@ -97,28 +89,32 @@ inline float group_sum(float x, __local float *scratch)
 
 // Cell c of `row` seen from spot s: the Gauss points' weight sum, the weighted mean of their
 // path difference from the cell centre's path (m) and its weighted variance (m^2).
-inline float3 cell_at_spot(const Frame *f, const int c, const float3 laser, const float3 spot)
+inline float4 cell_at_spot(const float8 row, const int c, const float4 laser,
+                           const float4 spot)
 {
-    const float area = f->w * f->h / (float)CELLS / 4.0f;
-    const float front_o = fmax(dot(f->normal, laser - f->x), 0.0f);
-    const float faces = fmax(dot(f->normal, spot - f->x), 0.0f);
-    const float3 centre = f->x + cell_offset(f, c);
-    const float3 a1 = centre - laser, a2 = spot - centre;
+    FRAME_OF(row);
+    const float area = f_w * f_h / (float)CELLS / 4.0f;
+    const float front_o = fmax(dot(f_normal, laser - f_x), 0.0f);
+    const float faces = fmax(dot(f_normal, spot - f_x), 0.0f);
+    const float4 centre = f_x + cell_offset(f_across, f_w, f_h, c);
+    const float4 a1 = centre - laser, a2 = spot - centre;
     const float r1 = length(a1), r2 = length(a2);
-    float w[4], d[4], wsum = 0.0f, wd = 0.0f;
+    // the moments about the centre's path: the points lie within a few cm of it, so
+    // E[d^2] - E[d]^2 loses nothing to cancellation in float42
+    float wsum = 0.0f, wd = 0.0f, wdd = 0.0f;
     for (int q = 0; q < 4; ++q) {
-        const float3 e = gauss_offset(f, q);
-        const float3 v1 = a1 + e, v2 = a2 - e;
-        w[q] = point_weight(v1, v2, front_o, faces, area);
-        d[q] = leg_change(a1, r1, e, length(v1)) + leg_change(a2, r2, -e, length(v2));
-        wsum += w[q];
-        wd += w[q] * d[q];
+        const float4 e = gauss_offset(f_eu, f_ev, q);
+        const float4 v1 = a1 + e, v2 = a2 - e;
+        const float w = point_weight(v1, v2, front_o, faces, area);
+        const float d = leg_change(a1, r1, e, length(v1)) + leg_change(a2, r2, -e, length(v2));
+        wsum += w;
+        wd += w * d;
+        wdd += w * d * d;
     }
     const float mean = wd / fmax(wsum, 1e-30f);
-    float var = 0.0f;
-    for (int q = 0; q < 4; ++q)
-        var += w[q] * (d[q] - mean) * (d[q] - mean);
-    return (float3)(wsum, mean, var / fmax(wsum, 1e-30f));
+    // (a float4: Intel's CPU OpenCL 2024 vectorizer returned a float4's y and z wrong in all
+    // lanes but the first)
+    return (float4)(wsum, mean, fmax(wdd / fmax(wsum, 1e-30f) - mean * mean, 0.0f), 0.0f);
 }
 
 __kernel __attribute__((reqd_work_group_size(WG, 1, 1)))
@@ -131,13 +127,13 @@ void plate_stats(__global const float8 *rows,        // [R] statistics rows (fir
     __local float var_c[CELLS];
     __local float scratch[WG];
     const int r = get_group_id(0), lid = get_local_id(0);
-    const Frame f = frame_of(rows[r]);
+    const float8 row = rows[r];
     // each cell's variance over the statistics spots, weighted by the weight it sends there
     float lit_var = 0.0f, lit_n = 0.0f;
     for (int c = lid; c < CELLS; c += WG) {
         float num = 0.0f, den = 0.0f;
         for (int s = 0; s < n_stat; ++s) {
-            const float3 got = cell_at_spot(&f, c, laser.xyz, stat_spots[s].xyz);
+            const float4 got = cell_at_spot(row, c, laser, stat_spots[s]);
             num += got.z * got.x;
             den += got.x;
         }
@@ -157,7 +153,7 @@ void plate_stats(__global const float8 *rows,        // [R] statistics rows (fir
     for (int s = lid; s < n_stat; s += WG) {
         float lost = 0.0f, wsum = 0.0f;
         for (int c = 0; c < CELLS; ++c) {
-            const float3 got = cell_at_spot(&f, c, laser.xyz, stat_spots[s].xyz);
+            const float4 got = cell_at_spot(row, c, laser, stat_spots[s]);
             const float k = keep[r * CELLS + c];
             lost += (1.0f - k * k) * got.y * got.x;
             wsum += got.x;
@@ -213,12 +209,12 @@ void plate_hist(__global const float *per_call,      // the host's one upload: [
     const int lid = get_local_id(0);
     const int span = 2 * pad + 1, n_sub = (n_bins + 2 * pad) * OS;
     const int r = (int)per_call[stat_at + b];
-    const Frame f = frame_of(vload8(rows_at + b, per_call));
-    const float3 laser3 = laser.xyz, spot = spots[d].xyz;
-    const float area = f.w * f.h / (float)CELLS / 4.0f;
-    const float front_o = fmax(dot(f.normal, laser3 - f.x), 0.0f);
-    const float faces = fmax(dot(f.normal, spot - f.x), 0.0f);
-    const float3 a1 = f.x - laser3, a2 = spot - f.x;
+    FRAME_OF(vload8(rows_at + b, per_call));
+    const float4 laser3 = laser, spot = spots[d];
+    const float area = f_w * f_h / (float)CELLS / 4.0f;
+    const float front_o = fmax(dot(f_normal, laser3 - f_x), 0.0f);
+    const float faces = fmax(dot(f_normal, spot - f_x), 0.0f);
+    const float4 a1 = f_x - laser3, a2 = spot - f_x;
     const float r1 = length(a1), r2 = length(a2);
     float shift = 0.0f;
     for (int s = 0; s < n_stat; ++s)
@@ -238,8 +234,9 @@ void plate_hist(__global const float *per_call,      // the host's one upload: [
     float wsum = 0.0f;
     for (int m = lid; m < POINTS; m += WG) {
         const int q = m / CELLS, c = m % CELLS;
-        const float3 e = cell_offset(&f, c) + keep[r * CELLS + c] * gauss_offset(&f, q);
-        const float3 v1 = a1 + e, v2 = a2 - e;
+        const float4 e = cell_offset(f_across, f_w, f_h, c)
+                         + keep[r * CELLS + c] * gauss_offset(f_eu, f_ev, q);
+        const float4 v1 = a1 + e, v2 = a2 - e;
         const float w = point_weight(v1, v2, front_o, faces, area);
         const float rel = leg_change(a1, r1, e, length(v1)) + leg_change(a2, r2, -e, length(v2));
         point_w[m] = w;
