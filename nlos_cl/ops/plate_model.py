@@ -121,50 +121,94 @@ def numpy(rows, stat_rows, stat_of, spots, stat_spots, affine, laser, edge0, dpa
     return out
 
 
+class Plan:
+    """The operation for one observation's geometry (spots, statistics spots, affine, laser,
+    bin widths, lattice, sub-bins): its kernels fetched, its constants uploaded and its
+    scratch buffers kept (grown when a call needs more), so that a call is one upload, two
+    launches and one read. pyopencl Arrays, a kernel look-up and a constant's hash each cost
+    tens of microseconds, ~0.5 ms a call when made afresh (measured on PoCL), as much as the
+    launches: a fit's ~10 calls a frame (HostProblem(kernel=True)) keep one Plan."""
+
+    def __init__(self, rt, spots, stat_spots, affine, laser, dpath, os_, lattice, blur_share,
+                 gauss_2):
+        import pyopencl as cl
+        from ..device.runtime import float4, float4_rows
+        self.rt, self.cl = rt, cl
+        self.spots, self.laser = np.asarray(spots, np.float64), np.asarray(laser, np.float64)
+        self.dpath, self.os = np.asarray(dpath, np.float64), int(os_)
+        self.lattice = tuple(int(v) for v in lattice)
+        self.blur_share, self.gauss_2 = float(blur_share), float(gauss_2)
+        self.n_det, self.n_stat = len(self.spots), len(stat_spots)
+        defines = dict(NU=self.lattice[0], NV=self.lattice[1], OS=self.os, WG=WORK_GROUP,
+                       BLUR_SHARE=f"{self.blur_share!r}f", GAUSS_2=f"{self.gauss_2!r}f")
+        self.stats_kernel = rt.kernel("plate_model", "plate_stats", **defines)
+        self.hist_kernel = rt.kernel("plate_model", "plate_hist", **defines)
+        self.laser4 = float4(self.laser)
+        self.constants = [rt.constant(float4_rows(stat_spots)), rt.constant(affine),
+                          rt.constant(float4_rows(self.spots)), rt.constant(self.os / self.dpath)]
+        self.buffers: dict = {}
+
+    def _buffer(self, name, nbytes):
+        """A kept device buffer of at least nbytes (grown by doubling)."""
+        got = self.buffers.get(name)
+        if got is None or got.size < nbytes:
+            size = max(nbytes, 2 * (got.size if got is not None else 0), 64)
+            got = self.buffers[name] = self.cl.Buffer(self.rt.context, self.cl.mem_flags.READ_WRITE,
+                                                      size)
+        return got
+
+    def __call__(self, rows, stat_rows, stat_of, edge0, sigma0sq, n_bins) -> np.ndarray:
+        """(B, D, n_bins) float32 histograms (the operation's, for these rows)."""
+        cl, rt = self.cl, self.rt
+        rows, stat_rows = (np.atleast_2d(np.asarray(r, np.float64)) for r in (rows, stat_rows))
+        n_b, n_r, n_det, n_bins = len(rows), len(stat_rows), self.n_det, int(n_bins)
+        nu, nv = self.lattice
+        pad = pad_bound(np.vstack([rows, stat_rows]), self.lattice, sigma0sq, self.dpath,
+                        self.blur_share, self.gauss_2)
+        # the centre's path relative to the window's first sub-bin edge, in float64 here: the
+        # kernel adds only each point's (small) path difference from the centre
+        centre = rows[:, None, :3]
+        centre_path = (np.sqrt(((centre - self.laser) ** 2).sum(axis=-1))
+                       + np.sqrt(((self.spots[None] - centre) ** 2).sum(axis=-1))
+                       - (np.asarray(edge0, np.float64) - pad * self.dpath)[None])
+        # one upload: the statistics rows and the rows (float8 each), the centres' paths and
+        # each row's statistics row (exact in float32: far fewer than 2^24 rows)
+        packed = np.zeros(8 * (n_r + n_b) + n_b * n_det + n_b, np.float32)
+        packed[:8 * n_r].reshape(n_r, 8)[:, :6] = stat_rows
+        packed[8 * n_r:8 * (n_r + n_b)].reshape(n_b, 8)[:, :6] = rows
+        packed[8 * (n_r + n_b):-n_b] = centre_path.ravel()
+        packed[-n_b:] = np.asarray(stat_of).ravel()
+        per_call = self._buffer("per_call", packed.nbytes)
+        cl.enqueue_copy(rt.queue, per_call, packed, is_blocking=False)
+        keep = self._buffer("keep", 4 * n_r * nu * nv)
+        stats = self._buffer("stats", 4 * n_r * (1 + self.n_stat))
+        n_sub = (n_bins + 2 * pad) * self.os
+        dep = self._buffer("dep", 4 * n_b * n_det * n_sub)
+        taps = self._buffer("taps", 4 * n_b * n_det * self.os * (2 * pad + 1))
+        hist = self._buffer("hist", 4 * n_b * n_det * n_bins)
+        spots_stat, affine, spots4, inv_dsub = (c.data for c in self.constants)
+        self.stats_kernel.set_args(per_call, spots_stat, np.int32(self.n_stat), self.laser4,
+                                   keep, stats)
+        cl.enqueue_nd_range_kernel(rt.queue, self.stats_kernel, (n_r * WORK_GROUP,),
+                                   (WORK_GROUP,))
+        self.hist_kernel.set_args(
+            per_call, np.int32(n_r), np.int32(8 * (n_r + n_b)),
+            np.int32(8 * (n_r + n_b) + n_b * n_det), keep, stats, affine, np.int32(self.n_stat),
+            spots4, self.laser4, inv_dsub, np.float32(sigma0sq), np.int32(n_bins),
+            np.int32(pad), dep, taps, hist)
+        cl.enqueue_nd_range_kernel(rt.queue, self.hist_kernel, (n_b * WORK_GROUP, n_det),
+                                   (WORK_GROUP, 1))
+        out = np.empty((n_b, n_det, n_bins), np.float32)
+        cl.enqueue_copy(rt.queue, out, hist, is_blocking=True)  # (after the upload: in order)
+        rt.launched.update({("plate_model", "plate_stats"), ("plate_model", "plate_hist")})
+        return out
+
+
 def opencl(rt, rows, stat_rows, stat_of, spots, stat_spots, affine, laser, edge0, dpath,
            sigma0sq, n_bins, os_, lattice, blur_share, gauss_2, out=None):
-    from ..device.runtime import float4
-    rows, stat_rows = (np.atleast_2d(np.asarray(r, np.float64)) for r in (rows, stat_rows))
-    spots, stat_spots = np.asarray(spots, np.float64), np.asarray(stat_spots, np.float64)
-    edge0, dpath = np.asarray(edge0, np.float64), np.asarray(dpath, np.float64)
-    laser = np.asarray(laser, np.float64)
-    n_b, n_r, n_det, n_stat = len(rows), len(stat_rows), len(spots), len(stat_spots)
-    n_bins, os_ = int(n_bins), int(os_)
-    nu, nv = (int(v) for v in lattice)
-    pad = pad_bound(np.vstack([rows, stat_rows]), (nu, nv), sigma0sq, dpath, blur_share, gauss_2)
-    length = (n_bins + 2 * pad) * os_
-    # the centre's path relative to the window's first sub-bin edge, in float64 here: the
-    # kernel adds only each point's (small) path difference from the centre
-    centre = rows[:, None, :3]
-    centre_path = (np.linalg.norm(centre - laser, axis=-1)
-                   + np.linalg.norm(spots[None] - centre, axis=-1)
-                   - (edge0 - pad * dpath)[None])
-    defines = dict(NU=nu, NV=nv, OS=os_, WG=WORK_GROUP, BLUR_SHARE=f"{float(blur_share)!r}f",
-                   GAUSS_2=f"{float(gauss_2)!r}f")
-    # what changes from call to call in one upload (each costs ~0.1 ms on PoCL): the statistics
-    # rows, the rows (float8 each), the centres' paths and each row's statistics row (exact in
-    # float32: far fewer than 2^24 rows)
-    packed = np.concatenate([np.hstack([stat_rows, np.zeros((n_r, 2))]).ravel(),
-                             np.hstack([rows, np.zeros((n_b, 2))]).ravel(),
-                             centre_path.ravel(), np.asarray(stat_of, np.float64)])
-    per_call = rt.from_numpy(packed)
-    at = [0, 8 * n_r, 8 * (n_r + n_b), 8 * (n_r + n_b) + n_b * n_det]
-    keep = rt.empty((n_r, nu * nv))
-    stats = rt.empty((n_r, 1 + n_stat))
-    rt.run(rt.kernel("plate_model", "plate_stats", **defines), (n_r * WORK_GROUP,),
-           per_call, rt.constant(np.hstack([stat_spots, np.zeros((n_stat, 1))])),
-           np.int32(n_stat), float4(laser), keep, stats, local_size=(WORK_GROUP,))
-    hist = out if out is not None and getattr(out, "shape", None) == (n_b, n_det, n_bins) \
-        else rt.empty((n_b, n_det, n_bins))
-    dep = rt.empty((n_b * n_det * length,), np.uint32)
-    taps = rt.empty((n_b * n_det * os_ * (2 * pad + 1),))
-    rt.run(rt.kernel("plate_model", "plate_hist", **defines), (n_b * WORK_GROUP, n_det),
-           per_call, np.int32(at[1] // 8), np.int32(at[2]), np.int32(at[3]), keep, stats,
-           rt.constant(affine), np.int32(n_stat),
-           rt.constant(np.hstack([spots, np.zeros((n_det, 1))])), float4(laser),
-           rt.constant(os_ / dpath), np.float32(sigma0sq), np.int32(n_bins), np.int32(pad), dep,
-           taps, hist, local_size=(WORK_GROUP, 1))
-    return hist
+    """The operation through a Plan made for this call (HostProblem keeps one instead)."""
+    plan = Plan(rt, spots, stat_spots, affine, laser, dpath, os_, lattice, blur_share, gauss_2)
+    return plan(rows, stat_rows, stat_of, edge0, sigma0sq, n_bins)
 
 
 def _scene(n_plates, n_det, n_stat, lattice, n_bins, os_, seed=0, away=False):

@@ -62,6 +62,7 @@ class HostProblem(Problem):
         super().__init__(obs, backend, lattice, reflectance=reflectance)
         self.kernel = bool(kernel) and backend is not None and reflectance is None and \
             lattice[0] * lattice[1] <= MAX_KERNEL_CELLS
+        self._plan = None  # the plate_model operation's Plan (`_on_device`), made on first use
         keep_freed_memory()  # core.allocator: the deposit's passes 4x faster with it
         self.shadows = True  # False: every plate alone, as likelihood.Problem (comparisons)
         self._factor = None if reflectance is None else reflectance.factor_of_cosine
@@ -190,19 +191,29 @@ class HostProblem(Problem):
 
 
 def _on_device(problem, rows, like) -> np.ndarray:
-    """HostProblem._evaluate by the plate_model operation on the problem's backend: each plate
-    with the cell statistics of its `like` row (or its own), computed on the device for the
-    distinct rows that lend them."""
+    """HostProblem._evaluate by the plate_model operation on the problem's backend (its Plan,
+    made once per problem): each plate with the cell statistics of its `like` row (or its
+    own), computed on the device for the distinct rows that lend them. A NumPy backend runs
+    the operation's twin."""
     t = time.perf_counter()
     obs = problem.obs
     lenders = rows if like is None else like
     stat_rows, stat_of = np.unique(lenders, axis=0, return_inverse=True)
     affine = np.eye(len(obs.spots)) if problem._affine is None else \
         problem._affine[0] @ problem._affine[1]
-    hist = problem.backend.to_numpy(problem.backend.call(
-        "plate_model", rows, stat_rows, stat_of.reshape(-1), obs.spots, problem._stat_spots,
-        affine, obs.laser, obs.edge0, obs.dpath, obs.sigma0_m ** 2 - obs.box_excess_m2, obs.n,
-        problem.os, problem.lattice, plate.BLUR_SHARE, plate.GAUSS_2))
+    sigma0sq = obs.sigma0_m ** 2 - obs.box_excess_m2
+    if problem._plan is None and hasattr(problem.backend, "context"):
+        from ...ops.plate_model import Plan
+        problem._plan = Plan(problem.backend, obs.spots, problem._stat_spots, affine, obs.laser,
+                             obs.dpath, problem.os, problem.lattice, plate.BLUR_SHARE,
+                             plate.GAUSS_2)
+    if problem._plan is not None:
+        hist = problem._plan(rows, stat_rows, stat_of.reshape(-1), obs.edge0, sigma0sq, obs.n)
+    else:
+        hist = problem.backend.to_numpy(problem.backend.call(
+            "plate_model", rows, stat_rows, stat_of.reshape(-1), obs.spots, problem._stat_spots,
+            affine, obs.laser, obs.edge0, obs.dpath, sigma0sq, obs.n, problem.os,
+            problem.lattice, plate.BLUR_SHARE, plate.GAUSS_2))
     problem.calls += len(rows)
     problem.model_s += time.perf_counter() - t
     return np.where(obs.valid[None], hist, 0.0)
