@@ -22,6 +22,8 @@
 // moved by e (exact to float32's relative precision of the difference, not of the path). The
 // cell statistics use the same form around each cell's centre.
 //
+// Laser spots: one per detector (and per statistics spot), so one laser spot for all
+// (replicated by the host), a confocal scan (each spot its own) and paired layouts alike.
 // Rows: float8 (x, y, z, width, height, yaw, 0, 0). Build options: -D NU, NV (the lattice),
 // -D OS (sub-bins per bin), -D WG (the work group size: a power of two), -D BLUR_SHARE,
 // -D GAUSS_2 (plate.py's constants).
@@ -120,7 +122,8 @@ inline float4 cell_at_spot(const float8 row, const int c, const float4 laser,
 __kernel __attribute__((reqd_work_group_size(WG, 1, 1)))
 void plate_stats(__global const float8 *rows,        // [R] statistics rows (first in the upload)
                  __global const float4 *stat_spots,  // [S]
-                 const int n_stat, const float4 laser,
+                 __global const float4 *stat_lasers, // [S]: each statistics spot's laser spot
+                 const int n_stat,
                  __global float *keep,               // [R][CELLS]
                  __global float *stats)              // [R][1 + S]: blur^2, shift at each spot
 {
@@ -133,7 +136,7 @@ void plate_stats(__global const float8 *rows,        // [R] statistics rows (fir
     for (int c = lid; c < CELLS; c += WG) {
         float num = 0.0f, den = 0.0f;
         for (int s = 0; s < n_stat; ++s) {
-            const float4 got = cell_at_spot(row, c, laser, stat_spots[s]);
+            const float4 got = cell_at_spot(row, c, stat_lasers[s], stat_spots[s]);
             num += got.z * got.x;
             den += got.x;
         }
@@ -153,7 +156,7 @@ void plate_stats(__global const float8 *rows,        // [R] statistics rows (fir
     for (int s = lid; s < n_stat; s += WG) {
         float lost = 0.0f, wsum = 0.0f;
         for (int c = 0; c < CELLS; ++c) {
-            const float4 got = cell_at_spot(row, c, laser, stat_spots[s]);
+            const float4 got = cell_at_spot(row, c, stat_lasers[s], stat_spots[s]);
             const float k = keep[r * CELLS + c];
             lost += (1.0f - k * k) * got.y * got.x;
             wsum += got.x;
@@ -195,7 +198,7 @@ void plate_hist(__global const float *per_call,      // the host's one upload: [
                 __global const float *affine,        // [D][S]: shift at spot d from the S spots'
                 const int n_stat,
                 __global const float4 *spots,        // [D]
-                const float4 laser,
+                __global const float4 *lasers,       // [D]: each detector's laser spot
                 __global const float *inv_dsub,      // [D]: sub-bins per metre of path
                 const float sigma0sq,                // the pulse's sigma^2 less the box excess
                 const int n_bins, const int pad,
@@ -210,7 +213,7 @@ void plate_hist(__global const float *per_call,      // the host's one upload: [
     const int span = 2 * pad + 1, n_sub = (n_bins + 2 * pad) * OS;
     const int r = (int)per_call[stat_at + b];
     FRAME_OF(vload8(rows_at + b, per_call));
-    const float4 laser3 = laser, spot = spots[d];
+    const float4 laser3 = lasers[d], spot = spots[d];
     const float area = f_w * f_h / (float)CELLS / 4.0f;
     const float front_o = fmax(dot(f_normal, laser3 - f_x), 0.0f);
     const float faces = fmax(dot(f_normal, spot - f_x), 0.0f);

@@ -3,12 +3,12 @@ call: the host model of nlos_cl/localization/model/batch.py (HostProblem(kernel=
 this; tests/test_plate_model.py holds the two together), its float64 twin here written out
 plate by plate.
 
-plate_model(rows (B, 6), stat_rows (R, 6), stat_of (B,), spots (D, 3), stat_spots (S, 3),
-affine (D, S), laser (3,), edge0 (D,), dpath (D,), sigma0sq, n_bins, os_, lattice, blur_share,
-gauss_2) -> (B, D,
-n_bins) unit-amplitude histograms: plate b with the cell statistics (pull-in, blur, shift at
-the S statistics spots, carried to the D spots by `affine`) of stat_rows[stat_of[b]] (its own,
-or a Jacobian's unmoved plate's), the pulse's sigma^2 = sigma0sq + blur^2 (sigma0sq: the
+plate_model(rows (B, 6), stat_rows (R, 6), stat_of (B,), spots (D, 3), laser ((3,): one for
+every spot; (D, 3): each spot's, a confocal scan or a paired layout), some (S,) (the statistics
+spots' indices into spots), affine (D, S), edge0 (D,), dpath (D,), sigma0sq, n_bins, os_,
+lattice, blur_share, gauss_2) -> (B, D, n_bins) unit-amplitude histograms: plate b with the
+cell statistics (pull-in, blur, shift at the S statistics spots, carried to the D spots by
+`affine`) of stat_rows[stat_of[b]] (its own, or a Jacobian's unmoved plate's), the pulse's sigma^2 = sigma0sq + blur^2 (sigma0sq: the
 observation's sigma0^2 less its box excess), bins of dpath[d] metres of path from edge0[d],
 os_ sub-bins a bin; blur_share and gauss_2: the plate model's constants (model.plate). No
 mask: the caller zeroes the bins outside the record.
@@ -73,12 +73,12 @@ def _legs(points, normal, area, centre, spot, laser):
         / (r1 * r1 * r2 * r2)
 
 
-def _statistics(row, lattice, stat_spots, laser, blur_share, gauss_2):
+def _statistics(row, lattice, stat_spots, stat_lasers, blur_share, gauss_2):
     """(keep (C,), blur^2, shift (S,)): each cell's pull-in, the shared blur and the shift at
     each statistics spot (plate.cell_model's rule, written out plate by plate)."""
     centres, offsets, normal, area = _points(row, lattice, gauss_2)
     mean, var, wsum = [], [], []
-    for spot in stat_spots:
+    for spot, laser in zip(stat_spots, stat_lasers):
         path, weight = _legs(centres + offsets, normal, area, row[:3], spot, laser)
         centre_path = np.linalg.norm(centres - laser, axis=1) + \
             np.linalg.norm(spot - centres, axis=1)
@@ -96,23 +96,30 @@ def _statistics(row, lattice, stat_spots, laser, blur_share, gauss_2):
     return keep, blur2, shift
 
 
-def numpy(rows, stat_rows, stat_of, spots, stat_spots, affine, laser, edge0, dpath, sigma0sq,
-          n_bins, os_, lattice, blur_share, gauss_2):
+def lasers_of(spots, laser) -> np.ndarray:
+    """(D, 3): each spot's laser spot (one laser spot (3,) replicated)."""
+    laser = np.asarray(laser, np.float64)
+    return np.broadcast_to(laser, np.shape(spots)).copy() if laser.ndim == 1 else laser
+
+
+def numpy(rows, stat_rows, stat_of, spots, laser, some, affine, edge0, dpath, sigma0sq, n_bins,
+          os_, lattice, blur_share, gauss_2):
     """The twin, written plate by plate and detector by detector: each point's pulse integrated
     over each bin exactly (erf differences), where the kernel (and the host model,
     localization/model/batch.py) split it between two sub-bins first (the tolerance below)."""
     from ..core.erf import erf
     rows, stat_rows = (np.atleast_2d(np.asarray(r, np.float64)) for r in (rows, stat_rows))
-    spots, laser = np.asarray(spots, np.float64), np.asarray(laser, np.float64)
-    stats = [_statistics(r, lattice, np.asarray(stat_spots, np.float64), laser, blur_share,
-                         gauss_2) for r in stat_rows]
+    spots = np.asarray(spots, np.float64)
+    lasers, some = lasers_of(spots, laser), np.asarray(some, int)
+    stats = [_statistics(r, lattice, spots[some], lasers[some], blur_share, gauss_2)
+             for r in stat_rows]
     out = np.zeros((len(rows), len(spots), int(n_bins)))
     for b, row in enumerate(rows):
         keep, blur2, shift = stats[int(np.asarray(stat_of)[b])]
         centres, offsets, normal, area = _points(row, lattice, gauss_2)
         points = (centres + keep[:, None] * offsets).reshape(-1, 3)
         scale = 1.0 / math.sqrt(2.0 * (sigma0sq + blur2))
-        for d, spot in enumerate(spots):
+        for d, (spot, laser) in enumerate(zip(spots, lasers)):
             path, weight = _legs(points, normal, area, row[:3], spot, laser)
             edges = edge0[d] - float(np.asarray(affine)[d] @ shift) + dpath[d] * np.arange(
                 int(n_bins) + 1)
@@ -129,23 +136,24 @@ class Plan:
     tens of microseconds, ~0.5 ms a call when made afresh (measured on PoCL), as much as the
     launches: a fit's ~10 calls a frame (HostProblem(kernel=True)) keep one Plan."""
 
-    def __init__(self, rt, spots, stat_spots, affine, laser, dpath, os_, lattice, blur_share,
-                 gauss_2):
+    def __init__(self, rt, spots, laser, some, affine, dpath, os_, lattice, blur_share, gauss_2):
         import pyopencl as cl
-        from ..device.runtime import float4, float4_rows
+        from ..device.runtime import float4_rows
         self.rt, self.cl = rt, cl
-        self.spots, self.laser = np.asarray(spots, np.float64), np.asarray(laser, np.float64)
+        self.spots = np.asarray(spots, np.float64)
+        self.lasers, some = lasers_of(self.spots, laser), np.asarray(some, int)
         self.dpath, self.os = np.asarray(dpath, np.float64), int(os_)
         self.lattice = tuple(int(v) for v in lattice)
         self.blur_share, self.gauss_2 = float(blur_share), float(gauss_2)
-        self.n_det, self.n_stat = len(self.spots), len(stat_spots)
+        self.n_det, self.n_stat = len(self.spots), len(some)
         defines = dict(NU=self.lattice[0], NV=self.lattice[1], OS=self.os, WG=WORK_GROUP,
                        BLUR_SHARE=f"{self.blur_share!r}f", GAUSS_2=f"{self.gauss_2!r}f")
         self.stats_kernel = rt.kernel("plate_model", "plate_stats", **defines)
         self.hist_kernel = rt.kernel("plate_model", "plate_hist", **defines)
-        self.laser4 = float4(self.laser)
-        self.constants = [rt.constant(float4_rows(stat_spots)), rt.constant(affine),
-                          rt.constant(float4_rows(self.spots)), rt.constant(self.os / self.dpath)]
+        self.constants = [rt.constant(float4_rows(self.spots[some])),
+                          rt.constant(float4_rows(self.lasers[some])), rt.constant(affine),
+                          rt.constant(float4_rows(self.spots)),
+                          rt.constant(float4_rows(self.lasers)), rt.constant(self.os / self.dpath)]
         self.buffers: dict = {}
 
     def _buffer(self, name, nbytes):
@@ -168,7 +176,7 @@ class Plan:
         # the centre's path relative to the window's first sub-bin edge, in float64 here: the
         # kernel adds only each point's (small) path difference from the centre
         centre = rows[:, None, :3]
-        centre_path = (np.sqrt(((centre - self.laser) ** 2).sum(axis=-1))
+        centre_path = (np.sqrt(((centre - self.lasers[None]) ** 2).sum(axis=-1))
                        + np.sqrt(((self.spots[None] - centre) ** 2).sum(axis=-1))
                        - (np.asarray(edge0, np.float64) - pad * self.dpath)[None])
         # one upload: the statistics rows and the rows (float8 each), the centres' paths and
@@ -186,15 +194,16 @@ class Plan:
         dep = self._buffer("dep", 4 * n_b * n_det * n_sub)
         taps = self._buffer("taps", 4 * n_b * n_det * self.os * (2 * pad + 1))
         hist = self._buffer("hist", 4 * n_b * n_det * n_bins)
-        spots_stat, affine, spots4, inv_dsub = (c.data for c in self.constants)
-        self.stats_kernel.set_args(per_call, spots_stat, np.int32(self.n_stat), self.laser4,
+        spots_stat, lasers_stat, affine, spots4, lasers4, inv_dsub = (
+            c.data for c in self.constants)
+        self.stats_kernel.set_args(per_call, spots_stat, lasers_stat, np.int32(self.n_stat),
                                    keep, stats)
         cl.enqueue_nd_range_kernel(rt.queue, self.stats_kernel, (n_r * WORK_GROUP,),
                                    (WORK_GROUP,))
         self.hist_kernel.set_args(
             per_call, np.int32(n_r), np.int32(8 * (n_r + n_b)),
             np.int32(8 * (n_r + n_b) + n_b * n_det), keep, stats, affine, np.int32(self.n_stat),
-            spots4, self.laser4, inv_dsub, np.float32(sigma0sq), np.int32(n_bins),
+            spots4, lasers4, inv_dsub, np.float32(sigma0sq), np.int32(n_bins),
             np.int32(pad), dep, taps, hist)
         cl.enqueue_nd_range_kernel(rt.queue, self.hist_kernel, (n_b * WORK_GROUP, n_det),
                                    (WORK_GROUP, 1))
@@ -204,16 +213,17 @@ class Plan:
         return out
 
 
-def opencl(rt, rows, stat_rows, stat_of, spots, stat_spots, affine, laser, edge0, dpath,
-           sigma0sq, n_bins, os_, lattice, blur_share, gauss_2, out=None):
+def opencl(rt, rows, stat_rows, stat_of, spots, laser, some, affine, edge0, dpath, sigma0sq,
+           n_bins, os_, lattice, blur_share, gauss_2, out=None):
     """The operation through a Plan made for this call (HostProblem keeps one instead)."""
-    plan = Plan(rt, spots, stat_spots, affine, laser, dpath, os_, lattice, blur_share, gauss_2)
+    plan = Plan(rt, spots, laser, some, affine, dpath, os_, lattice, blur_share, gauss_2)
     return plan(rows, stat_rows, stat_of, edge0, sigma0sq, n_bins)
 
 
-def _scene(n_plates, n_det, n_stat, lattice, n_bins, os_, seed=0, away=False):
+def _scene(n_plates, n_det, n_stat, lattice, n_bins, os_, seed=0, away=False, confocal=False):
     """The paper's geometry (a laser spot and wall spots on y = 0, plates ~2-3 m out) with
-    plates near one another, as a Jacobian's: the first carries the statistics of the rest."""
+    plates near one another, as a Jacobian's: the first carries the statistics of the rest.
+    confocal: each spot its own laser spot (a confocal scan)."""
     rng = np.random.default_rng(seed)
     base = np.array([2.0, 2.8, 0.1, 0.3, 1.6, -math.pi / 2 + 0.3])  # facing the wall
     rows = base + np.vstack([np.zeros(6), rng.normal(0, [0.002, 0.002, 0.002, 0.002, 0.002,
@@ -223,18 +233,22 @@ def _scene(n_plates, n_det, n_stat, lattice, n_bins, os_, seed=0, away=False):
     laser = np.array([-0.5, 0.0, 0.0])
     spots = np.column_stack([np.linspace(-1.2, -0.4, n_det), np.zeros(n_det),
                              np.linspace(-0.3, 0.3, n_det)])
+    if confocal:
+        laser = spots.copy()
     some = np.unique(np.linspace(0, n_det - 1, n_stat).round().astype(int))
     if len(some) < n_det:  # HostProblem's affine spread of the shift
-        basis = np.hstack([np.ones((n_det, 1)), spots - spots.mean(axis=0)])
+        basis = np.hstack([np.ones((n_det, 1)), spots - spots.mean(axis=0)]
+                          + ([laser - laser.mean(axis=0)] if confocal else []))
         affine = basis @ np.linalg.pinv(basis[some])
     else:
         affine = np.eye(n_det)
     dpath = np.full(n_det, 0.021)
-    near = np.linalg.norm(rows[0, :3] - laser) + np.linalg.norm(spots - rows[0, :3], axis=1)
+    near = np.linalg.norm(rows[0, :3] - laser, axis=-1) + np.linalg.norm(spots - rows[0, :3],
+                                                                        axis=1)
     edge0 = near - 0.5 * n_bins * 0.021  # the plate's returns mid-window
     stat_of = np.zeros(n_plates, int) if not away else np.arange(n_plates)
-    return (rows, rows[:1] if not away else rows, stat_of, spots, spots[some], affine, laser,
-            edge0, dpath, SIGMA0 ** 2, n_bins, os_, lattice, 0.5, 0.5 / math.sqrt(3.0))
+    return (rows, rows[:1] if not away else rows, stat_of, spots, laser, some, affine, edge0,
+            dpath, SIGMA0 ** 2, n_bins, os_, lattice, 0.5, 0.5 / math.sqrt(3.0))
 
 
 def _inputs(*scene_args, **kw):
@@ -253,7 +267,9 @@ def _tolerance(dpath, os_):
 def examples(size):
     if size == "tiny":  # a 2 x 3 lattice, a short window, 4 sub-bins (not the 8-wide path),
         # and a plate turned away from the wall (no weight: the deposit's zero-sum branch)
-        return [Example("2 plates x 2 det x 24 bins, lattice 2 x 3",
+        return [Example("2 plates x 3 confocal spots x 24 bins, lattice 2 x 3",
+                        _inputs(2, 3, 2, (2, 3), 24, 4, confocal=True), _tolerance(0.021, 4)),
+                Example("2 plates x 2 det x 24 bins, lattice 2 x 3",
                         _inputs(2, 2, 2, (2, 3), 24, 4), _tolerance(0.021, 4)),
                 Example("a plate facing away beside one facing the wall",
                         _inputs(2, 2, 2, (2, 3), 24, 4, away=True), _tolerance(0.021, 4))]
@@ -262,6 +278,9 @@ def examples(size):
                     unit="point-detectors"),
             Example("6 plates x 40 det (32 statistics spots, affine) x 80 bins",
                     _inputs(6, 40, 32, (16, 24), 80, 8), _tolerance(0.021, 8),
+                    work=6 * 40 * 1536, unit="point-detectors"),
+            Example("a confocal scan: 6 plates x 40 spots, each its own laser spot",
+                    _inputs(6, 40, 32, (16, 24), 80, 8, confocal=True), _tolerance(0.021, 8),
                     work=6 * 40 * 1536, unit="point-detectors")]
 
 

@@ -58,13 +58,17 @@ class HostProblem(Problem):
         # points' weights; the cell statistics (pull-in, blur, shift) stay Lambertian's.
         # kernel: evaluate the plates with the plate_model operation on `backend` (the same
         # model in float32, many plates a launch: ops/plate_model.py) where it has them: a
-        # Lambertian plate no other plate shadows, on a lattice of <= MAX_KERNEL_CELLS cells
+        # Lambertian plate no other plate shadows, on a lattice of <= MAX_KERNEL_CELLS cells;
+        # with a laser spot per detector (confocal, paired: `paired`) only the kernel has the
+        # model (the host's passes here know one laser spot), and no shadows are modelled
         super().__init__(obs, backend, lattice, reflectance=reflectance)
+        self.paired = np.ndim(obs.laser) == 2
         self.kernel = bool(kernel) and backend is not None and reflectance is None and \
             lattice[0] * lattice[1] <= MAX_KERNEL_CELLS
-        self._plan = None  # the plate_model operation's Plan (`_on_device`), made on first use
+        self._plan = None  # the plate_model operation's Plan (plates_on_device), made once
         keep_freed_memory()  # core.allocator: the deposit's passes 4x faster with it
-        self.shadows = True  # False: every plate alone, as likelihood.Problem (comparisons)
+        # False: every plate alone, as likelihood.Problem (comparisons; paired layouts)
+        self.shadows = not self.paired
         self._factor = None if reflectance is None else reflectance.factor_of_cosine
         floor = math.sqrt(max(obs.sigma0_m ** 2 - obs.box_excess_m2, 1e-300))
         # one sub-bin count per observation (from the narrowest pulse any plate can have):
@@ -76,12 +80,10 @@ class HostProblem(Problem):
         self._taps = {}  # (pad, scale) -> the deposit's taps (model.deposit.taps_of)
         some = unique_sorted(np.linspace(0, len(obs.spots) - 1, min(len(obs.spots),
                                                                  plate.STAT_SPOTS)).round())
-        self._stat_spots = obs.spots[some.astype(int)]  # the cell statistics' spots
-        self._affine = None
+        self._some = some.astype(int)
+        self._stat_spots = obs.spots[self._some]  # the cell statistics' spots
+        self._affine = _affine_spread(obs, self._some, self.paired)
         self._coarser = {}
-        if len(some) < len(obs.spots):  # the shift's affine fit, the same for every plate
-            basis = np.hstack([np.ones((len(obs.spots), 1)), obs.spots - obs.spots.mean(axis=0)])
-            self._affine = (basis, np.linalg.pinv(basis[some.astype(int)]))
 
     def column(self, p) -> np.ndarray:
         return self.column_batch(np.asarray(p, float)[None])[0]
@@ -127,7 +129,11 @@ class HostProblem(Problem):
 
     def _evaluate(self, rows, like, occluders=None) -> np.ndarray:
         if self.kernel and (occluders is None or all(o is None for o in occluders)):
-            return _on_device(self, rows, like)
+            from .plates_on_device import evaluate
+            return evaluate(self, rows, like)
+        if self.paired:
+            raise NotImplementedError("the host plate model knows one laser spot: use "
+                                      "kernel=True with a backend, or likelihood.Problem")
         t = time.perf_counter()
         obs = self.obs
         stats = None if like is None else self._statistics_of(np.atleast_2d(like))
@@ -190,33 +196,15 @@ class HostProblem(Problem):
         return None if not any(len(w) for w in which) else [rows[w] for w in which]
 
 
-def _on_device(problem, rows, like) -> np.ndarray:
-    """HostProblem._evaluate by the plate_model operation on the problem's backend (its Plan,
-    made once per problem): each plate with the cell statistics of its `like` row (or its
-    own), computed on the device for the distinct rows that lend them. A NumPy backend runs
-    the operation's twin."""
-    t = time.perf_counter()
-    obs = problem.obs
-    lenders = rows if like is None else like
-    stat_rows, stat_of = np.unique(lenders, axis=0, return_inverse=True)
-    affine = np.eye(len(obs.spots)) if problem._affine is None else \
-        problem._affine[0] @ problem._affine[1]
-    sigma0sq = obs.sigma0_m ** 2 - obs.box_excess_m2
-    if problem._plan is None and hasattr(problem.backend, "context"):
-        from ...ops.plate_model import Plan
-        problem._plan = Plan(problem.backend, obs.spots, problem._stat_spots, affine, obs.laser,
-                             obs.dpath, problem.os, problem.lattice, plate.BLUR_SHARE,
-                             plate.GAUSS_2)
-    if problem._plan is not None:
-        hist = problem._plan(rows, stat_rows, stat_of.reshape(-1), obs.edge0, sigma0sq, obs.n)
-    else:
-        hist = problem.backend.to_numpy(problem.backend.call(
-            "plate_model", rows, stat_rows, stat_of.reshape(-1), obs.spots, problem._stat_spots,
-            affine, obs.laser, obs.edge0, obs.dpath, sigma0sq, obs.n, problem.os,
-            problem.lattice, plate.BLUR_SHARE, plate.GAUSS_2))
-    problem.calls += len(rows)
-    problem.model_s += time.perf_counter() - t
-    return np.where(obs.valid[None], hist, 0.0)
+def _affine_spread(obs, some, paired):
+    """(basis, its pseudo-inverse on the statistics spots `some`) of the shift's affine fit,
+    the same for every plate (plate.cell_statistics' basis: with each spot's own laser spot,
+    its place too), or None where every spot is a statistics spot."""
+    if len(some) == len(obs.spots):
+        return None
+    basis = np.hstack([np.ones((len(obs.spots), 1)), obs.spots - obs.spots.mean(axis=0)]
+                      + ([obs.laser - obs.laser.mean(axis=0)] if paired else []))
+    return basis, np.linalg.pinv(basis[some])
 
 
 def _cells(rows, lattice):

@@ -53,6 +53,20 @@ HOST_DETECTORS = 64
 MODEL_ON = ("auto", "host", "kernel", "device")
 
 
+def _host_problem(obs, lattice, backend, refl, model_on):
+    """The host's batched plates (model.batch), or None where they cannot model the layout. A
+    laser spot per detector (confocal, paired): only on the plate_model kernel, which 'auto'
+    takes there too (the host's closed shapes know any layout; the forward op's plates took 5x
+    as long: 0.64-0.94 against 0.12-0.15 s a confocal frame, tests/test_paired's scan, the
+    same positions). GGX: only the forward op has it."""
+    from .batch import HostProblem
+    paired = obs.laser.ndim == 2
+    if paired and model_on not in ("kernel", "auto"):
+        return None
+    problem = HostProblem(obs, lattice, backend, refl, model_on == "kernel" or paired)
+    return None if problem.paired and not problem.kernel else problem
+
+
 class ModelEstimator:
     """Fit `targets` plates (an int, or 'auto': add plates while they pass the test in
     model.select). `likelihood`: 'gauss' (AWGN; the data are compared after a Gauss
@@ -164,12 +178,8 @@ class ModelEstimator:
         refl = self.reflectance
         on_host = host_can(refl) and (self.model_on in ("host", "kernel") or (
             self.model_on == "auto" and len(obs.spots) <= HOST_DETECTORS))
-        # paired: the host's batched plates know one laser spot (its closed shapes know
-        # any); GGX: only the kernel has it
-        if on_host and obs.laser.ndim == 1:
-            from .batch import HostProblem
-            problem = HostProblem(obs, lattice, backend, refl, self.model_on == "kernel")
-        else:
+        problem = _host_problem(obs, lattice, backend, refl, self.model_on) if on_host else None
+        if problem is None:
             problem = Problem(obs, backend, lattice, reflectance=refl)
         problem.closed_on_host = on_host  # model.host_shapes.shape_problem
         return problem

@@ -171,7 +171,7 @@ def analytic_derivatives(problem, params):
     each other (their derivatives are finite differences, `stepped_columns`), or ANALYTIC
     off."""
     from .batch import HostProblem
-    if not ANALYTIC or type(problem) is not HostProblem or \
+    if not ANALYTIC or type(problem) is not HostProblem or problem.paired or \
             shadowed_by(problem, params) is not None:
         return None
     from .derivatives import column_derivatives
