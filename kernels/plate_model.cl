@@ -15,7 +15,7 @@
 //                depend on the order: bit-identical run after run), then correlated with the
 //                bin-integrated pulse per sub-bin phase (deposit.deposit_bins).
 //
-// Precision (float32): a path is ~5 m, so its float32 ulp (0.5 um) would be ~1e-3 of a sub-bin.
+// Precision (float32): a path is ~5 m, so its float32 ulp (0.5 um) would be ~2e-4 of a sub-bin.
 // Paths are therefore never formed whole: the host passes each (plate, detector) the path of
 // the plate's centre relative to the window's first sub-bin (float64 there), and the kernel adds
 // each point's path difference from the centre, r' - r = (2 a.e + e.e) / (r' + r) for a leg a
@@ -102,7 +102,7 @@ inline float4 cell_at_spot(const float8 row, const int c, const float4 laser,
     const float4 a1 = centre - laser, a2 = spot - centre;
     const float r1 = length(a1), r2 = length(a2);
     // the moments about the centre's path: the points lie within a few cm of it, so
-    // E[d^2] - E[d]^2 loses nothing to cancellation in float42
+    // E[d^2] - E[d]^2 loses nothing to cancellation in float32
     float wsum = 0.0f, wd = 0.0f, wdd = 0.0f;
     for (int q = 0; q < 4; ++q) {
         const float4 e = gauss_offset(f_eu, f_ev, q);
@@ -253,10 +253,10 @@ void plate_hist(__global const float *per_call,      // the host's one upload: [
     const float scale = (total > 0.0f) ? 1073741824.0f / total : 0.0f;
     for (int m = lid; m < POINTS; m += WG) {
         const float w = point_w[m], u = point_u[m];
+        if (!(w > 0.0f) || !(u >= 0.0f) || u >= (float)(n_sub - 1))  // (before the int cast:
+            continue;                                                // out of range, undefined)
         const float fu = floor(u);
         const int j = (int)fu;
-        if (!(w > 0.0f) || j < 0 || j >= n_sub - 1)
-            continue;
         const float t = u - fu;
         atomic_add(mine + j, convert_uint_rte(w * (1.0f - t) * scale));
         atomic_add(mine + j + 1, convert_uint_rte(w * t * scale));

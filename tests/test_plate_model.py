@@ -90,10 +90,21 @@ def test_a_fit_on_the_kernel_lands_where_the_hosts_does(obs, runtime):
     assert kern.cost == pytest.approx(host.cost, rel=1e-4)
 
 
-def test_the_estimator_takes_model_on_kernel(runtime):
+def _counting(monkeypatch):
+    """How many times the plates went to the kernel (plates_on_device.evaluate)."""
+    from nlos_cl.localization.model import plates_on_device
+    seen, evaluate = [], plates_on_device.evaluate
+    monkeypatch.setattr(plates_on_device, "evaluate",
+                        lambda *a: seen.append(1) or evaluate(*a))
+    return seen
+
+
+def test_the_estimator_takes_model_on_kernel(runtime, monkeypatch):
     filtered, raw = paper_frame(runtime, truth=TRUTH)
     host = nl.locate(filtered, raw=raw, estimator=ModelEstimator(model_on="host"))
+    seen = _counting(monkeypatch)
     kern = nl.locate(filtered, raw=raw, estimator=ModelEstimator(model_on="kernel"))
+    assert len(seen) >= 10  # the fit ran on the kernel, not on a silent fallback
     assert np.linalg.norm(np.subtract(kern.position, host.position)) < 1e-3
 
 
@@ -131,6 +142,37 @@ def test_a_confocal_scans_plates_are_the_forward_ops(runtime):
     assert _peak_error(kern.column_batch(rows), device.column_batch(rows)) <= 1e-4
     with pytest.raises(NotImplementedError, match="one laser spot"):
         batch.HostProblem(obs).column_batch(rows)  # no kernel: the host passes cannot
+
+
+def test_auto_fits_paired_layouts_on_the_kernel_and_one_laser_on_the_host(obs, runtime):
+    conf = _confocal_observation(runtime)
+    paired = ModelEstimator().problem(conf, runtime)
+    assert isinstance(paired, batch.HostProblem) and paired.kernel and paired.paired
+    single = ModelEstimator().problem(obs, runtime)
+    assert isinstance(single, batch.HostProblem) and not single.kernel
+
+
+def test_a_wide_confocal_scans_shift_is_spread_as_the_forward_ops(runtime):
+    """48 confocal spots (more than plate.STAT_SPOTS): the cell statistics come from 32 of
+    them and the shift is spread to the rest by the affine fit over spot and laser places
+    (batch._affine_spread), against the forward op's plates (plate.cell_statistics' own
+    least squares) on the same observation's geometry. The columns do not depend on the
+    data, so the observation's spots are replaced; 1e-4 as above."""
+    from dataclasses import replace
+    from nlos_cl.localization.model import likelihood
+    conf = _confocal_observation(runtime)
+    spots = np.array([(x, 0.0, z) for x in np.linspace(-0.7, 0.7, 8)
+                      for z in np.linspace(-0.4, 0.4, 6)])
+    n = conf.n
+    wide = replace(conf, spots=spots, laser=spots.copy(),
+                   edge0=np.full(len(spots), conf.edge0.mean()),
+                   dpath=np.full(len(spots), conf.dpath[0]), y=np.zeros((len(spots), n)),
+                   valid=np.ones((len(spots), n), bool), noise=np.ones(len(spots)))
+    kern = batch.HostProblem(wide, backend=runtime, kernel=True)
+    assert kern._affine is not None and kern._affine[0].shape[1] == 7  # 1 + spot + laser
+    row = np.array([3.0, 2.0, 0.0, 0.3, 0.6, np.pi * 1.25])
+    device = likelihood.Problem(wide, runtime)
+    assert _peak_error(kern.column_batch(row[None]), device.column_batch(row[None])) <= 1e-4
 
 
 def test_the_estimator_fits_a_confocal_scan_with_the_kernel(runtime):

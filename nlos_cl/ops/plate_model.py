@@ -15,7 +15,8 @@ mask: the caller zeroes the bins outside the record.
 
 Why: a warm tracker frame is ~9 host-model calls (residuals of one plate, Jacobians of five),
 each ~100 NumPy passes over ~5,000 values: 0.8-1.1 ms whatever the arithmetic. Here a call is
-two launches, four small uploads and one read.
+one upload, two launches and one read (`Plan`); measured, that costs about as much as the
+host's NumPy on PoCL and on an H200 (nlos_cl/apps/bench/analysis.md).
 
 The window's pad (bins each side) is taken from an upper bound of the pulse's width (the
 blur^2 is at most BLUR_SHARE x (2 |Gauss offset|)^2: a point's path moves by at most twice its
@@ -32,6 +33,9 @@ from .base import Example, Operation
 from .pulse import REACH_SIGMAS
 
 WORK_GROUP = 64  # work items per plate (stats) and per (plate, detector) (histograms)
+# plate_hist keeps each point's weight and place (2 floats x 4 points a cell) and WORK_GROUP
+# floats in local memory: 1,016 cells fit the 32 KiB every OpenCL device has
+MAX_CELLS = (32768 - 4 * WORK_GROUP) // 32
 SIGMA0 = 0.0655  # the examples' pulse (m of path): the paper's 70 ps pulse after its Gauss filter
 WIDTH, HEIGHT, YAW = 3, 4, 5  # a row's (x, y, z, width, height, yaw): localization.model.plate
 
@@ -146,6 +150,11 @@ class Plan:
         self.lattice = tuple(int(v) for v in lattice)
         self.blur_share, self.gauss_2 = float(blur_share), float(gauss_2)
         self.n_det, self.n_stat = len(self.spots), len(some)
+        need = 32 * self.lattice[0] * self.lattice[1] + 4 * WORK_GROUP
+        if need > rt.device.local_mem_size:
+            raise ValueError(f"plate_model: a lattice of {self.lattice} cells needs {need} bytes "
+                             f"of local memory, more than {rt.device.local_mem_size} on "
+                             f"{rt.name}; pass a coarser lattice (<= {MAX_CELLS} cells)")
         defines = dict(NU=self.lattice[0], NV=self.lattice[1], OS=self.os, WG=WORK_GROUP,
                        BLUR_SHARE=f"{self.blur_share!r}f", GAUSS_2=f"{self.gauss_2!r}f")
         self.stats_kernel = rt.kernel("plate_model", "plate_stats", **defines)

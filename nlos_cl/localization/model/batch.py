@@ -42,7 +42,8 @@ from .shadow import occluders_of, shade
 # way). A warm stream frame: 24.8 -> 23.0 ms (chunks of 3, 4, 5, 8: 24.1-24.4 ms).
 CHUNK_ROWS = 6
 HISTS_BYTES = 32 * 2 ** 20  # the remembered histograms at most (HostProblem._hists)
-MAX_KERNEL_CELLS = 1024  # the plate_model kernel keeps a plate's 4 x cells points in local memory
+# plate_model's cap (a plate's points in the 32 KiB of local memory every device has)
+from ...ops.plate_model import MAX_CELLS as MAX_KERNEL_CELLS  # noqa: E402
 
 
 class HostProblem(Problem):
@@ -132,8 +133,8 @@ class HostProblem(Problem):
             from .plates_on_device import evaluate
             return evaluate(self, rows, like)
         if self.paired:
-            raise NotImplementedError("the host plate model knows one laser spot: use "
-                                      "kernel=True with a backend, or likelihood.Problem")
+            raise NotImplementedError("obs.laser: the host plate model knows one laser spot; "
+                                      "use kernel=True with a backend, or likelihood.Problem")
         t = time.perf_counter()
         obs = self.obs
         stats = None if like is None else self._statistics_of(np.atleast_2d(like))
