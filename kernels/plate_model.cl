@@ -28,6 +28,8 @@
 // -D OS (sub-bins per bin), -D WG (the work group size: a power of two), -D BLUR_SHARE,
 // -D GAUSS_2 (plate.py's constants).
 
+#include "common.h"
+
 #define CELLS (NU * NV)
 #define POINTS (4 * CELLS)  // in local memory: the host allows at most MAX_CELLS cells
 
@@ -169,17 +171,6 @@ void plate_stats(__global const float8 *rows,        // [R] statistics rows (fir
 // erf-difference taps of the bin-integrated pulse (deposit.taps_of): a unit weight at the
 // centre of phase p of the sub-bins i bins after bin k's window start puts into bin k
 // erf((m + OS - 1/2) s) - erf((m - 1/2) s), m = (pad - i) OS - p, s = dsub / (sqrt 2 sigma).
-// common.h's erf16 (Abramowitz & Stegun 7.1.26) on one lane: PoCL 3.0's LLVM 14 crashed building
-// erf16 here ('Cannot emit physreg copy instruction').
-inline float erf1(const float x)
-{
-    const float ax = fabs(x);
-    const float t = 1.0f / fma(0.3275911f, ax, 1.0f);
-    const float poly = t * fma(t, fma(t, fma(t, fma(t, 1.061405429f, -1.453152027f),
-                                             1.421413741f), -0.284496736f), 0.254829592f);
-    return copysign(1.0f - poly * exp(-ax * ax), x);
-}
-
 inline float tap(const int p, const int i, const int pad, const float s)
 {
     const float m = (float)((pad - i) * OS - p);

@@ -20,21 +20,28 @@ def evaluate(problem, rows, like) -> np.ndarray:
     obs = problem.obs
     lenders = rows if like is None else like
     stat_rows, stat_of = np.unique(lenders, axis=0, return_inverse=True)
-    affine = np.eye(len(obs.spots)) if problem._affine is None else \
-        problem._affine[0] @ problem._affine[1]
     sigma0sq = obs.sigma0_m ** 2 - obs.box_excess_m2
     if problem._plan is None and hasattr(problem.backend, "context"):
         from ...ops.plate_model import Plan
-        problem._plan = Plan(problem.backend, obs.spots, obs.laser, problem._some, affine,
-                             obs.dpath, problem.os, problem.lattice, plate.BLUR_SHARE,
-                             plate.GAUSS_2)
+        problem._plan = Plan(problem.backend, obs.spots, obs.laser, problem._some,
+                             _affine(problem), obs.dpath, problem.os, problem.lattice,
+                             plate.BLUR_SHARE, plate.GAUSS_2)
     if problem._plan is not None:
         hist = problem._plan(rows, stat_rows, stat_of.reshape(-1), obs.edge0, sigma0sq, obs.n)
     else:
         hist = problem.backend.to_numpy(problem.backend.call(
             "plate_model", rows, stat_rows, stat_of.reshape(-1), obs.spots, obs.laser,
-            problem._some, affine, obs.edge0, obs.dpath, sigma0sq, obs.n, problem.os,
-            problem.lattice, plate.BLUR_SHARE, plate.GAUSS_2))
+            problem._some, _affine(problem), obs.edge0, obs.dpath, sigma0sq, obs.n,
+            problem.os, problem.lattice, plate.BLUR_SHARE, plate.GAUSS_2))
     problem.calls += len(rows)
     problem.model_s += time.perf_counter() - t
     return np.where(obs.valid[None], hist, 0.0)
+
+
+def _affine(problem) -> np.ndarray:
+    """(D, S): the shift at every spot from the statistics spots' (HostProblem._affine's
+    basis times its pseudo-inverse; the identity where every spot is a statistics spot)."""
+    if problem._affine is None:
+        return np.eye(len(problem.obs.spots))
+    basis, coef_of = problem._affine
+    return basis @ coef_of
