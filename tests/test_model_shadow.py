@@ -260,7 +260,7 @@ def test_hidden_shares_agree_with_the_simulators_ray_caster(host):
     """FAR's hidden share (12 x 12 points, every spot, the ramps) against the any-hit ray
     caster's on a 60 x 60 lattice: within one lattice column (1/12); NEAR: nothing hides it."""
     truth = np.stack([NEAR, FAR])
-    got = shadow.hidden_shares(truth, host.obs.laser, host.obs.spots, host.lattice)
+    got = shadow.hidden_shares(truth, host.obs.laser, host.obs.spots)
     facets = plate.plate_facets(FAR, (60, 60))
     meshes = [nl.rectangle(0.3, 0.3, centre=FAR[:3]), nl.rectangle(0.3, 0.3, centre=NEAR[:3])]
     hard = visibility(facets, np.zeros(3), SPOTS, meshes, 0, caster=any_hit_brute)
@@ -346,3 +346,62 @@ def test_a_cold_fit_in_its_own_order_is_judged_at_the_tracked_sizes(host):
         assert judged[1][HIDDEN_SD_KEY] == pytest.approx(
             judged[1][HIDDEN_SHARE_KEY] * 0.3 / 2, abs=1e-4)
     assert alone[1][HIDDEN_SHARE_KEY] > judged[1][HIDDEN_SHARE_KEY] + 0.1  # 5 cm: behind NEAR
+
+
+def _any_ray_blocked(occluder, shadowed, laser, spots, lattice):
+    """Brute force: does `occluder` take weight from any of `shadowed`'s rays, at points
+    denser than the model's (a 2x finer lattice, the edges and corners included)?"""
+    nu, nv = 2 * lattice[0] + 1, 2 * lattice[1] + 1
+    dense = plate.plate_facets(shadowed, (nu, nv)).centres
+    corners = shadow._corners(shadowed, 0.0)
+    points = np.vstack([dense, corners])
+    cell = shadow.cell_size(shadowed, lattice)[0]
+    return bool((shadow.visible(points, laser, spots, occluder, cell) < 1.0).any())
+
+
+def test_a_plate_the_bounding_test_lets_go_blocks_no_ray_even_after_a_step():
+    """The bounding test is what lets an occluder be left out (then no bit changes), so it
+    must never miss a shadow the ramps would cast: random pairs (half of them with the
+    occluder put between the other plate and the wall, so that ~half shadow), each plate
+    moved by up to a finite-difference step, against the ramps at dense points."""
+    rng = np.random.default_rng(23)
+    lattice, shadowing, freed = (16, 24), 0, 0
+    for trial in range(400):
+        spots = layouts.circle(centre=[rng.uniform(-1.5, 0.5), 0, 0],
+                               radius_m=rng.uniform(0.2, 1.0), count=int(rng.integers(1, 9)))
+        laser = np.array([rng.uniform(-1.5, 0.5), 0.0, rng.uniform(-0.3, 0.3)])
+        rows = [np.array([rng.uniform(0.5, 3.5), rng.uniform(0.3, 3.5), rng.uniform(-0.5, 0.5),
+                          rng.uniform(0.05, 1.0), rng.uniform(0.05, 1.0),
+                          np.pi + rng.uniform(-1.5, 1.5)]) for _ in range(2)]
+        occluder, shadowed = rows
+        if trial % 2:
+            f = rng.uniform(0.2, 0.9)
+            occluder[:3] = f * shadowed[:3] + (1 - f) * laser + rng.normal(0.0, 0.15, 3)
+        can = shadow.can_shadow(occluder, shadowed, laser, spots, lattice)
+        blocked = any(_any_ray_blocked(occluder + s * rng.uniform(-1, 1, 6) * plate.STEPS,
+                                       shadowed + s * rng.uniform(-1, 1, 6) * plate.STEPS,
+                                       laser, spots, lattice) for s in (0, 1, 1, 1))
+        assert can or not blocked, (trial, occluder, shadowed)
+        shadowing += blocked
+        freed += not can
+    assert 100 < shadowing < 300 and freed > 100  # both kinds were drawn, and many let go
+
+
+def test_plates_side_by_side_at_one_depth_are_let_go():
+    """Two plates facing the wall 0.5 m apart at one depth: their bounding spheres come
+    within reach of each other's capsules to the wall spots (the spheres' test alone held),
+    but no ray from one to the wall can cross the other: the pyramid test lets them go, so
+    the fit's Jacobians and covariance take the unshadowed path."""
+    spots = layouts.circle(centre=[-1.0, 0, 0], radius_m=0.5, count=8)
+    laser = np.zeros(3)
+    a = np.array([2.0, 2.0, 0.0, 0.3, 0.3, -np.pi / 2])
+    b = np.array([1.5, 2.0, 0.0, 0.3, 0.3, -np.pi / 2])
+    lattice = (16, 24)
+    in_front = np.array([1.0, 1.0, 0.0, 0.3, 0.3, -np.pi / 2])  # (sanity: b moved between a
+    assert shadow.can_shadow(in_front, a, laser, spots, lattice)  # and the wall does shadow)
+    assert _any_ray_blocked(in_front, a, laser, spots, lattice)
+    for occ, sh in ((a, b), (b, a)):
+        assert not _any_ray_blocked(occ, sh, laser, spots, lattice)
+        assert not shadow.can_shadow(occ, sh, laser, spots, lattice)
+    assert all(len(w) == 0 for w in shadow.occluders_of(np.stack([a, b]), laser, spots,
+                                                        lattice))

@@ -22,11 +22,19 @@ multiply their (1 - blocking).
 The cell statistics (pull-in, blur, shift: model.plate.cell_model) stay the unshadowed plate's:
 second order, and they keep a Jacobian's frozen statistics valid.
 
-Bounding test (`occluders_of`): plate i can shadow plate j only if plate i's bounding sphere
-comes within reach of the capsule from j's bounding sphere to a wall point (O or a spot),
-widened by the ramp's reach and a margin for the finite-difference steps. Outside it every
-ramp is exactly 0, so an occluder left out changes no bit: one target, or targets apart, give
-the numbers they gave before shadows were modelled.
+Bounding test (`occluders_of`): plate i can shadow plate j only if (1) plate i's bounding
+sphere comes within reach of the capsule from j's bounding sphere to a wall point (O or a
+spot), and (2) plate i's rectangle, grown by the ramps' reach, meets the pyramid from j's
+rectangle to that wall point, grown by the t-ramp's (a separating-axis test, `_meets_pyramid`):
+every ray j's points send to that wall point lies in the pyramid, so an occluder outside it
+blocks none. Both tests are widened by MARGIN_M, so that a finite-difference step of either
+plate (2 mm, 4 mrad) cannot move a ray into a ramp. Outside them every ramp is exactly 0, so
+an occluder left out changes no bit: one target, or targets apart, give the numbers they gave
+before shadows were modelled. Test (2) is what makes that common: on the crossing draws the
+spheres' test (1) held in every frame (8 wall points in a circle: capsules fan out over the
+plate's half-space) while no point of either plate was ever shadowed, and every Jacobian and
+covariance paid the shadowed path: the moved plate's shadowed neighbours re-simulated, and
+central differences where analytic derivatives hold.
 """
 from __future__ import annotations
 
@@ -60,7 +68,63 @@ def can_shadow(occluder, shadowed, laser, spots, lattice) -> bool:
     along = np.clip((occluder[:3] - start) @ seg.T / np.maximum(
         np.einsum("ek,ek->e", seg, seg), 1e-300), 0.0, 1.0)
     nearest = start + along[:, None] * seg
-    return bool(np.min(np.linalg.norm(occluder[:3] - nearest, axis=1)) < reach)
+    near = np.linalg.norm(occluder[:3] - nearest, axis=1) < reach
+    return bool(near.any()) and _meets_pyramid(occluder, shadowed, ends[near], lattice)
+
+
+def _corners(row, grow) -> np.ndarray:
+    """(4, 3) the corners of plate row `row`'s rectangle, each half-side grown by `grow`."""
+    yaw = float(row[plate.YAW])
+    across = np.array([-np.sin(yaw), np.cos(yaw), 0.0])
+    hw, hh = 0.5 * float(row[plate.WIDTH]) + grow, 0.5 * float(row[plate.HEIGHT]) + grow
+    signs = np.array([[1.0, 1.0], [-1.0, 1.0], [-1.0, -1.0], [1.0, -1.0]])  # in cyclic order
+    return np.asarray(row[:3], float) + signs[:, :1] * hw * across + signs[:, 1:] * hh * plate.UP
+
+
+def _meets_pyramid(occluder, shadowed, ends, lattice) -> bool:
+    """Can any ray from plate `shadowed`'s points to a wall point of `ends` (E, 3) meet a ramp
+    of plate `occluder` (model.shadow's `_blocked`)? Conservative (True when unsure).
+
+    What `_blocked` can make nonzero, for a ray P -> T of length L, with c the shadowed plate's
+    cell edge (`cell_size`): its crossing H = P + t (T - P) of the occluder's plane with
+    t > -c / 2L and t < 1 + c / 2L (the t-ramp), so H lies within c / 2 of the segment, and
+    |u|, |v| below the half-sides plus (1 - t) c / 2 <= c (for L >= c / 2). P lies on the
+    shadowed rectangle, so the segment lies in the pyramid conv(rectangle, T). Hence: the
+    occluder's rectangle grown by c, against the pyramid of the shadowed rectangle grown
+    by MARGIN_M and then by a ball of c / 2 + MARGIN_M, by the separating-axis theorem over
+    both solids' face normals and their edges' cross products (any axis that separates
+    proves they miss; axes beyond the complete set only make the test tighter)."""
+    if not len(ends):
+        return False
+    cell = float(cell_size(shadowed, lattice)[0])
+    base = _corners(shadowed, MARGIN_M)  # (4, 3)
+    centre, half = np.asarray(shadowed[:3], float), float(_half_diagonal(
+        np.atleast_2d(shadowed))[0]) + MARGIN_M
+    if np.min(np.linalg.norm(ends - centre, axis=1)) - half < cell:
+        return True  # a wall point almost on the plate: the bounds above need L >= c / 2
+    quad = _corners(occluder, cell + MARGIN_M)  # (4, 3)
+    grow = 0.5 * cell + MARGIN_M  # the ball around the pyramid
+    e = len(ends)
+    apex = ends[:, None, :]  # (E, 1, 3)
+    solid = np.concatenate([np.broadcast_to(base, (e, 4, 3)), apex], axis=1)  # (E, 5, 3)
+    lateral = apex - base[None]  # (E, 4, 3)
+    rim = np.roll(base, -1, axis=0) - base  # the base's edges, in order
+    a_j, a_i = base[0] - base[1], quad[0] - quad[1]  # each plate's width direction
+    n_j, n_i = np.cross(a_j, plate.UP), np.cross(a_i, plate.UP)
+    fixed = np.stack([n_j, n_i, a_j, a_i, plate.UP, np.cross(a_j, a_i)])  # (6, 3)
+    axes = np.concatenate([
+        np.broadcast_to(fixed, (e, 6, 3)),
+        np.cross(rim[None], lateral),  # the pyramid's side faces
+        np.cross(lateral, a_i), np.cross(lateral, plate.UP),  # edge x edge
+        np.cross(n_j, lateral),  # (a flat pyramid: T in the base's plane)
+    ], axis=1)  # (E, A, 3)
+    norm = np.linalg.norm(axes, axis=2, keepdims=True)
+    axes = axes / np.maximum(norm, 1e-300)
+    ps = np.einsum("eak,evk->eav", axes, solid)
+    qs = np.einsum("eak,vk->eav", axes, quad)
+    apart = (ps.max(axis=2) + grow < qs.min(axis=2)) | (qs.max(axis=2) < ps.min(axis=2) - grow)
+    apart &= norm[..., 0] > 1e-12  # a degenerate axis separates nothing
+    return bool((~apart.any(axis=1)).any())  # some wall point's pyramid meets the occluder
 
 
 def occluders_of(params, laser, spots, lattice) -> list[np.ndarray]:
@@ -75,14 +139,15 @@ def occluders_of(params, laser, spots, lattice) -> list[np.ndarray]:
 HIDDEN_LATTICE = (12, 12)  # points a plate's hidden share is taken over (`hidden_shares`)
 
 
-def hidden_shares(params, laser, spots, lattice) -> np.ndarray:
+def hidden_shares(params, laser, spots) -> np.ndarray:
     """(K,) per plate row of params (K, 6), the share of its paths (laser spot -> point ->
     detector spot, over a HIDDEN_LATTICE of its points and every spot, unweighted) that the
     other plates block: 0 where none can (`occluders_of`). What a tracker reads to learn a
     target's size only from frames where it was seen whole (nlos_cl.tracking.warm)."""
     params = np.reshape(np.asarray(params, float), (-1, plate.N_PARAMS))
     out = np.zeros(len(params))
-    for k, which in enumerate(occluders_of(params, laser, spots, lattice)):
+    # (the occluders as HIDDEN_LATTICE's ramps reach: wider than a model lattice's)
+    for k, which in enumerate(occluders_of(params, laser, spots, HIDDEN_LATTICE)):
         if len(which):
             points = plate.plate_facets(params[k], HIDDEN_LATTICE).centres
             cell = cell_size(params[k], HIDDEN_LATTICE)[0]

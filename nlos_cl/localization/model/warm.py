@@ -98,7 +98,7 @@ def size_prior(problem, rows, sizes):
     mean, sd = np.array(rows, float), np.full(np.shape(rows), np.inf)
     mean[np.ix_(known, SIZE)] = size[known]
     # hidden at the known size (a plate already fitted small over its visible part is not)
-    hidden = hidden_shares(mean, problem.obs.laser, problem.obs.spots, problem.lattice)
+    hidden = hidden_shares(mean, problem.obs.laser, problem.obs.spots)
     held = known & (hidden > HIDDEN_SHARE)
     mean[np.ix_(~held, SIZE)] = np.asarray(rows, float)[np.ix_(~held, SIZE)]
     sd[np.ix_(held, SIZE)] = size_sd[held]
@@ -159,8 +159,7 @@ def hidden_diagnostics(problem, result, prior=None) -> list[dict]:
                 if known[j]:
                     params[k, SIZE] = np.maximum(params[k, SIZE], size[j])
         obs = problem.obs
-        share = [round(float(h), 4) for h in hidden_shares(params, obs.laser, obs.spots,
-                                                            problem.lattice)]
+        share = [round(float(h), 4) for h in hidden_shares(params, obs.laser, obs.spots)]
         side = params[:, SIZE].max(axis=1)
         sd = [round(h * float(w) / 2, 4) for h, w in zip(share, side)]
     return [{HIDDEN_SHARE_KEY: h, HIDDEN_SD_KEY: d, "size_held": bool(b)}
