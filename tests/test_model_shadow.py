@@ -405,3 +405,42 @@ def test_plates_side_by_side_at_one_depth_are_let_go():
         assert not shadow.can_shadow(occ, sh, laser, spots, lattice)
     assert all(len(w) == 0 for w in shadow.occluders_of(np.stack([a, b]), laser, spots,
                                                         lattice))
+
+
+def test_an_occluder_at_the_edge_of_the_shadow_is_kept_a_step_beyond_it():
+    """Random pairs drawn away from the edge rarely come near it, so here each occluder is
+    slid sideways (along its width) out of the other plate's shadow until no ray is blocked
+    (bisection against the ramps at dense points): where its ramps' overhang alone still
+    blocks a ray, and a finite-difference step (2 mm) beyond, the bounding test must keep
+    it. (A test without the ramps' reach lets these go.)"""
+    rng = np.random.default_rng(42)
+    lattice, edges = (16, 24), 0
+    for trial in range(30):
+        spots = layouts.circle(centre=[rng.uniform(-1.5, 0.5), 0, 0],
+                               radius_m=rng.uniform(0.2, 1.0), count=int(rng.integers(1, 9)))
+        laser = np.array([rng.uniform(-1.5, 0.5), 0.0, rng.uniform(-0.3, 0.3)])
+        shadowed = np.array([rng.uniform(0.5, 3.5), rng.uniform(1.5, 3.5),
+                             rng.uniform(-0.5, 0.5), rng.uniform(0.1, 1.0),
+                             rng.uniform(0.1, 1.0), np.pi + rng.uniform(-1.0, 1.0)])
+        f = rng.uniform(0.3, 0.8)
+        base = np.concatenate([f * shadowed[:3] + (1 - f) * laser,
+                               [rng.uniform(0.05, 0.5), rng.uniform(0.05, 0.5),
+                                np.pi + rng.uniform(-1.5, 1.5)]])
+        across = np.array([-np.sin(base[5]), np.cos(base[5]), 0.0])
+
+        def slid(s):
+            row = base.copy()
+            row[:3] += s * across
+            return row
+        if not _any_ray_blocked(base, shadowed, laser, spots, lattice):
+            continue  # (the occluder at its start already misses: no edge to find)
+        inside, outside = 0.0, 5.0
+        assert not _any_ray_blocked(slid(outside), shadowed, laser, spots, lattice)
+        for _ in range(30):
+            mid = 0.5 * (inside + outside)
+            inside, outside = (mid, outside) if _any_ray_blocked(
+                slid(mid), shadowed, laser, spots, lattice) else (inside, mid)
+        for s in (inside, inside + plate.STEPS[0]):
+            assert shadow.can_shadow(slid(s), shadowed, laser, spots, lattice), (trial, s)
+        edges += 1
+    assert edges >= 15  # most occluders started in the shadow
