@@ -42,7 +42,9 @@ import numpy as np
 
 from . import plate
 
-MARGIN_M = 0.02  # the bounding test's slack beyond the ramp's reach (steps: 2 mm, 4 mrad)
+# The bounding test's slack beyond the ramps' reach: the most a finite-difference step moves a
+# plate's points or edges (2 mm steps; 4 mrad of yaw on a 3 m plate's 1.5 m half-width: 6 mm)
+MARGIN_M = 0.01
 
 
 def cell_size(rows, lattice) -> np.ndarray:
@@ -90,10 +92,12 @@ def _meets_pyramid(occluder, shadowed, ends, lattice) -> bool:
     t > -c / 2L and t < 1 + c / 2L (the t-ramp), so H lies within c / 2 of the segment, and
     |u|, |v| below the half-sides plus (1 - t) c / 2 <= c (for L >= c / 2). P lies on the
     shadowed rectangle, so the segment lies in the pyramid conv(rectangle, T). Hence: the
-    occluder's rectangle grown by c, against the pyramid of the shadowed rectangle grown
-    by MARGIN_M and then by a ball of c / 2 + MARGIN_M, by the separating-axis theorem over
-    both solids' face normals and their edges' cross products (any axis that separates
-    proves they miss; axes beyond the complete set only make the test tighter)."""
+    occluder's rectangle grown by c + MARGIN_M (a step may move it that far) against the
+    pyramid of the shadowed rectangle grown by MARGIN_M (a step may move its points that far;
+    the pyramid then moves no farther than its base) and then by a ball of c / 2 (+ 0.1 mm: a
+    size step changes c by 2 mm / lattice), by the separating-axis theorem over both solids'
+    face normals and their edges' cross products (any axis that separates proves they miss;
+    axes beyond the complete set only make the test tighter)."""
     if not len(ends):
         return False
     cell = float(cell_size(shadowed, lattice)[0])
@@ -103,7 +107,7 @@ def _meets_pyramid(occluder, shadowed, ends, lattice) -> bool:
     if np.min(np.linalg.norm(ends - centre, axis=1)) - half < cell:
         return True  # a wall point almost on the plate: the bounds above need L >= c / 2
     quad = _corners(occluder, cell + MARGIN_M)  # (4, 3)
-    grow = 0.5 * cell + MARGIN_M  # the ball around the pyramid
+    grow = 0.5 * cell + 1e-4  # the ball around the pyramid
     e = len(ends)
     apex = ends[:, None, :]  # (E, 1, 3)
     solid = np.concatenate([np.broadcast_to(base, (e, 4, 3)), apex], axis=1)  # (E, 5, 3)
