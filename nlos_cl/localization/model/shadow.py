@@ -38,6 +38,8 @@ central differences where analytic derivatives hold.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from . import plate
@@ -102,42 +104,54 @@ def _meets_pyramid(occluder, shadowed, ends, lattice) -> bool:
         return False
     cell = float(cell_size(shadowed, lattice)[0])
     base = _corners(shadowed, MARGIN_M)  # (4, 3)
-    centre, half = np.asarray(shadowed[:3], float), float(_half_diagonal(
-        np.atleast_2d(shadowed))[0]) + MARGIN_M
-    if np.min(np.linalg.norm(ends - centre, axis=1)) - half < cell:
+    half = 0.5 * math.hypot(shadowed[plate.WIDTH], shadowed[plate.HEIGHT]) + MARGIN_M
+    if np.sqrt(((ends - shadowed[:3]) ** 2).sum(axis=1)).min() - half < cell:
         return True  # a wall point almost on the plate: the bounds above need L >= c / 2
     quad = _corners(occluder, cell + MARGIN_M)  # (4, 3)
     grow = 0.5 * cell + 1e-4  # the ball around the pyramid
-    e = len(ends)
-    apex = ends[:, None, :]  # (E, 1, 3)
-    solid = np.concatenate([np.broadcast_to(base, (e, 4, 3)), apex], axis=1)  # (E, 5, 3)
-    lateral = apex - base[None]  # (E, 4, 3)
-    rim = np.roll(base, -1, axis=0) - base  # the base's edges, in order
+    lateral = ends[:, None, :] - base[None]  # (E, 4, 3): the pyramid's lateral edges
     a_j, a_i = base[0] - base[1], quad[0] - quad[1]  # each plate's width direction
-    n_j, n_i = np.cross(a_j, plate.UP), np.cross(a_i, plate.UP)
+    n_j, n_i = np.array([a_j[1], -a_j[0], 0.0]), np.array([a_i[1], -a_i[0], 0.0])  # a x UP
     fixed = np.stack([n_j, n_i, a_j, a_i, plate.UP, np.cross(a_j, a_i)])  # (6, 3)
-    axes = np.concatenate([
-        np.broadcast_to(fixed, (e, 6, 3)),
-        np.cross(rim[None], lateral),  # the pyramid's side faces
-        np.cross(lateral, a_i), np.cross(lateral, plate.UP),  # edge x edge
-        np.cross(n_j, lateral),  # (a flat pyramid: T in the base's plane)
-    ], axis=1)  # (E, A, 3)
-    norm = np.linalg.norm(axes, axis=2, keepdims=True)
-    axes = axes / np.maximum(norm, 1e-300)
-    ps = np.einsum("eak,evk->eav", axes, solid)
-    qs = np.einsum("eak,vk->eav", axes, quad)
-    apart = (ps.max(axis=2) + grow < qs.min(axis=2)) | (qs.max(axis=2) < ps.min(axis=2) - grow)
-    apart &= norm[..., 0] > 1e-12  # a degenerate axis separates nothing
+    # the side faces (base edge x lateral edge), edge x edge (a_i, UP x lateral) and, for a
+    # flat pyramid (T in the base's plane), n_j x lateral: one cross product
+    firsts = np.concatenate([np.roll(base, -1, axis=0) - base, np.broadcast_to(a_i, (4, 3)),
+                             np.broadcast_to(plate.UP, (4, 3)), np.broadcast_to(n_j, (4, 3))])
+    axes = np.concatenate([np.broadcast_to(fixed, (len(ends), 6, 3)),
+                           np.cross(firsts[None], np.tile(lateral, (1, 4, 1)))], axis=1)
+    norm = np.sqrt((axes * axes).sum(axis=2))  # (E, A); the axes are not normalised: the
+    # ball's reach along one is grow |axis|
+    on_base = axes @ base.T  # (E, A, 4)
+    on_apex = (axes * ends[:, None, :]).sum(axis=2)  # (E, A)
+    p_max = np.maximum(on_base.max(axis=2), on_apex) + grow * norm
+    p_min = np.minimum(on_base.min(axis=2), on_apex) - grow * norm
+    on_quad = axes @ quad.T  # (E, A, 4)
+    apart = (p_max < on_quad.min(axis=2)) | (on_quad.max(axis=2) < p_min)
+    apart &= norm > 1e-12  # a degenerate axis separates nothing
     return bool((~apart.any(axis=1)).any())  # some wall point's pyramid meets the occluder
 
 
 def occluders_of(params, laser, spots, lattice) -> list[np.ndarray]:
     """Per plate row of params (K, 6): the indices of the other plates that can shadow it
-    (`can_shadow`); all empty for one plate."""
-    params = np.reshape(params, (-1, plate.N_PARAMS))
-    return [np.array([i for i in range(len(params)) if i != j and
-                      can_shadow(params[i], params[j], laser, spots, lattice)], int)
-            for j in range(len(params))]
+    (`can_shadow`); all empty for one plate. The last REMEMBER answers are kept: a fit asks
+    again at the same rows (its residual, then its Jacobian and covariance there: half of a
+    two-target tracker's calls, ~0.25 ms each)."""
+    params = np.reshape(np.asarray(params, np.float64), (-1, plate.N_PARAMS))
+    laser, spots = np.asarray(laser, np.float64), np.asarray(spots, np.float64)
+    key = (params.tobytes(), laser.tobytes(), spots.tobytes(), spots.shape, tuple(lattice))
+    which = _REMEMBERED.pop(key, None)
+    if which is None:
+        which = tuple(tuple(i for i in range(len(params)) if i != j and
+                            can_shadow(params[i], params[j], laser, spots, lattice))
+                      for j in range(len(params)))
+    _REMEMBERED[key] = which  # most recently used last
+    while len(_REMEMBERED) > REMEMBER:
+        _REMEMBERED.pop(next(iter(_REMEMBERED)))
+    return [np.array(w, int) for w in which]
+
+
+REMEMBER = 16  # occluders_of's answers kept (a pure function of its inputs)
+_REMEMBERED: dict = {}
 
 
 HIDDEN_LATTICE = (12, 12)  # points a plate's hidden share is taken over (`hidden_shares`)
