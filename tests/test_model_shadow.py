@@ -444,3 +444,20 @@ def test_an_occluder_at_the_edge_of_the_shadow_is_kept_a_step_beyond_it():
             assert shadow.can_shadow(slid(s), shadowed, laser, spots, lattice), (trial, s)
         edges += 1
     assert edges >= 15  # most occluders started in the shadow
+
+
+def test_remembered_occluders_are_the_same_answers_and_the_callers_own():
+    """occluders_of keeps its last answers (a fit asks again at the same rows): asked again it
+    answers the same, a changed input is not answered from memory, and what it returns is
+    the caller's to change."""
+    spots = layouts.circle(centre=[-1.0, 0, 0], radius_m=0.5, count=8)
+    laser, lattice = np.zeros(3), (16, 24)
+    rows = np.stack([NEAR, FAR])
+    first = shadow.occluders_of(rows, laser, spots, lattice)
+    assert [list(w) for w in first] == [[], [0]]  # NEAR shadows FAR, not the other way
+    first[1][0] = 7  # the caller's array
+    again = shadow.occluders_of(rows, laser, spots, lattice)
+    assert [list(w) for w in again] == [[], [0]]
+    apart = rows.copy()
+    apart[0, :3] = (-3.0, 1.0, 0.0)
+    assert [list(w) for w in shadow.occluders_of(apart, laser, spots, lattice)] == [[], []]
