@@ -30,11 +30,11 @@ every ray j's points send to that wall point lies in the pyramid, so an occluder
 blocks none. Both tests are widened by MARGIN_M, so that a finite-difference step of either
 plate (2 mm, 4 mrad) cannot move a ray into a ramp. Outside them every ramp is exactly 0, so
 an occluder left out changes no bit: one target, or targets apart, give the numbers they gave
-before shadows were modelled. Test (2) is what makes that common: on the crossing draws the
-spheres' test (1) held in every frame (8 wall points in a circle: capsules fan out over the
-plate's half-space) while no point of either plate was ever shadowed, and every Jacobian and
-covariance paid the shadowed path: the moved plate's shadowed neighbours re-simulated, and
-central differences where analytic derivatives hold.
+before shadows were modelled. Test (2) is what makes that common: on crossing draw 1 the
+spheres' test (1) held in every warm frame (8 wall points in a circle: capsules fan out over
+the plates' half-space) while no point of either plate was ever shadowed, and every Jacobian
+and covariance paid the shadowed path: the moved plate's shadowed neighbours re-simulated,
+and central differences where analytic derivatives hold (docs/model-estimator.md).
 """
 from __future__ import annotations
 
