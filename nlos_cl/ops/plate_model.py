@@ -33,11 +33,17 @@ from .base import Example, Operation
 from .pulse import REACH_SIGMAS
 
 WORK_GROUP = 64  # work items per plate (stats) and per (plate, detector) (histograms)
-# plate_hist keeps each point's weight and place (2 floats x 4 points a cell) and WORK_GROUP
-# floats in local memory: 1,016 cells fit the 32 KiB every OpenCL device has
-MAX_CELLS = (32768 - 4 * WORK_GROUP) // 32
 SIGMA0 = 0.0655  # the examples' pulse (m of path): the paper's 70 ps pulse after its Gauss filter
 WIDTH, HEIGHT, YAW = 3, 4, 5  # a row's (x, y, z, width, height, yaw): localization.model.plate
+
+
+def local_bytes(cells: int) -> int:
+    """The local memory plate_hist needs: each point's weight and place (2 floats x 4 points a
+    cell) and WORK_GROUP floats."""
+    return 32 * cells + 4 * WORK_GROUP
+
+
+MAX_CELLS = (32768 - local_bytes(0)) // 32  # 1,016: what the 32 KiB of every device holds
 
 
 def pad_bound(rows, lattice, sigma0sq, dpath, blur_share, gauss_2) -> int:
@@ -150,7 +156,7 @@ class Plan:
         self.lattice = tuple(int(v) for v in lattice)
         self.blur_share, self.gauss_2 = float(blur_share), float(gauss_2)
         self.n_det, self.n_stat = len(self.spots), len(some)
-        need = 32 * self.lattice[0] * self.lattice[1] + 4 * WORK_GROUP
+        need = local_bytes(self.lattice[0] * self.lattice[1])
         if need > rt.device.local_mem_size:
             raise ValueError(f"plate_model: a lattice of {self.lattice} cells needs {need} bytes "
                              f"of local memory, more than {rt.device.local_mem_size} on "

@@ -31,6 +31,8 @@ import numpy as np
 from ...core.allocator import keep_freed_memory
 from ...core.stats import unique_sorted
 from ...ops.forward import SUB_BINS_PER_SIGMA
+# plate_model's cap (a plate's points in the 32 KiB of local memory every device has)
+from ...ops.plate_model import MAX_CELLS as MAX_KERNEL_CELLS
 from . import plate
 from .deposit import deposit_bins
 from .likelihood import Problem
@@ -42,8 +44,6 @@ from .shadow import occluders_of, shade
 # way). A warm stream frame: 24.8 -> 23.0 ms (chunks of 3, 4, 5, 8: 24.1-24.4 ms).
 CHUNK_ROWS = 6
 HISTS_BYTES = 32 * 2 ** 20  # the remembered histograms at most (HostProblem._hists)
-# plate_model's cap (a plate's points in the 32 KiB of local memory every device has)
-from ...ops.plate_model import MAX_CELLS as MAX_KERNEL_CELLS  # noqa: E402
 
 
 class HostProblem(Problem):

@@ -56,8 +56,9 @@ def cell_size(rows, lattice) -> np.ndarray:
     return np.maximum(rows[:, plate.WIDTH] / lattice[0], rows[:, plate.HEIGHT] / lattice[1])
 
 
-def _half_diagonal(rows):
-    return 0.5 * np.hypot(rows[:, plate.WIDTH], rows[:, plate.HEIGHT])
+def _half_diagonal(row) -> float:
+    """Half the diagonal of plate row `row`'s rectangle: its bounding sphere's radius."""
+    return 0.5 * math.hypot(row[plate.WIDTH], row[plate.HEIGHT])
 
 
 def can_shadow(occluder, shadowed, laser, spots, lattice) -> bool:
@@ -66,7 +67,7 @@ def can_shadow(occluder, shadowed, laser, spots, lattice) -> bool:
     occluder, shadowed = np.asarray(occluder, float), np.asarray(shadowed, float)
     ends = np.vstack([np.reshape(laser, (1, 3)), np.asarray(spots, float)])  # (E, 3)
     start = shadowed[:3]
-    reach = float(_half_diagonal(occluder[None])[0] + _half_diagonal(shadowed[None])[0]
+    reach = float(_half_diagonal(occluder) + _half_diagonal(shadowed)
                   + cell_size(shadowed, lattice)[0] + MARGIN_M)
     seg = ends - start  # the capsule's axes, start -> wall point
     along = np.clip((occluder[:3] - start) @ seg.T / np.maximum(
@@ -104,7 +105,7 @@ def _meets_pyramid(occluder, shadowed, ends, lattice) -> bool:
         return False
     cell = float(cell_size(shadowed, lattice)[0])
     base = _corners(shadowed, MARGIN_M)  # (4, 3)
-    half = 0.5 * math.hypot(shadowed[plate.WIDTH], shadowed[plate.HEIGHT]) + MARGIN_M
+    half = _half_diagonal(shadowed) + MARGIN_M
     if np.sqrt(((ends - shadowed[:3]) ** 2).sum(axis=1)).min() - half < cell:
         return True  # a wall point almost on the plate: the bounds above need L >= c / 2
     quad = _corners(occluder, cell + MARGIN_M)  # (4, 3)
