@@ -42,6 +42,9 @@ def _walk_figure(series, out) -> str:
     pf, ours = series["reference"], series["ours"]
     ax.plot(pf[:, 0], pf[:, 2], "-", color="0.5", lw=1, label="authors' particle filter (mean)")
     ax.plot(ours[:, 0], ours[:, 2], ".", ms=3, label="nlos_cl track (confirmed)")
+    if "lagged" in series:
+        ax.plot(series["lagged"][:, 0], series["lagged"][:, 2], "-", lw=0.8,
+                label="nlos_cl, fixed lag (--lag)")
     ax.plot([0], [0], "k^", label="sensor side (wall spots near 0)")
     ax.set(xlabel="X (m, the file's frame)", ylabel="Z (m, away from the wall)",
            title="walk, top view", aspect="equal")
@@ -74,7 +77,8 @@ def goals(summary) -> list[tuple]:
     for r in sec.get("keyhole") or []:
         out.append(("Keyhole " + r["case"], f"corr >= {g['corr']}, RMS <= {g['rms_m']} m",
                     f"{r['corr']}, {r['rms_m']} m", _yes(r["met"])))
-    for r in sec.get("walk") or []:
+    walk = sec.get("walk") or []
+    for r in walk[:1]:  # the causal filter's row: what the tracker reports as it goes
         g = cfg["walk"]["goal"]
         out += [("walk", f">= {g['fps']:g} frames/s", f"{r['frames_per_s']}",
                  _yes(r["met"]["fps"])),
@@ -82,6 +86,10 @@ def goals(summary) -> list[tuple]:
                  _yes(r["met"]["ids"])),
                 ("walk", "smoother than the particle filter (median frame-to-frame step)",
                  f"{r['jitter_ours_m']} m vs {r['jitter_pf_m']} m", _yes(r["met"]["smoother"]))]
+    for r in walk[1:2]:  # the fixed-lag row: real time, with latency
+        out.append((r["case"], "smoother than the particle filter, with "
+                    f"{cfg['walk']['lag_frames']} frames of latency",
+                    f"{r['jitter_ours_m']} m vs {r['jitter_pf_m']} m", _yes(r["met"]["smoother"])))
     return out
 
 

@@ -127,12 +127,16 @@ def _letter_lateral(ours, meta) -> tuple[float, float]:
 def walk(cfg: dict, root: Path) -> dict:
     """The walk through `nlos-cl track`'s path (a sequence file; the Tracker the command
     builds with every default: apps.track.make_tracker), against the authors'
-    particle-filter means on the top view (their X, Z; Y is the weakly seen vertical)."""
+    particle-filter means on the top view (their X, Z; Y is the weakly seen vertical). Three
+    rows from one run: the causal filter (the goal's), the fixed-lag estimate `--lag L` prints
+    (L = cfg["lag_frames"] later frames used: real time with L frames of latency) and the
+    offline `--smooth`, each of the longest-lived confirmed track."""
     from nlos_cl.apps.cli import parser
     from nlos_cl.apps.track import make_tracker
     from nlos_cl.tracking import read_sequence, write_sequence
     (frames, meta), read_s = _timed(lambda: nl.read_dataset(root / cfg["folder"]))
     frames = frames[:cfg["frames"]] if cfg["frames"] else frames
+    lag = int(cfg["lag_frames"])
     with tempfile.TemporaryDirectory() as tmp, warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the default's note on paired captures
         path = write_sequence(Path(tmp) / "walk.h5", frames, fps=meta["fps"])
@@ -140,6 +144,7 @@ def walk(cfg: dict, root: Path) -> dict:
         tracker = make_tracker(parser().parse_args(["track", str(path)]), seq, None)
         grid = tracker.grid
         ours, ids, per_frame = np.full((len(seq), 3), np.nan), [], []
+        lagged, reported = np.full((len(seq), 3), np.nan), None
         for k, frame in enumerate(seq.frames()):
             tracks, seconds = _timed(lambda: tracker.update(frame.histograms, frame.t_s))
             per_frame.append(seconds)
@@ -147,13 +152,29 @@ def walk(cfg: dict, root: Path) -> dict:
             ids.extend(t.id for t in tracks)
             if confirmed:  # the longest-lived confirmed track is the one reported
                 best = max(confirmed, key=lambda t: len(t.history))
-                ours[k] = seq.frame.from_internal(best.position)
+                ours[k], reported = seq.frame.from_internal(best.position), best.id
+                _put(lagged, tracker.lagged(lag).get(best.id), seq.frame)
+        for after in range(lag - 1, -1, -1):  # the last frames: with the later frames there are
+            _put(lagged, tracker.lagged(after).get(reported), seq.frame)
+        smoothed = np.full((len(seq), 3), np.nan)
+        for point in tracker.smooth().get(reported, []):
+            _put(smoothed, point, seq.frame)
+    lagged[np.isnan(ours[:, 0])] = np.nan  # the frames the filter reported, for all three
+    smoothed[np.isnan(ours[:, 0])] = np.nan
     reference = np.asarray(meta["reference_positions"])[:len(ours)]
-    return {"rows": [_walk_row(cfg, ours, reference, ids, per_frame, grid, read_s)],
-            "series": {"ours": ours, "reference": reference}}
+    rows = [_walk_row(cfg, case, track, reference, ids, per_frame, grid, read_s)
+            for case, track in (("walk", ours), (f"walk, fixed lag {lag} (--lag {lag})", lagged),
+                                ("walk, smoothed (--smooth)", smoothed))]
+    return {"rows": rows, "series": {"ours": ours, "reference": reference, "lagged": lagged}}
 
 
-def _walk_row(cfg, ours, reference, ids, per_frame, grid, read_s) -> dict:
+def _put(series, point, cframe) -> None:
+    """A Smoothed point (or None) into its frame's row of `series`, in the file's frame."""
+    if point is not None:
+        series[point.frame] = cframe.from_internal(point.position)
+
+
+def _walk_row(cfg, case, ours, reference, ids, per_frame, grid, read_s) -> dict:
     top = [0, 2]  # the file's (X, Z): the floor plane
     seen = ~np.isnan(ours[:, 0])
     distance = np.linalg.norm(ours[seen][:, top] - reference[seen][:, top], axis=1)
@@ -162,7 +183,7 @@ def _walk_row(cfg, ours, reference, ids, per_frame, grid, read_s) -> dict:
     both = np.where(seen[:, None], reference, np.nan)
     jitter_ours, jitter_pf = _jitter(ours[:, top]), _jitter(both[:, top])
     n_ids = len(set(ids))
-    return {"case": "walk", "frames": len(per_frame), "frames_per_s": round(fps, 1),
+    return {"case": case, "frames": len(per_frame), "frames_per_s": round(fps, 1),
             "frame_ms_median": round(1e3 * float(np.median(per_frame)), 1),
             "frame_ms_p10_p90": [round(1e3 * float(q), 1)
                                  for q in np.percentile(per_frame, [10, 90])],
