@@ -39,6 +39,11 @@ class FitResult:
     # minimised cost + prior_cost; `cost` is the data's alone (Birge ratios, comparisons)
     prior: tuple | None = None
     prior_cost: float = 0.0
+    # the solver's last Jacobian (forward differences of the profiled residuals, the prior's
+    # rows below the data's) and the parameters (K, N) it was taken at: at or one accepted step
+    # before `params`; None where it has none (model.covariance's `reuse`)
+    jacobian: tuple | None = None
+    columns: np.ndarray | None = None  # (K, D, n) the targets' columns at params, if kept
 
 
 def shape_of(problem):
@@ -74,11 +79,14 @@ class _Objective:
         return self.residual(theta) if kind == "fun" else self.jac(theta) if kind == "jac" \
             else self.column(theta, request[2])
 
-    def result(self, sol) -> FitResult:
+    def result(self, sol, keep_jacobian: bool = False) -> FitResult:
         cols, lin = self._eval(sol.x)
         r, pr = self.problem.residual(cols, lin), self.prior_residual(sol.x)
+        kept = keep_jacobian and sol.jac is not None
         return FitResult(self.full(sol.x), lin, float(r @ r), int(r.size), int(sol.nfev),
-                         prior=self.prior, prior_cost=float(pr @ pr))
+                         prior=self.prior, prior_cost=float(pr @ pr),
+                         jacobian=(self.full(sol.jac_x), sol.jac) if kept else None,
+                         columns=cols if kept else None)
 
     def prior_residual(self, theta):
         return (np.asarray(theta)[self.at] - self.mean) / self.sd
@@ -225,10 +233,13 @@ def stepped_columns(problem, params, cols, moves) -> np.ndarray:
     return out
 
 
-def fit(problem, params0, free, max_nfev=30, tau=None, atol=None, prior=None) -> FitResult:
+def fit(problem, params0, free, max_nfev=30, tau=None, atol=None, prior=None,
+        keep_jacobian=False) -> FitResult:
     """Least squares from params0 (K, N_PARAMS) over the parameters marked in `free`
     (N_PARAMS,). tau, atol: model.lm's (tau None: its default; atol None: off). prior: None,
     or (mean, sd), each (K, N_PARAMS) (sd inf: no prior on that parameter): a Gaussian prior
-    on the parameters, its residuals (p - mean) / sd minimised with the data's (a MAP fit)."""
+    on the parameters, its residuals (p - mean) / sd minimised with the data's (a MAP fit).
+    keep_jacobian: the result keeps the solver's last Jacobian and the columns
+    (FitResult.jacobian, .columns: model.covariance's `reuse`; a 1,024-spot fit's are MBs)."""
     obj = _Objective(problem, params0, free, prior)
-    return obj.result(drive(obj.solver(max_nfev, tau, atol), obj.answer))
+    return obj.result(drive(obj.solver(max_nfev, tau, atol), obj.answer), keep_jacobian)

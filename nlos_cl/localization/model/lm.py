@@ -59,6 +59,10 @@ class LMResult:
     njev: int  # Jacobian evaluations (full ones; Broyden's single columns are in ncol)
     status: int  # 0 max_nfev, 1 gtol, 2 ftol, 3 xtol, 4 ftol and xtol, 5 atol
     ncol: int = 0  # single finite-difference columns (jac_update="broyden")
+    # the last full Jacobian the solver was given and the point it was taken at (x itself, or
+    # the point before the last accepted step, which gets none); None after a Broyden update
+    jac: np.ndarray | None = None
+    jac_x: np.ndarray | None = None
 
     @property
     def message(self) -> str:
@@ -135,7 +139,7 @@ def solve(x0, bounds=(-np.inf, np.inf), x_scale=1.0, ftol=1e-8, xtol=1e-8, gtol=
     s = _State(np.clip(x0, lo, hi), lo, hi, scale)
     s.r = yield from s.evaluate(s.x, first=True)
     s.tau, s.atol = float(tau), atol
-    s.jac = yield ("jac", s.x, s.r)
+    s.jac, s.jac_x = (yield ("jac", s.x, s.r)), s.x
     s.njev += 1
     status = None
     while status is None:
@@ -144,7 +148,8 @@ def solve(x0, bounds=(-np.inf, np.inf), x_scale=1.0, ftol=1e-8, xtol=1e-8, gtol=
             status = 0
         if status is None:
             status = yield from _iterate(s, ftol, xtol, max_nfev, jac_update)
-    return LMResult(s.x, s.r, 0.5 * float(s.r @ s.r), s.nfev, s.njev, status, s.ncol)
+    return LMResult(s.x, s.r, 0.5 * float(s.r @ s.r), s.nfev, s.njev, status, s.ncol,
+                    *((s.jac, s.jac_x) if s.fresh else (None, None)))
 
 
 class _State:
@@ -153,7 +158,7 @@ class _State:
     def __init__(self, x, lo, hi, scale):
         self.x, self.lo, self.hi, self.scale = x, lo, hi, scale
         self.r, self.nfev = None, 0
-        self.jac, self.mu, self.nu = None, None, 2.0
+        self.jac, self.jac_x, self.mu, self.nu = None, None, None, 2.0
         self.njev, self.ncol, self.next_col = 0, 0, 0
         self.fresh = True  # is self.jac a finite-difference Jacobian (not a Broyden update)?
 
@@ -212,6 +217,7 @@ def _iterate(s, ftol, xtol, max_nfev, jac_update):
             return status
         if jac_update == "broyden" and not s.fresh:
             s.jac, s.fresh = (yield ("jac", s.x, s.r)), True  # a rejected step: no stale slope
+            s.jac_x = s.x
             s.njev += 1
             return None
     return 0
@@ -224,7 +230,7 @@ def _take(s, x_new, r_new, jac_update, need_jacobian):
     if not need_jacobian:
         return
     if jac_update == "full":
-        s.jac = yield ("jac", s.x, s.r)
+        s.jac, s.jac_x = (yield ("jac", s.x, s.r)), s.x
         s.njev += 1
         return
     s.jac = s.jac + np.outer(dr - s.jac @ dx, dx) / max(float(dx @ dx), 1e-300)

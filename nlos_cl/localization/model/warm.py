@@ -6,7 +6,8 @@ the centroid start, a lattice of 20-40 yaws and sizes, three short fits, then th
 Levenberg-Marquardt fit. Where the previous frame's plate is known and the target moved a few
 cm, the start is already in the basin, so only the final fit runs, with `warm_nfev`
 evaluations (stopping on a statistical scale, WARM_ATOL), then the covariance (the same
-sandwich and Birge-ratio calibration as a cold fit), on the estimator's `problem` (the host's
+sandwich and Birge-ratio calibration as a cold fit, its derivatives the solver's last
+Jacobian: REUSE_JACOBIAN), on the estimator's `problem` (the host's
 batched model for up to HOST_DETECTORS detectors with model_on='auto', as a cold fit).
 
 Fallback: where the warm fit misses the data (the Birge ratio above the 99.9 % point of its
@@ -36,6 +37,11 @@ WARM_ATOL = 0.05
 # evaluations, positions within 0.08 mm of the cold fit's default damping (1e-4); 1e-8 moved
 # them by up to 8.7 mm. (Cold fits keep 1e-4: from far starts 1e-6 jumped basins.)
 WARM_TAU = 1e-6
+# The warm fit's covariance from the solver's last Jacobian (model.covariance's `reuse`)
+# instead of new derivatives: paper-scene tracker 12.65 -> 10.59 ms a frame, crossing draw 1
+# 38.3 -> 28.9 ms; sds within the forward differences' ~2-5 % of the analytic ones
+# (docs/model-estimator.md, "Uncertainty").
+REUSE_JACOBIAN = True
 
 
 def warm_fit(est, obs, rows, free, held, backend=None, sizes=None):
@@ -52,8 +58,9 @@ def warm_fit(est, obs, rows, free, held, backend=None, sizes=None):
     prior = size_prior(problem, rows, sizes)
     if prior is not None:
         rows = prior[0]  # the hidden plates start at their known size
-    result = fit(problem, rows, free, est.warm_nfev, tau=WARM_TAU, atol=WARM_ATOL, prior=prior)
-    cov = covariance(problem, result, free)
+    result = fit(problem, rows, free, est.warm_nfev, tau=WARM_TAU, atol=WARM_ATOL, prior=prior,
+                 keep_jacobian=REUSE_JACOBIAN)
+    cov = covariance(problem, result, free, reuse=REUSE_JACOBIAN)
     inadequate, birge = misfit(problem, result, free, cov[1])
     info = {"used": not inadequate, "birge_ratio": birge, "nfev": result.nfev,
             "forward_calls": problem.calls,
