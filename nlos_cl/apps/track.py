@@ -13,6 +13,12 @@ with "smoothed": true; the video and the summary stay causal (the filter's). `--
 time with a latency): frame k's line is printed after frame k + L, with each track's fixed-lag
 estimate (Tracker.lagged(L): the L later frames used) and "lag_frames": L; the last L frames
 get theirs at the end, from the frames there are (lag_frames L - 1, ..., 0).
+
+A sequence of ONE confocal spot (Keyhole's scans, as `nlos-cl convert` writes them) cannot place
+a target, only its range from the spot: it is tracked as a range (nlos_cl.tracking.ranges,
+`_range_main`), one JSON object per frame {"frame", "t_s", "range_m", "range_sd_m",
+"range_speed_m_s", "measured_range_m"} (with --smooth, smoothed and "smoothed": true), the
+options that place targets refused with a one-line reason.
 """
 from __future__ import annotations
 
@@ -122,6 +128,9 @@ def main(args) -> int:
             "pass --json --lag N without --smooth")
     seq = read_sequence(args.file)
     backend = resolve_backend(args.device)
+    from ..tracking.ranges import is_single_confocal
+    if is_single_confocal(seq[0].histograms):
+        return _range_main(args, seq, backend)
     if args.video:
         from .track_video import check_video_path
         check_video_path(args)
@@ -149,6 +158,50 @@ def main(args) -> int:
             where = [round(float(v), 3) for v in seq.frame.from_internal(t.position)]
             print(f"track {t.id} ({t.status}): at {where} m in the file's frame "
                   f"({seq.frame.name}), {len(t.history)} frames")
+    return 0
+
+
+# what places targets, which one confocal spot cannot do: (flag, set?) for `_range_main`
+RANGE_REFUSED = (("--video", lambda a: a.video), ("--estimator", lambda a: a.estimator),
+                 ("--targets", lambda a: a.targets != 1), ("--region", lambda a: a.region),
+                 ("--step", lambda a: a.step), ("--reflectance", lambda a: a.reflectance),
+                 ("--background", lambda a: a.background),
+                 ("--running-mean", lambda a: a.running_mean is not None),
+                 ("--full-search", lambda a: a.full_search), ("--lag", lambda a: a.lag))
+
+
+def _range_main(args, seq, backend) -> int:
+    """One confocal spot: the range per frame (localization.ranges), tracked by
+    tracking.ranges with --motion's models; JSON lines with --json, else a summary."""
+    from ..core.errors import require
+    from ..localization.ranges import confocal_range
+    from ..tracking.ranges import range_floor, range_sigma, track_ranges
+    from tqdm import tqdm
+    for flag, given in RANGE_REFUSED:
+        require(not given(args), flag, "does not apply to a sequence of one confocal spot, "
+                "which gives a range, not a position", f"leave out {flag}")
+    stop = len(seq) if args.max_frames is None else min(args.max_frames, len(seq))
+    h_s = args.h_ns * 1e-9
+    measured, times = [], []
+    for frame in tqdm(seq.frames(0, stop), total=stop, unit="frame", desc="range",
+                      file=sys.stderr, disable=args.no_progress):
+        measured.append(confocal_range(frame.histograms, h_s, backend=backend))
+        times.append(frame.t_s)
+    sigma = range_sigma(measured, range_floor(seq[0].histograms.time_axis))
+    points = track_ranges(measured, times, motion=motion_model(args), sigma_m=sigma,
+                          smooth=args.smooth)
+    if args.json:
+        for p in points:
+            entry = {"frame": p.frame, "t_s": p.t_s, "range_m": p.range_m,
+                     "range_sd_m": p.range_sd_m, "range_speed_m_s": p.speed_m_s,
+                     "measured_range_m": p.measured_m}
+            print(json.dumps(entry | ({"smoothed": True} if args.smooth else {})))
+        return 0
+    spot = [round(float(v), 3) for v in seq.frame.from_internal(seq[0].histograms.laser_spots[0])]
+    last = points[-1]
+    print(f"range track of the confocal spot at {spot} m in the file's frame "
+          f"({seq.frame.name}): {len(points)} frames, last range {last.range_m:.4f} m "
+          f"(sd {last.range_sd_m:.4f}), measurement sd {sigma:.4f} m")
     return 0
 
 

@@ -95,6 +95,9 @@ def read_capture_with_frame(path, *, max_bytes: int | None = None, joint: bool =
                     "write every field of y-tal's NLOSCaptureData (see nlos_cl.io.ytal.capture)")
             require(isinstance(f["H"], h5py.Dataset), f"{where}: H", "is a group, not a "
                     "dataset", "store H as one array (time first), as y-tal writes it")
+            require("frame_t_s" not in f, where, "is a sequence of frames (it has "
+                    "frame_t_s), not one capture", "track it with `nlos-cl track`, or "
+                    "nlos_cl.tracking.read_sequence(path)[k] for frame k")
             check_memory(f, path, max_bytes)
             fields = {k: dataset(f, k, path) for k in f.keys() if k != "H"}
             sets = to_histograms(fields, f["H"], path, joint=joint)

@@ -91,8 +91,11 @@ def plan(h_format, shape, sensors, lasers, formats, path, joint=False) -> list[B
     require(n_t >= 2, where, f"has {n_t} time bins", "store at least 2 time bins")
     rows, whole = np.arange(n_s), (slice(None),) * len(expect) + stokes if stokes else ()
     if h_format in ("T_Si", "T_Sx_Sy"):
-        paired = n_l > 1 and l_shape == s_shape and (None in formats
-                                                     or formats[0] == formats[1])
+        same = l_shape == s_shape and (None in formats or formats[0] == formats[1])
+        # y-tal pairs one laser point with one sensor point too; here only where it is the
+        # sensor point (a single confocal spot: Keyhole's scans), so that one laser point and
+        # one detector elsewhere stays the one-laser layout it always was
+        paired = same and (n_l > 1 or bool(np.allclose(lasers, sensors)))
         require(n_l == 1 or paired, f"capture {path}: laser_grid_xyz",
                 f"has {n_l} points (shape {lasers.shape}) for H_format {h_format} with "
                 f"sensor_grid_xyz {sensors.shape}: neither one laser point nor one per sensor "

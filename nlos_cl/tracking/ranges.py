@@ -1,0 +1,100 @@
+"""Range tracks: a sequence of ONE confocal spot (Keyhole imaging: laser and SPAD look through
+one opening at one wall spot) cannot place a target, but its range from the spot is observed
+each frame (nlos_cl.localization.ranges.confocal_range: the middle of the strongest return).
+`track_ranges` follows that range with the tracker's own motion models (nlos_cl.tracking.motion
+and kalman, one axis: the state is range and range rate), what `nlos-cl track` does for such a
+file instead of refusing it.
+
+Measurement noise: measured on the data as the tracker's argmax sigma is (tracking/scatter.py:
+1.4826 MAD of second differences / sqrt(6)), over every frame given, never below `floor_m`
+(the range one bin spans over sqrt(12), where the record's quantisation is the noise). On
+Keyhole's letters (docs/real-data.md) the range's error against the stage is systematic (where
+each letter's bright middle sits), not frame-to-frame noise (0.4-2.8 mm): filtering moves the
+RMS by < 0.1 mm.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..core.constants import SPEED_OF_LIGHT
+from ..core.errors import require
+from . import kalman
+from .motion import Interacting
+from .scatter import _robust_sigma
+
+
+@dataclass(frozen=True)
+class RangePoint:
+    """One frame of a range track: the filter's (or smoother's) range (m) from the spot, its sd,
+    its rate (m/s), and the frame's own measured range."""
+
+    frame: int
+    t_s: float
+    range_m: float
+    range_sd_m: float
+    speed_m_s: float
+    measured_m: float
+
+
+def is_single_confocal(histograms) -> bool:
+    """One histogram whose laser spot is its detection spot."""
+    return histograms.n_detectors == 1 and bool(
+        np.allclose(histograms.laser_spots, histograms.detector_spots))
+
+
+def range_floor(time_axis) -> float:
+    """The least range noise a record can show (m): one bin's range (half its path) over
+    sqrt(12), its quantisation."""
+    return 0.5 * float(time_axis.dt_s) * SPEED_OF_LIGHT / math.sqrt(12.0)
+
+
+def range_sigma(measured, floor_m: float) -> float:
+    """The measured ranges' frame-to-frame noise (m; module docstring), never below floor_m."""
+    x = np.asarray(measured, np.float64)
+    second = np.diff(x, 2) if len(x) >= 3 else np.zeros(0)
+    second = second[np.isfinite(second)]
+    return _robust_sigma(np.repeat(second[:, None], 3, axis=1), floor_m)
+
+
+def track_ranges(measured, times_s, *, motion=None, sigma_m: float, smooth: bool = False
+                 ) -> list[RangePoint]:
+    """The causal filter's range per frame (or, smooth=True, the RTS smoother's), from the
+    measured ranges (m) at times_s (s, increasing); motion: the Tracker's models (default
+    Interacting()); sigma_m: the measurement sd (range_sigma)."""
+    z, t = np.asarray(measured, np.float64), np.asarray(times_s, np.float64)
+    require(z.ndim == 1 and z.shape == t.shape and len(z) >= 1, "measured",
+            f"must be one range per frame time, got {z.shape} ranges for {t.shape} times",
+            "pass as many ranges as frame times")
+    require(bool(np.all(np.diff(t) > 0)), "times_s", "must increase from frame to frame",
+            "pass the frames' timestamps in order")
+    require(math.isfinite(sigma_m) and sigma_m > 0, "sigma_m",
+            f"must be a positive number of metres, got {sigma_m!r}", "pass range_sigma(...)")
+    motion = Interacting() if motion is None else motion
+    R = np.array([[sigma_m ** 2]])
+    x = np.array([z[0], 0.0])
+    P = np.diag([sigma_m ** 2, motion.initial_speed_sigma ** 2])
+    modes = None
+    if hasattr(motion, "switching"):
+        mu = np.asarray(motion.initial_modes, float)
+        modes = kalman.Modes(mu, np.repeat(x[None], len(mu), 0), np.repeat(P[None], len(mu), 0))
+    filtered, predicted = [(x, P)], [None]
+    for k in range(1, len(z)):
+        dt = float(t[k] - t[k - 1])
+        F = motion.transition(dt, 1)
+        m = kalman.Measurement(np.array([0]), z[k:k + 1], R, np.array([z[k], 0.0, 0.0]))
+        if modes is None:
+            xp, Pp = kalman.predict(x, P, F, motion.process_noise(dt, 1))
+            x, P = kalman.update(xp, Pp, m)
+        else:
+            pred = kalman.predict_modes(modes, F, motion.mode_noises(dt, 1), motion.switching(dt))
+            xp, Pp = pred.combined()
+            modes = kalman.update_modes(pred, m)
+            x, P = modes.combined()
+        filtered.append((x, P))
+        predicted.append((F, xp, Pp))
+    states = kalman.rts_smooth(filtered, predicted) if smooth else filtered
+    return [RangePoint(k, float(t[k]), float(s[0]), math.sqrt(max(float(c[0, 0]), 0.0)),
+                       float(s[1]), float(z[k])) for k, (s, c) in enumerate(states)]
