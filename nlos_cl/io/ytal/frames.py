@@ -147,7 +147,8 @@ def require_locatable(histograms: HistogramSet, field: str = "histograms.detecto
     require(histograms.n_detectors >= 2, field, "has a single detector: every point of its "
             "ellipse fits the data equally well, so the position is underdetermined",
             "record with 2 or more detector spots (3 or more, not all on one line with the laser "
-            "spot, to see height)")
+            "spot, to see height); one confocal spot's range: "
+            "localization.ranges.confocal_range, or `nlos-cl track` on a sequence of it")
 
 
 def _fmt(p) -> str:
