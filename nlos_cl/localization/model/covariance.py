@@ -40,10 +40,7 @@ def _mean_jacobian(problem, params, lin, free):
         cols, moved = evaluated[:len(params)], evaluated[len(params):]
         blocks = [lin[k] * (moved[2 * n] - moved[2 * n + 1]) / (2 * steps[i])
                   for n, (k, i) in enumerate(which)]
-    blocks.extend(cols)
-    if problem.obs.mode == "poisson":
-        n_det = problem.obs.y.shape[0]
-        blocks.extend(np.eye(n_det)[:, :, None] * problem.obs.valid[None])
+    blocks.extend(cols)  # counts' per-detector backgrounds: `_poisson_information`
     return cols, np.stack(blocks, axis=-1)
 
 
@@ -112,6 +109,22 @@ def _correlated_terms(obs, j):
     return meat, trace
 
 
+def _poisson_information(obs, mu, jmu) -> np.ndarray:
+    """The Fisher information of Poisson counts for the target parameters and amplitudes
+    (jmu's P columns), the per-detector backgrounds profiled out: with B the backgrounds'
+    block (diagonal: detector d's background moves only its own bins, information
+    sum_d 1 / lambda) and C the cross terms, the Schur complement A - C B^-1 C^T, whose inverse
+    is the target block of the full inverse. The full matrix, one column per detector, was
+    (D, n, D) dense: 271 GiB for a 4,096-point confocal scan of 2,165 bins."""
+    w = np.where(obs.valid, 1.0 / np.maximum(mu, 1e-12), 0.0)  # (D, n)
+    weighted = jmu * w[:, :, None]
+    a = np.einsum("dnp,dnq->pq", weighted, jmu)
+    cross = weighted.sum(axis=1)  # (D, P): sum over a detector's bins of J / lambda
+    b = w.sum(axis=1)  # (D,)
+    seen = b > 0  # a detector without valid bins has no background to profile
+    return a - cross[seen].T @ (cross[seen] / b[seen, None])
+
+
 def _scaled_pinv(a) -> np.ndarray:
     """Pseudo-inverse of a normal matrix whose columns differ by many orders of magnitude
     (metres, radians, amplitudes in any unit): equilibrated first, so that pinv's relative
@@ -155,9 +168,7 @@ def covariance(problem, result: FitResult, free, reuse: bool = False
         cov = cov * max(1.0, birge)
         info = {"birge_ratio": birge}
     else:
-        lam = np.maximum(mu, 1e-12)[obs.valid]
-        j = jmu[obs.valid]
-        cov = _scaled_pinv(j.T @ (j / lam[:, None]) + np.diag(precision))
+        cov = _scaled_pinv(_poisson_information(obs, mu, jmu) + np.diag(precision))
         info = {"deviance": result.cost, "n_bins": int(obs.valid.sum())}
     full = np.full((params.size, params.size), np.inf)
     mask = np.tile(np.asarray(free, bool), len(params))
