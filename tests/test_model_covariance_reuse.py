@@ -13,10 +13,8 @@ from nlos_cl.localization.model.batch import HostProblem
 from nlos_cl.localization.model.covariance import covariance
 
 from conftest import model_observation
+from test_model_derivatives import ROW, SPOTS, TRUTH  # its scene: every parameter observable
 
-TRUTH = (2.5, 3.0, 0.2)
-SPOTS = [[-0.5, 0.0, 0.0], [-1.2, 0.0, 0.6], [-1.6, 0.0, -0.4]]  # every parameter observable
-ROW = np.array([2.52, 3.03, 0.25, 0.45, 0.8, -2.2])
 FREE = np.ones(plate.N_PARAMS, bool)
 
 

@@ -5,7 +5,7 @@ import math
 import numpy as np
 
 import nlos_cl as nl
-from nlos_cl.tracking.scatter import _robust_sigma, argmax_scatter
+from nlos_cl.tracking.scatter import argmax_scatter, robust_sigma
 
 GRID = nl.Grid.from_ranges(x=(2.5, 5.5), y=(0.5, 3.5), step_m=0.01)
 
@@ -34,5 +34,5 @@ def test_the_scatter_reads_through_heavy_tails():
     second = math.sqrt(6) * 0.1 * rng.standard_normal((400, 3))
     wrong = rng.random(400) < 0.15
     second[wrong] = rng.uniform(-3, 3, (wrong.sum(), 3))
-    assert 0.09 < _robust_sigma(second, 0.0) < 0.13
+    assert 0.09 < robust_sigma(second, 0.0) < 0.13
     assert float(np.max(second.std(axis=0))) / math.sqrt(6) > 0.25

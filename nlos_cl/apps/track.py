@@ -128,7 +128,7 @@ def main(args) -> int:
             "pass --json --lag N without --smooth")
     seq = read_sequence(args.file)
     backend = resolve_backend(args.device)
-    from ..tracking.ranges import is_single_confocal
+    from ..localization.ranges import is_single_confocal
     if is_single_confocal(seq[0].histograms):
         return _range_main(args, seq, backend)
     if args.video:
@@ -174,22 +174,16 @@ def _range_main(args, seq, backend) -> int:
     """One confocal spot: the range per frame (localization.ranges), tracked by
     tracking.ranges with --motion's models; JSON lines with --json, else a summary."""
     from ..core.errors import require
-    from ..localization.ranges import confocal_range
-    from ..tracking.ranges import range_floor, range_sigma, track_ranges
+    from ..tracking.ranges import track_frames
     from tqdm import tqdm
     for flag, given in RANGE_REFUSED:
         require(not given(args), flag, "does not apply to a sequence of one confocal spot, "
                 "which gives a range, not a position", f"leave out {flag}")
     stop = len(seq) if args.max_frames is None else min(args.max_frames, len(seq))
-    h_s = args.h_ns * 1e-9
-    measured, times = [], []
-    for frame in tqdm(seq.frames(0, stop), total=stop, unit="frame", desc="range",
-                      file=sys.stderr, disable=args.no_progress):
-        measured.append(confocal_range(frame.histograms, h_s, backend=backend))
-        times.append(frame.t_s)
-    sigma = range_sigma(measured, range_floor(seq[0].histograms.time_axis))
-    points = track_ranges(measured, times, motion=motion_model(args), sigma_m=sigma,
-                          smooth=args.smooth)
+    frames = tqdm(seq.frames(0, stop), total=stop, unit="frame", desc="range",
+                  file=sys.stderr, disable=args.no_progress)
+    points, sigma = track_frames(frames, h_s=args.h_ns * 1e-9, motion=motion_model(args),
+                                 smooth=args.smooth, backend=backend)
     if args.json:
         for p in points:
             entry = {"frame": p.frame, "t_s": p.t_s, "range_m": p.range_m,

@@ -16,10 +16,15 @@ from ..core.histograms import HistogramSet
 from .api import gauss_filter
 
 
+def is_single_confocal(histograms) -> bool:
+    """One histogram whose laser spot is its detection spot: what confocal_range measures."""
+    return isinstance(histograms, HistogramSet) and histograms.n_detectors == 1 and bool(
+        np.allclose(histograms.laser_spots, histograms.detector_spots))
+
+
 def confocal_range(histograms: HistogramSet, h_s: float = PAPER_H_S, *, backend=None) -> float:
     """The range (m) from a single confocal spot to the middle of its strongest return."""
-    require(isinstance(histograms, HistogramSet) and histograms.n_detectors == 1
-            and np.allclose(histograms.laser_spots, histograms.detector_spots), "histograms",
+    require(is_single_confocal(histograms), "histograms",
             "range-only location needs one confocal histogram (laser spot = detection spot)",
             "pass a frame of a single-spot confocal capture, or locate a wider one")
     from .measured.lobe import lobe_centroid

@@ -21,9 +21,10 @@ import numpy as np
 
 from ..core.constants import SPEED_OF_LIGHT
 from ..core.errors import require
+from ..localization.ranges import confocal_range
 from . import kalman
 from .motion import Interacting
-from .scatter import _robust_sigma
+from .scatter import robust_sigma
 
 
 @dataclass(frozen=True)
@@ -39,12 +40,6 @@ class RangePoint:
     measured_m: float
 
 
-def is_single_confocal(histograms) -> bool:
-    """One histogram whose laser spot is its detection spot."""
-    return histograms.n_detectors == 1 and bool(
-        np.allclose(histograms.laser_spots, histograms.detector_spots))
-
-
 def range_floor(time_axis) -> float:
     """The least range noise a record can show (m): one bin's range (half its path) over
     sqrt(12), its quantisation."""
@@ -55,8 +50,22 @@ def range_sigma(measured, floor_m: float) -> float:
     """The measured ranges' frame-to-frame noise (m; module docstring), never below floor_m."""
     x = np.asarray(measured, np.float64)
     second = np.diff(x, 2) if len(x) >= 3 else np.zeros(0)
-    second = second[np.isfinite(second)]
-    return _robust_sigma(np.repeat(second[:, None], 3, axis=1), floor_m)
+    return robust_sigma(second[np.isfinite(second)][:, None], floor_m)
+
+
+def track_frames(frames, *, h_s: float, motion=None, smooth: bool = False, backend=None
+                 ) -> tuple[list, float]:
+    """(RangePoints, the measurement sd) of sequence frames (SequenceFrames of one confocal
+    spot, in time order): each frame's confocal_range, range_sigma over them all, then
+    track_ranges: what `nlos-cl track` does with such a file."""
+    measured, times, axis = [], [], None
+    for frame in frames:
+        measured.append(confocal_range(frame.histograms, h_s, backend=backend))
+        times.append(frame.t_s)
+        axis = frame.histograms.time_axis
+    require(axis is not None, "frames", "is empty", "pass at least one frame")
+    sigma = range_sigma(measured, range_floor(axis))
+    return track_ranges(measured, times, motion=motion, sigma_m=sigma, smooth=smooth), sigma
 
 
 def track_ranges(measured, times_s, *, motion=None, sigma_m: float, smooth: bool = False

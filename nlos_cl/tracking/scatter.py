@@ -41,7 +41,7 @@ def sequence_scatter(seq, grid, *, h_s: float, floor: float = 0.05, backend=None
     starts = unique_sorted(np.linspace(0, max(n - FRAMES, 0), WINDOWS).astype(int))
     second = [_second_differences([seq[k].histograms for k in range(a, min(n, a + FRAMES))],
                                   grid, h_s=h_s, backend=backend) for a in starts]
-    return _robust_sigma(np.concatenate(second), floor)
+    return robust_sigma(np.concatenate(second), floor)
 
 
 def argmax_scatter(frames, grid, *, h_s: float, floor: float = 0.05, backend=None,
@@ -49,12 +49,12 @@ def argmax_scatter(frames, grid, *, h_s: float, floor: float = 0.05, backend=Non
     """The per-axis sigma (m) of the paper's argmax over consecutive `frames`
     (HistogramSets of one layout, in time order; the first FRAMES); `floor` where fewer than 5
     hold a target."""
-    return _robust_sigma(_second_differences(frames, grid, h_s=h_s, backend=backend,
+    return robust_sigma(_second_differences(frames, grid, h_s=h_s, backend=backend,
                                              log_mode=log_mode), floor)
 
 
-def _robust_sigma(second: np.ndarray, floor: float) -> float:
-    """The largest axis's 1.4826 MAD / sqrt(6) of second differences (k, 3); `floor` where
+def robust_sigma(second: np.ndarray, floor: float) -> float:
+    """The largest axis's 1.4826 MAD / sqrt(6) of second differences (k, axes); `floor` where
     fewer than 3."""
     if len(second) < 3:
         return floor

@@ -89,9 +89,8 @@ def keyhole(cfg: dict, root: Path) -> dict:
     aligns them; the frames' own measured ranges' RMS beside it."""
     from nlos_cl.apps.cli import parser
     from nlos_cl.apps.track import motion_model
-    from nlos_cl.localization.ranges import confocal_range
     from nlos_cl.tracking import read_sequence, write_sequence
-    from nlos_cl.tracking.ranges import range_floor, range_sigma, track_ranges
+    from nlos_cl.tracking.ranges import track_frames
     rows, series = [], {}
     for letter in cfg["letters"]:
         (frames, meta), read_s = _timed(lambda: nl.read_dataset(root / "keyhole" / letter))
@@ -100,13 +99,10 @@ def keyhole(cfg: dict, root: Path) -> dict:
             seq = read_sequence(path)
             args = parser().parse_args(["track", str(path)])
 
-            def track():
-                measured = [confocal_range(f.histograms, args.h_ns * 1e-9) for f in seq.frames()]
-                sigma = range_sigma(measured, range_floor(seq[0].histograms.time_axis))
-                points = track_ranges(measured, [f.t_s for f in seq.frames()],
-                                      motion=motion_model(args), sigma_m=sigma)
-                return np.array([p.range_m for p in points]), np.array(measured)
-            (ours, measured), seconds = _timed(track)
+            points, seconds = _timed(lambda: track_frames(
+                seq.frames(), h_s=args.h_ns * 1e-9, motion=motion_model(args))[0])
+        ours = np.array([p.range_m for p in points])
+        measured = np.array([p.measured_m for p in points])
         stage = np.asarray(meta["stage_range_m"])
         offset = float(np.mean(ours - stage))
         corr = float(np.corrcoef(ours, stage)[0, 1])

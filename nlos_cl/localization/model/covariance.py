@@ -71,10 +71,11 @@ def _reused_jacobian(problem, result, free):
     -(I - P_A) d mu / d theta (whitened; P_A the projection on the amplitudes' columns), and
     [-(I - P_A) J_theta, A] spans what [J_theta, A] does by a change of variables that leaves
     the target parameters' block of the sandwich and trace(H C) unchanged, so the covariance
-    of the target parameters and the Birge ratio are the same. What differs: forward
-    differences at frozen cell statistics (within 0.2 % of the exact derivatives per column,
-    model.fit) taken up to one accepted step before the solution (a warm fit stops once a step
-    promises less than WARM_ATOL of cost: ~0.3 sd)."""
+    of the target parameters and the Birge ratio are the same. What differs: the solver's
+    forward differences (2 mm, 4 mrad, at frozen cell statistics: a truncation of ~h / (2
+    sigma), sds 0.2-5 % from the analytic ones, tests/test_model_covariance_reuse.py) taken up
+    to one accepted step before the solution (a warm fit stops once a step promises less than
+    WARM_ATOL of cost: ~0.3 sd)."""
     if problem.obs.mode != "gauss" or result.jacobian is None:
         return None
     at, jac = result.jacobian
@@ -146,10 +147,9 @@ def covariance(problem, result: FitResult, free, reuse: bool = False
     them (`_mean_jacobian`)."""
     obs, params = problem.obs, result.params
     reused = _reused_jacobian(problem, result, free) if reuse else None
-    if reused is not None:
-        cols, jmu = reused
-    else:
-        cols, jmu = _mean_jacobian(problem, params, result.linear, free)
+    # jmu: d mu / d (parameters, amplitudes), (D, n, P); a reused one comes whitened, (rows, P)
+    cols, jmu = reused if reused is not None else \
+        _mean_jacobian(problem, params, result.linear, free)
     mu = problem.mean(cols, result.linear)
     n_free = int(np.count_nonzero(free)) * len(params)
     # a MAP fit's prior adds its precision to the information (model.fit's `prior`)
