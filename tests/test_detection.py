@@ -121,3 +121,34 @@ def test_locate_capture_and_the_cli_say_no_target(tmp_path, capsys):
     assert printed["detected"] is False and printed["position"] is None
     assert printed["targets"] == [] and printed["detection"]["statistic"] < \
         printed["detection"]["threshold"]
+
+
+@pytest.mark.parametrize("shape", [(3, 5000), (100, 40), (100, 3000)],
+                         ids=["few long rows", "many short rows", "many long rows"])
+def test_window_peaks_is_each_rows_maximum_over_its_window(shape):
+    """Both of _window_peaks' ways (slices, or one masked pass) against a plain loop."""
+    from nlos_cl.localization.detection import _window_peaks
+    rng = np.random.default_rng(3)
+    rows = rng.standard_normal(shape).astype(np.float32)
+    first = rng.integers(0, shape[1] // 2, shape[0])
+    last = np.minimum(first + rng.integers(0, shape[1] // 2, shape[0]), shape[1] - 1)
+    expected = [rows[i, a:b + 1].max() for i, (a, b) in enumerate(zip(first, last))]
+    np.testing.assert_array_equal(_window_peaks(rows, first, last), expected)
+
+
+def test_an_upload_keeps_its_host_copy_and_reads_the_same_values():
+    """Signals.values(): an uploaded frame's float32 host copy, the values the device holds
+    (the detection and the model fit read it instead of reading the device back), neither
+    the user's array nor a later stage's."""
+    from nlos_cl.ops.signals import upload
+    rt = nl.resolve_backend(None)
+    clean = nl.simulate(nl.paper_scene(), backend=rt).histograms()
+    before = clean.data.copy()
+    sig = upload(clean, rt)
+    assert sig.host is not None and sig.host is not clean.data
+    np.testing.assert_array_equal(sig.values(), rt.read(sig.handle))
+    np.testing.assert_array_equal(clean.data, before)  # the user's data untouched
+    filtered = nl.gauss_filter(sig)
+    assert filtered.host is None  # a stage's output is read from the device
+    reference = upload(clean, "reference")  # the float64 twins: no rounded copy
+    assert reference.host is None and reference.values().dtype == np.float64

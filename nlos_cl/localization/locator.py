@@ -17,7 +17,7 @@ from ..core.tuning import AUTO_TRIALS
 from ..core.histograms import HistogramSet
 from ..core.stats import median
 from ..ops.argmax_patch import decode
-from ..ops.backend import NumpyBackend, read_values
+from ..ops.backend import NumpyBackend
 from ..ops.signals import Signals, as_signals
 from .estimate import Location, Scored, capabilities_of
 from .detection import detect, reachable_bins
@@ -277,7 +277,7 @@ def detected_in(signals: Signals, window):
     """(the filtered rows on the host as stored, whether they hold target signal in each row's
     reachable bins `window`: localization.detection.detect): one read, which the model fit's
     observation reads too (Scored.host_rows)."""
-    rows = read_values(signals.backend, signals.handle)
+    rows = signals.values()
     return rows, detect(rows, window)
 
 

@@ -18,7 +18,6 @@ import numpy as np
 from ...core.constants import PAPER_H_S
 from ...core.errors import require
 from ...core.stats import median, row_median
-from ...ops.backend import read_values
 from ...ops.gauss_filter import gauss_taps
 
 MAD = 1.4826  # MAD -> standard deviation for Gaussian noise
@@ -264,8 +263,8 @@ def observation(scored, likelihood: str, *, h_s: float, pulse_sigma_s: float, ji
     layout = scored.signals.layout
     # read as stored (float32 from a device), once: a SPAD record's float64 copies cost ~1 s
     filtered = scored.host_rows if scored.host_rows is not None else \
-        read_values(scored.signals.backend, scored.signals.handle)
-    raw = None if scored.raw is None else read_values(scored.raw.backend, scored.raw.handle)
+        scored.signals.values()
+    raw = None if scored.raw is None else scored.raw.values()
     mode = likelihood
     if mode == "auto":
         mode = "poisson" if raw is not None and looks_like_counts(
