@@ -42,6 +42,12 @@ WARM_TAU = 1e-6
 # 38.3 -> 28.9 ms; sds within the forward differences' ~2-5 % of the analytic ones
 # (docs/model-estimator.md, "Uncertainty").
 REUSE_JACOBIAN = True
+# The warm fit steps each plate's width and yaw as its width vector (model.fit.WidthVectors:
+# the data's width-yaw valley is straight there). Stream bench, interleaved: 12.95 -> 11.73 ms
+# a frame; the two noise draws that crawled along the valley 34-35 -> 25-31 model calls, to a
+# lower cost. Cold fits keep (width, yaw): their frames' median moved < 2 % (51.3 -> 49.8 ms,
+# the same answers), so the accuracy draws were not re-run for it.
+WIDTH_VECTORS = True
 
 
 def warm_fit(est, obs, rows, free, held, backend=None, sizes=None):
@@ -59,7 +65,7 @@ def warm_fit(est, obs, rows, free, held, backend=None, sizes=None):
     if prior is not None:
         rows = prior[0]  # the hidden plates start at their known size
     result = fit(problem, rows, free, est.warm_nfev, tau=WARM_TAU, atol=WARM_ATOL, prior=prior,
-                 keep_jacobian=REUSE_JACOBIAN)
+                 keep_jacobian=REUSE_JACOBIAN, width_vectors=WIDTH_VECTORS)
     cov = covariance(problem, result, free, reuse=REUSE_JACOBIAN)
     inadequate, birge = misfit(problem, result, free, cov[1])
     info = {"used": not inadequate, "birge_ratio": birge, "nfev": result.nfev,
