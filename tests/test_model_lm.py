@@ -248,3 +248,30 @@ def test_table_erf_matches_math_erf():
     assert np.max(np.abs(erf(x) - ref)) < 1e-13
     assert np.array_equal(erf(-x), -erf(x))
     assert erf(np.array([[0.5]])).shape == (1, 1)
+
+
+def test_atol_stops_without_a_jacobian_once_the_next_step_would_gain_less(monkeypatch):
+    """After an accepted step the Jacobian in hand predicts the next step's gain; below atol
+    the solver stops there, without the Jacobian and the trial step the plain test (the gain
+    of the step just tried) needs, within the atol scale of the optimum."""
+    from nlos_cl.localization.model import lm
+    jacs = []
+
+    def jac(x):
+        jacs.append(x)
+        h = 1e-7
+        return np.stack([(decay(x + h * e) - decay(x)) / h for e in np.eye(3)], axis=1)
+    ref = least_squares(decay, [1.0, 1.0, 0.0], jac=jac, **TIGHT)
+    atol = 1e-4 * ref.cost
+    runs = {}
+    for ahead in (False, True):
+        with monkeypatch.context() as m:
+            if not ahead:  # the plain test alone
+                m.setattr(lm, "_predicted_ahead", lambda *args: math.inf)
+            jacs.clear()
+            sol = least_squares(decay, [1.0, 1.0, 0.0], jac=jac, atol=atol)
+            runs[ahead] = (sol, len(jacs))
+    (plain, plain_jacs), (sol, sol_jacs) = runs[False], runs[True]
+    assert sol.status == 5  # (the plain run went on until ftol, one more step)
+    assert sol_jacs < plain_jacs and sol.nfev < plain.nfev
+    assert sol.cost - ref.cost < 2 * atol and plain.cost - ref.cost < 2 * atol
