@@ -78,9 +78,10 @@ def least_squares(fun, x0, jac=None, bounds=(-np.inf, np.inf), x_scale=1.0, ftol
     the Jacobian, for Broyden's fresh columns (default: a forward difference of `fun`). tau:
     the initial damping relative to max diag(J'J) (TAU; smaller for a start known to be in the
     minimum's basin, e.g. a tracker's warm start). atol: stop when a step's predicted cost
-    decrease is below atol (absolute; None: off): the step just tried, or, after an accepted
-    step, the next one as the Jacobian in hand predicts it (no Jacobian is made only to learn
-    that the fit is done: a warm tracker frame 19 -> 12 model calls). Where the cost is chi^2 / 2 that is a
+    decrease is below atol (absolute; None: off): the step just tried; or the best step the
+    Jacobian at x allows (its Gauss-Newton step: no trial step is evaluated); or, after a
+    short accepted step (one that promised < 2 atol), the next one as the Jacobian in hand
+    predicts it (no Jacobian is made only to learn that the fit is done). Where the cost is chi^2 / 2 that is a
     statistical scale: a step that cannot lower chi^2 by 2 atol moves no parameter by more
     than ~sqrt(2 atol) of its sd, while finite-difference Jacobians leave ~1e-4 of cost that
     the relative ftol waits for in vain (rejected steps until max_nfev)."""
@@ -194,6 +195,8 @@ def _iterate(s, ftol, xtol, max_nfev, jac_update):
     free = s.free(g)
     if s.mu is None:
         s.mu = s.tau * max(float(np.max(np.diag(a))), EPS)
+    if s.atol is not None and s.fresh and _best_gain(a, g, free) < s.atol:
+        return 5  # the Jacobian at x says no step can gain atol: no trial step
     cost = 0.5 * float(s.r @ s.r)
     while s.nfev < max_nfev:
         h = _damped_step(a, g, s.mu, free)
@@ -210,9 +213,9 @@ def _iterate(s, ftol, xtol, max_nfev, jac_update):
         if ratio > ACCEPT:
             s.mu *= max(1.0 / 3.0, 1.0 - (2.0 * ratio - 1.0) ** 3)
             s.nu = 2.0
-            if status is None and s.atol is not None and \
-                    _predicted_ahead(js, a, r_new, s.mu, free) < s.atol:
-                status = 5  # the next step would gain < atol: no Jacobian for it
+            if status is None and s.atol is not None and predicted < 2.0 * s.atol and \
+                    _best_gain(a, js.T @ r_new, free) < s.atol:
+                status = 5  # a short step, and the Jacobian in hand says the next gains < atol
             # no Jacobian where the loop ends anyway (SciPy computes one: n forward calls)
             yield from _take(s, x_new, r_new, jac_update, status is None and s.nfev < max_nfev)
             return status
@@ -247,13 +250,12 @@ def _take(s, x_new, r_new, jac_update, need_jacobian):
         s.ncol += 1
 
 
-def _predicted_ahead(js, a, r, mu, free):
-    """The next step's predicted cost decrease at the accepted point (residual r), from the
-    Jacobian the step was taken with (js, a = js' js: scaled): the atol test one Jacobian
-    early."""
-    g = js.T @ r
-    h = _damped_step(a, g, mu, free)
-    return -(float(g @ h) + 0.5 * float(h @ a @ h))
+def _best_gain(a, g, free):
+    """The most a step can lower the cost on the quadratic model (A = J'J, gradient g, both
+    scaled): g' A^-1 g / 2 over the free variables, the Gauss-Newton step's gain (A nudged
+    by 1e-12 of its largest diagonal: an unobservable direction gains nothing)."""
+    h = _damped_step(a, g, 1e-12 * max(float(np.max(np.diag(a))), EPS), free)
+    return -0.5 * float(g @ h)
 
 
 def _fd_column(fun, x, r0, j, step, hi_j):
