@@ -70,15 +70,15 @@ class _Objective:
         lo, hi = (np.tile(b, k)[self.free] for b in (shape.LOWER, shape.UPPER))
         return np.clip(self.base.reshape(-1)[self.free], lo + 1e-6, hi - 1e-6), lo, hi
 
-    def solver(self, max_nfev, tau=None, atol=None, variables=None):
+    def solver(self, max_nfev, tau=None, atol=None, variables=None, best_gain=True):
         """model.lm.solve over the free parameters, from the start put inside the bounds;
-        variables: None, or a WidthVectors the solver works in instead."""
+        variables: None, or a WidthVectors the solver works in instead; best_gain: lm's."""
         theta0, lo, hi = self.start()
         if variables is not None:
             theta0, (lo, hi) = variables.to_phi(theta0), variables.bounds(lo, hi)
         return solve(theta0, (lo, hi), np.tile(self.shape.X_SCALE, len(self.base))[self.free],
                      ftol=1e-7, xtol=1e-5, max_nfev=max_nfev, jac_update=JAC_UPDATE,
-                     atol=atol, **({} if tau is None else {"tau": tau}))
+                     atol=atol, best_gain=best_gain, **({} if tau is None else {"tau": tau}))
 
     def answer(self, request):
         """What the solver asks for (model.lm.solve): the residual, Jacobian or a column."""
@@ -241,7 +241,7 @@ def stepped_columns(problem, params, cols, moves) -> np.ndarray:
 
 
 def fit(problem, params0, free, max_nfev=30, tau=None, atol=None, prior=None,
-        keep_jacobian=False, width_vectors=False) -> FitResult:
+        keep_jacobian=False, width_vectors=False, best_gain=True) -> FitResult:
     """Least squares from params0 (K, N_PARAMS) over the parameters marked in `free`
     (N_PARAMS,). tau, atol: model.lm's (tau None: its default; atol None: off). prior: None,
     or (mean, sd), each (K, N_PARAMS) (sd inf: no prior on that parameter): a Gaussian prior
@@ -249,18 +249,20 @@ def fit(problem, params0, free, max_nfev=30, tau=None, atol=None, prior=None,
     keep_jacobian: the result keeps the solver's last Jacobian and the columns
     (FitResult.jacobian, .columns: model.covariance's `reuse`; a 1,024-spot fit's are MBs).
     width_vectors: the solver steps each plate's width and yaw as its width vector
-    (`WidthVectors`; plates with both free); the result is in the shape's own parameters."""
+    (`WidthVectors`; plates with both free); the result is in the shape's own parameters.
+    best_gain: model.lm's (with atol: stop on the Jacobian's best gain too)."""
     obj = _Objective(problem, params0, free, prior)
     variables = WidthVectors.of(obj) if width_vectors else None
     if variables is None:
-        return obj.result(drive(obj.solver(max_nfev, tau, atol), obj.answer), keep_jacobian)
+        return obj.result(drive(obj.solver(max_nfev, tau, atol, best_gain=best_gain),
+                                obj.answer), keep_jacobian)
 
     def answer(request):  # the solver's phi asked in theta, the Jacobian by the chain rule
         theta = variables.to_theta(request[1])
         if request[0] == "fun":
             return obj.residual(theta)
         return obj.jac(theta) @ variables.dtheta_dphi(request[1])
-    sol = drive(obj.solver(max_nfev, tau, atol, variables), answer)
+    sol = drive(obj.solver(max_nfev, tau, atol, variables, best_gain), answer)
     jac, jac_x = None, None
     if sol.jac is not None:
         jac_x = variables.to_theta(sol.jac_x)

@@ -71,7 +71,8 @@ class LMResult:
 
 def least_squares(fun, x0, jac=None, bounds=(-np.inf, np.inf), x_scale=1.0, ftol=1e-8,
                   xtol=1e-8, gtol=1e-8, max_nfev=None, jac_update="full",
-                  diff_step=None, jac_column=None, tau=TAU, atol=None) -> LMResult:
+                  diff_step=None, jac_column=None, tau=TAU, atol=None,
+                  best_gain=True) -> LMResult:
     """Bounded least squares by Levenberg-Marquardt (see the module's docstring). `jac`:
     callable x -> (m, n), or None for forward differences of step `diff_step` (absolute, (n,)
     or scalar; default sqrt(eps) max(1, |x|)). `jac_column`: callable (x, j) -> column j of
@@ -81,11 +82,13 @@ def least_squares(fun, x0, jac=None, bounds=(-np.inf, np.inf), x_scale=1.0, ftol
     decrease is below atol (absolute; None: off): the step just tried; or the best step the
     Jacobian at x allows (its Gauss-Newton step: no trial step is evaluated); or, after a
     short accepted step (one that promised < 2 atol), the next one as the Jacobian in hand
-    predicts it (no Jacobian is made only to learn that the fit is done). Where the cost is chi^2 / 2 that is a
+    predicts it (no Jacobian is made only to learn that the fit is done); best_gain=False:
+    the step just tried alone. Where the cost is chi^2 / 2 that is a
     statistical scale: a step that cannot lower chi^2 by 2 atol moves no parameter by more
     than ~sqrt(2 atol) of its sd, while finite-difference Jacobians leave ~1e-4 of cost that
     the relative ftol waits for in vain (rejected steps until max_nfev)."""
-    solver = solve(x0, bounds, x_scale, ftol, xtol, gtol, max_nfev, jac_update, tau, atol)
+    solver = solve(x0, bounds, x_scale, ftol, xtol, gtol, max_nfev, jac_update, tau, atol,
+                   best_gain)
     diff = _diff_steps(np.atleast_1d(np.asarray(x0, dtype=np.float64)), diff_step)
     hi = np.broadcast_to(np.asarray(bounds[1], dtype=np.float64), diff.shape)
 
@@ -134,14 +137,14 @@ def drive_together(solvers, serve_all) -> list:
 
 
 def solve(x0, bounds=(-np.inf, np.inf), x_scale=1.0, ftol=1e-8, xtol=1e-8, gtol=1e-8,
-          max_nfev=None, jac_update="full", tau=TAU, atol=None):
+          max_nfev=None, jac_update="full", tau=TAU, atol=None, best_gain=True):
     """`least_squares` as a generator: it yields requests and is sent their answers, then
     returns its LMResult. Requests: ("fun", x) the residual at x; ("jac", x, r) the
     Jacobian at x (r: the residual there); ("col", x, j, r) column j of it (Broyden)."""
     x0, lo, hi, scale, max_nfev = _inputs(x0, bounds, x_scale, max_nfev, jac_update)
     s = _State(np.clip(x0, lo, hi), lo, hi, scale)
     s.r = yield from s.evaluate(s.x, first=True)
-    s.tau, s.atol = float(tau), atol
+    s.tau, s.atol, s.best_gain = float(tau), atol, bool(best_gain)
     s.jac, s.jac_x = (yield ("jac", s.x, s.r)), s.x
     s.njev += 1
     status = None
@@ -195,7 +198,7 @@ def _iterate(s, ftol, xtol, max_nfev, jac_update):
     free = s.free(g)
     if s.mu is None:
         s.mu = s.tau * max(float(np.max(np.diag(a))), EPS)
-    if s.atol is not None and s.fresh and _best_gain(a, g, free) < s.atol:
+    if s.atol is not None and s.best_gain and s.fresh and _best_gain(a, g, free) < s.atol:
         return 5  # the Jacobian at x says no step can gain atol: no trial step
     cost = 0.5 * float(s.r @ s.r)
     while s.nfev < max_nfev:
@@ -213,7 +216,8 @@ def _iterate(s, ftol, xtol, max_nfev, jac_update):
         if ratio > ACCEPT:
             s.mu *= max(1.0 / 3.0, 1.0 - (2.0 * ratio - 1.0) ** 3)
             s.nu = 2.0
-            if status is None and s.atol is not None and predicted < 2.0 * s.atol and \
+            if status is None and s.atol is not None and s.best_gain and predicted < 2.0 * s.atol \
+                    and \
                     _best_gain(a, js.T @ r_new, free) < s.atol:
                 status = 5  # a short step, and the Jacobian in hand says the next gains < atol
             # no Jacobian where the loop ends anyway (SciPy computes one: n forward calls)
