@@ -216,9 +216,8 @@ def _iterate(s, ftol, xtol, max_nfev, jac_update):
         if ratio > ACCEPT:
             s.mu *= max(1.0 / 3.0, 1.0 - (2.0 * ratio - 1.0) ** 3)
             s.nu = 2.0
-            if status is None and s.atol is not None and s.best_gain and predicted < 2.0 * s.atol \
-                    and \
-                    _best_gain(a, js.T @ r_new, free) < s.atol:
+            if status is None and s.atol is not None and s.best_gain and \
+                    predicted < 2.0 * s.atol and _best_gain(a, js.T @ r_new, free) < s.atol:
                 status = 5  # a short step, and the Jacobian in hand says the next gains < atol
             # no Jacobian where the loop ends anyway (SciPy computes one: n forward calls)
             yield from _take(s, x_new, r_new, jac_update, status is None and s.nfev < max_nfev)
@@ -257,7 +256,7 @@ def _take(s, x_new, r_new, jac_update, need_jacobian):
 def _best_gain(a, g, free):
     """The most a step can lower the cost on the quadratic model (A = J'J, gradient g, both
     scaled): g' A^-1 g / 2 over the free variables, the Gauss-Newton step's gain (A nudged
-    by 1e-12 of its largest diagonal: an unobservable direction gains nothing)."""
+    by 1e-12 of its largest diagonal, so that a singular A still solves)."""
     h = _damped_step(a, g, 1e-12 * max(float(np.max(np.diag(a))), EPS), free)
     return -0.5 * float(g @ h)
 
