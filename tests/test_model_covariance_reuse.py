@@ -7,24 +7,18 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-import nlos_cl as nl
 from nlos_cl.localization.model import covariance as cov_module, fit, plate
 from nlos_cl.localization.model.batch import HostProblem
 from nlos_cl.localization.model.covariance import covariance
 
-from conftest import model_observation
-from test_model_derivatives import ROW, SPOTS, TRUTH  # its scene: every parameter observable
+from test_model_derivatives import ROW, scene_observation  # every parameter observable
 
 FREE = np.ones(plate.N_PARAMS, bool)
 
 
 @pytest.fixture(scope="module")
 def fitted(runtime):
-    setup = nl.paper_setup(detector_spots=SPOTS)
-    mesh = nl.rectangle(0.4, 0.8, centre=TRUTH, normal=(-0.5, -0.8, 0.0))
-    raw = nl.add_noise(nl.simulate(nl.Scene(setup, nl.Target(mesh), truth=TRUTH),
-                                   backend=runtime), 15.0, seed=4)
-    host = HostProblem(model_observation(nl.gauss_filter(raw), raw))
+    host = HostProblem(scene_observation(runtime))
     return host, fit.fit(host, ROW[None], FREE, 30, keep_jacobian=True)
 
 

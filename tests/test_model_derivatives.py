@@ -18,13 +18,18 @@ SPOTS = [[-0.5, 0.0, 0.0], [-1.2, 0.0, 0.6], [-1.6, 0.0, -0.4]]
 ROW = np.array([2.52, 3.03, 0.25, 0.45, 0.8, -2.2])
 
 
-@pytest.fixture(scope="module")
-def obs(runtime):
+def scene_observation(runtime):
+    """A 15 dB frame of a 0.4 x 0.8 m plate at TRUTH seen from SPOTS, as the fit sees it."""
     setup = nl.paper_setup(detector_spots=SPOTS)
     mesh = nl.rectangle(0.4, 0.8, centre=TRUTH, normal=(-0.5, -0.8, 0.0))
     raw = nl.add_noise(nl.simulate(nl.Scene(setup, nl.Target(mesh), truth=TRUTH),
                                    backend=runtime), 15.0, seed=4)
     return model_observation(nl.gauss_filter(raw), raw)
+
+
+@pytest.fixture(scope="module")
+def obs(runtime):
+    return scene_observation(runtime)
 
 
 def test_plate_derivatives_are_central_differences_of_the_model(obs):

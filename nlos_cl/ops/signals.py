@@ -71,6 +71,7 @@ def upload(histograms: HistogramSet, backend=None) -> Signals:
     # a device stores float32: divided in float64 and rounded once, without a float64
     # temporary; the host copy kept (Signals.values)
     values = np.divide(data, scale, out=np.empty(data.shape, np.float32), casting="same_kind")
+    values.flags.writeable = False  # it must stay what the device holds
     return Signals(backend, backend.from_numpy(values), scale, histograms.layout, values)
 
 

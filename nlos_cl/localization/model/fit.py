@@ -18,12 +18,12 @@ the fitted parameters do not depend on it beyond the solver's tolerance.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from . import plate
-from .lm import LMResult, drive, solve
+from .lm import drive, solve
 
 JAC_UPDATE = "full"  # not "broyden": it took more forward calls here (nlos_cl.localization.model.lm)
 
@@ -263,12 +263,10 @@ def fit(problem, params0, free, max_nfev=30, tau=None, atol=None, prior=None,
             return obj.residual(theta)
         return obj.jac(theta) @ variables.dtheta_dphi(request[1])
     sol = drive(obj.solver(max_nfev, tau, atol, variables, best_gain), answer)
-    jac, jac_x = None, None
-    if sol.jac is not None:
+    if sol.jac is not None:  # the kept Jacobian back in theta, at its own point
         jac_x = variables.to_theta(sol.jac_x)
-        jac = sol.jac @ variables.dphi_dtheta(jac_x)
-    return obj.result(LMResult(variables.to_theta(sol.x), sol.fun, sol.cost, sol.nfev,
-                               sol.njev, sol.status, sol.ncol, jac, jac_x), keep_jacobian)
+        sol = replace(sol, jac=sol.jac @ variables.dphi_dtheta(jac_x), jac_x=jac_x)
+    return obj.result(replace(sol, x=variables.to_theta(sol.x)), keep_jacobian)
 
 
 class WidthVectors:

@@ -144,7 +144,8 @@ def solve(x0, bounds=(-np.inf, np.inf), x_scale=1.0, ftol=1e-8, xtol=1e-8, gtol=
     x0, lo, hi, scale, max_nfev = _inputs(x0, bounds, x_scale, max_nfev, jac_update)
     s = _State(np.clip(x0, lo, hi), lo, hi, scale)
     s.r = yield from s.evaluate(s.x, first=True)
-    s.tau, s.atol, s.best_gain = float(tau), atol, bool(best_gain)
+    s.tau, s.atol = float(tau), atol
+    s.best_gain = bool(best_gain) and atol is not None  # the atol test on the Jacobian's gain
     s.jac, s.jac_x = (yield ("jac", s.x, s.r)), s.x
     s.njev += 1
     status = None
@@ -198,7 +199,7 @@ def _iterate(s, ftol, xtol, max_nfev, jac_update):
     free = s.free(g)
     if s.mu is None:
         s.mu = s.tau * max(float(np.max(np.diag(a))), EPS)
-    if s.atol is not None and s.best_gain and s.fresh and _best_gain(a, g, free) < s.atol:
+    if s.best_gain and s.fresh and _best_gain(a, g, free) < s.atol:
         return 5  # the Jacobian at x says no step can gain atol: no trial step
     cost = 0.5 * float(s.r @ s.r)
     while s.nfev < max_nfev:
@@ -216,8 +217,8 @@ def _iterate(s, ftol, xtol, max_nfev, jac_update):
         if ratio > ACCEPT:
             s.mu *= max(1.0 / 3.0, 1.0 - (2.0 * ratio - 1.0) ** 3)
             s.nu = 2.0
-            if status is None and s.atol is not None and s.best_gain and \
-                    predicted < 2.0 * s.atol and _best_gain(a, js.T @ r_new, free) < s.atol:
+            if status is None and s.best_gain and predicted < 2.0 * s.atol and \
+                    _best_gain(a, js.T @ r_new, free) < s.atol:
                 status = 5  # a short step, and the Jacobian in hand says the next gains < atol
             # no Jacobian where the loop ends anyway (SciPy computes one: n forward calls)
             yield from _take(s, x_new, r_new, jac_update, status is None and s.nfev < max_nfev)
