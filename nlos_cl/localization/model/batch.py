@@ -53,6 +53,8 @@ class HostProblem(Problem):
     the unmoved plate's cell statistics: d(model)/d(parameter) at frozen blur, shift and
     pull-in, half the work of a column; residuals use each plate's own."""
 
+    batched = True  # column_batch: one host call (or one launch) for all rows
+
     def __init__(self, obs, lattice=(16, 24), backend=None, reflectance=None, kernel=False):
         # backend: for the closed shapes' Problems. reflectance: None (Lambertian) or a model
         # with factor_of_cosine (its factor from l.v alone: Retroreflective), applied to the

@@ -54,12 +54,15 @@ def shape_of(problem):
 class _Objective:
     """Residual and Jacobian of the profiled problem over the free parameters."""
 
-    def __init__(self, problem, params0, free, prior=None):
+    def __init__(self, problem, params0, free, prior=None, speculate=False):
         self.problem, self.shape = problem, shape_of(problem)
         self.base = np.array(params0, dtype=np.float64).reshape(-1, self.shape.N_PARAMS)
         self.free = np.tile(np.asarray(free, bool), len(self.base))
         self.steps = np.tile(self.shape.STEPS, len(self.base))[self.free]
         self._key, self._cols, self._lin = None, None, None
+        # fit's `speculate`: one target on a problem that evaluates a batch of rows in one call
+        self.speculate = speculate and len(self.base) == 1 and getattr(problem, "batched", False)
+        self._stepped = None  # (theta's key, its stepped columns) from the last such call
         # the prior's residuals (theta[at] - mean) / sd, over the free parameters it bounds
         self.at, self.mean, self.sd = _prior_terms(prior, self.base.shape, self.free)
         self.prior = prior if self.at.size else None
@@ -108,10 +111,25 @@ class _Objective:
         the columns there where the caller has them (model.lockstep's batches)."""
         key = np.asarray(theta).tobytes()
         if key != self._key:
+            if cols is None and self.speculate:
+                cols = self._with_steps(theta, key)
             cols = self.problem.columns(self.full(theta)) if cols is None else cols
             self._lin = self.problem.linear(cols, self._warm(cols))
             self._key, self._cols = key, cols
         return self._cols, self._lin
+
+    def _with_steps(self, theta, key):
+        """The target's column at theta, its Jacobian's stepped plates (`moves`, each with
+        theta's cell statistics, as `stepped_columns`) evaluated in the same call and kept."""
+        full = self.full(theta)
+        rows = np.array([full[0]] + [row for _, row in self.moves(theta)])
+        out = self.problem.column_batch(rows, np.repeat(full[:1], len(rows), axis=0))
+        self._stepped = (key, out[1:, None])
+        return out[:1]
+
+    def has_steps(self, theta) -> bool:
+        """Are theta's stepped plates kept from its residual's call (`_with_steps`)?"""
+        return self._stepped is not None and self._stepped[0] == np.asarray(theta).tobytes()
 
     def _warm(self, cols):
         lin = self._lin
@@ -128,6 +146,8 @@ class _Objective:
         one `column_batch` (what `column` computes, column by column), and with shadows those
         of the targets each moved one can shadow (`stepped_columns`), or `stepped` if given."""
         cols, lin = self._eval(theta)
+        if stepped is None and self.has_steps(theta):
+            stepped = self._stepped[1]
         if stepped is None:
             stepped = stepped_columns(self.problem, self.full(theta), cols, self.moves(theta))
         base = self.problem.residual(cols, lin)
@@ -241,7 +261,7 @@ def stepped_columns(problem, params, cols, moves) -> np.ndarray:
 
 
 def fit(problem, params0, free, max_nfev=30, tau=None, atol=None, prior=None,
-        keep_jacobian=False, width_vectors=False, best_gain=True) -> FitResult:
+        keep_jacobian=False, width_vectors=False, best_gain=True, speculate=False) -> FitResult:
     """Least squares from params0 (K, N_PARAMS) over the parameters marked in `free`
     (N_PARAMS,). tau, atol: model.lm's (tau None: its default; atol None: off). prior: None,
     or (mean, sd), each (K, N_PARAMS) (sd inf: no prior on that parameter): a Gaussian prior
@@ -250,8 +270,13 @@ def fit(problem, params0, free, max_nfev=30, tau=None, atol=None, prior=None,
     (FitResult.jacobian, .columns: model.covariance's `reuse`; a 1,024-spot fit's are MBs).
     width_vectors: the solver steps each plate's width and yaw as its width vector
     (`WidthVectors`; plates with both free); the result is in the shape's own parameters.
-    best_gain: model.lm's (with atol: stop on the Jacobian's best gain too)."""
-    obj = _Objective(problem, params0, free, prior)
+    best_gain: model.lm's (with atol: stop on the Jacobian's best gain too).
+    speculate: one target on a batching problem (`Problem.batched`: the host's models, whose
+    cost is mostly per call) evaluates each residual's plate in one call with its
+    forward-difference Jacobian's stepped plates, kept for the Jacobian the solver asks next
+    at that point (wasted where the step is rejected or the fit stops there; the answers are
+    the same to the last bits of the batch's sums)."""
+    obj = _Objective(problem, params0, free, prior, speculate)
     variables = WidthVectors.of(obj) if width_vectors else None
     if variables is None:
         return obj.result(drive(obj.solver(max_nfev, tau, atol, best_gain=best_gain),

@@ -61,6 +61,8 @@ class HostShapeProblem(Problem):
     factor_of_cosine (Retroreflective), as model.batch.HostProblem; the laser one spot (3,)
     or one per detector (D, 3)."""
 
+    batched = True  # column_batch: one host call (or one launch) for all rows
+
     def __init__(self, obs, shape, lattice=(16, 24), backend=None, reflectance=None):
         super().__init__(obs, backend, lattice, shape=shape, reflectance=reflectance)
         keep_freed_memory()  # core.allocator

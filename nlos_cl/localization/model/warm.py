@@ -56,6 +56,13 @@ WIDTH_VECTORS = True
 # it: past a shadow's edge the quadratic model is no guide, and that draw flips on any change
 # of its fits' paths (seed 777's 20 draws kept 100 % within 0.05 m with it on two plates).
 BEST_GAIN_PLATES = 1
+# model.fit's `speculate` (a residual's plate and its Jacobian's stepped plates in one host
+# call) for one plate: 91 % of a warm fit's residual points are asked for a Jacobian next
+# (stream bench: 219 of 240). Warm tracker, whole processes interleaved: 10.06 / 9.65 ->
+# 9.29 / 9.02 ms a frame, the same track. Cold fits do without it: their short fits' last
+# point and rejected trials left 34 % of it unused, and 137 -> 182 model columns made a
+# paper-scene locate 49-51 -> 58 ms (lockstep already pairs the fits' calls).
+SPECULATE = True
 
 
 def warm_fit(est, obs, rows, free, held, backend=None, sizes=None):
@@ -74,7 +81,7 @@ def warm_fit(est, obs, rows, free, held, backend=None, sizes=None):
         rows = prior[0]  # the hidden plates start at their known size
     result = fit(problem, rows, free, est.warm_nfev, tau=WARM_TAU, atol=WARM_ATOL, prior=prior,
                  keep_jacobian=REUSE_JACOBIAN, width_vectors=WIDTH_VECTORS,
-                 best_gain=len(rows) <= BEST_GAIN_PLATES)
+                 best_gain=len(rows) <= BEST_GAIN_PLATES, speculate=SPECULATE)
     cov = covariance(problem, result, free, reuse=REUSE_JACOBIAN)
     inadequate, birge = misfit(problem, result, free, cov[1])
     info = {"used": not inadequate, "birge_ratio": birge, "nfev": result.nfev,
