@@ -11,7 +11,7 @@ import numpy as np
 from . import box, cylinder, depth, ellipsoid, plate, starts
 from .covariance import covariance
 from .fit import fit
-from .select import best_of, kappa, misfit
+from .select import FINAL_ATOL, best_of, kappa, misfit
 from .shape import name_of
 
 CLOSED = (box, ellipsoid, cylinder)  # the closed families tried, same parameters
@@ -52,8 +52,8 @@ def fit_closed(problem, plate_result, free, final_nfev, shape):
     # (for a sphere the plate landed 0.5 m off and its starts won the short fits, in a minimum
     # of twice the cost of the one the centroid's start reaches).
     groups = (box_rows(q), box_rows(None, centres, problem.obs.laser))
-    result = min((best_of(closed, rows, free_closed, CLOSED_NFEV * final_nfev, keep=2)
-                  for rows in groups), key=lambda r: r.cost)
+    result = min((best_of(closed, rows, free_closed, CLOSED_NFEV * final_nfev, keep=2,
+                          atol=FINAL_ATOL) for rows in groups), key=lambda r: r.cost)
     return closed, result, free_closed
 
 
