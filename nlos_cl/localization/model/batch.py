@@ -38,11 +38,16 @@ from .deposit import deposit_bins
 from .likelihood import Problem
 from .shadow import occluders_of, shade
 
-# Rows per NumPy pass. A pass's temporaries grow with its rows, and past ~6 plates (3 spots,
-# 1,536 points each) glibc's allocator maps and unmaps them on every call: 11 rows took 6.2 ms
-# in one pass, 3.8 ms as 6 + 5 (3.3 ms with MALLOC_MMAP_THRESHOLD_ raised; 6 rows 1.9 ms either
-# way). A warm stream frame: 24.8 -> 23.0 ms (chunks of 3, 4, 5, 8: 24.1-24.4 ms).
+# Rows per NumPy pass: at least CHUNK_ROWS, and as many as keep a pass within PASS_PAIRS
+# point-detector pairs (its temporaries grow with them: bounded memory). Before
+# core.allocator kept freed memory, glibc mapped and unmapped a pass's temporaries past ~6
+# plates (3 spots, 1,536 points each): 11 rows took 6.2 ms in one pass, 3.8 ms as 6 + 5. With
+# it, one pass of up to 16 such plates is the faster: the stream bench's cold frames 42.5 ->
+# 39 ms (the starts' 20 candidates and the short fits' 15 stepped plates a call; 32 and 64
+# rows the same as 16), the same answers; two crossing plates seen by 8 spots (6 rows a pass
+# either way) unchanged.
 CHUNK_ROWS = 6
+PASS_PAIRS = 16 * 1536 * 3
 HISTS_BYTES = 32 * 2 ** 20  # the remembered histograms at most (HostProblem._hists)
 
 
@@ -122,8 +127,10 @@ class HostProblem(Problem):
                 todo.append(i)
         if len(self._hists) > self._keep_hists:
             self._hists.clear()
-        for at in range(0, len(todo), CHUNK_ROWS):  # see CHUNK_ROWS
-            part = todo[at:at + CHUNK_ROWS]
+        chunk = max(CHUNK_ROWS, PASS_PAIRS // (4 * self.lattice[0] * self.lattice[1]
+                                               * len(self.obs.spots)))
+        for at in range(0, len(todo), chunk):  # see PASS_PAIRS
+            part = todo[at:at + chunk]
             out[part] = self._evaluate(rows[part], None if like is None else like[part],
                                        [occ[i] for i in part])
             if self._keep_hists:  # copies: the caller may change what it is given
