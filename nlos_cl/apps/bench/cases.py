@@ -199,8 +199,10 @@ def all_rows(rt, smoke=False, say=print):
     rows.append(spad_model_row(rt, smoke))
     rows.append(spad_model_row(rt, smoke, model_on="kernel"))
     say("stream: plans and the tracker, host frames to track states")
-    from .stream import crossing_row, stream_rows
+    from .stream import cold_row, crossing_row, stream_rows
     rows.extend(stream_rows(rt, smoke, Row))
+    say("stream: one frame located cold, against the paper's argmax")
+    rows.append(cold_row(rt, smoke, Row))
     say("stream: two targets crossing, tracked")
     rows.append(crossing_row(rt, smoke, Row))
     return rows
