@@ -97,7 +97,12 @@ def test_the_probes_host_boxes_are_the_box_model():
     obs = model_observation(filtered, raw)
     front = np.r_[BOX[:3] + 0.5 * BOX[5] * box.normal_of(BOX), BOX[3], BOX[4], BOX[6]]
     host = batch.HostProblem(obs)
-    got = depth._face_plates(host, front, BOX[5])[0]
+    got = depth._face_plates(host, front, [BOX[5]])[0][0]
+    # several depths in one call: each the same as alone (the batch sums in another order)
+    both = depth._face_plates(host, front, [0.0, 0.5 * BOX[5], BOX[5]])
+    np.testing.assert_allclose(both[2][0], got, rtol=1e-9, atol=1e-12 * np.abs(got).max())
+    np.testing.assert_allclose(both[0][0], host.column(front), rtol=1e-9,
+                               atol=1e-12 * np.abs(got).max())
     want = Problem(obs, filtered.backend, host.lattice, shape=box).column(
         box.from_plate(front, BOX[5]))
     assert np.allclose(box.from_plate(front, BOX[5]), BOX)

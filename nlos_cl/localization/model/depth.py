@@ -53,8 +53,12 @@ def probe(problem, plate_result, kappa: float) -> dict:
     on_host = hasattr(problem, "coarser") and all(abs(f[3][2]) < 1e-12 for f in faces)
     # the plate and the boxes through one model (host plates, or the device's box model, whose
     # depth-0 box is the plate): the comparison must not carry the two models' difference
-    columns = (lambda d: _face_plates(problem, q, d)) if on_host else \
-        (lambda d: boxes.columns(box.from_plate(q, d)[None]))
+    depths = [0.0] + [share * width for share in PROBE_DEPTHS]
+    if on_host:  # every depth's faces in one host call
+        by_depth = dict(zip(depths, _face_plates(problem, q, depths)))
+        columns = by_depth.__getitem__
+    else:
+        columns = (lambda d: boxes.columns(box.from_plate(q, d)[None]))
     plate_cols = columns(0.0)
     plate_lin = problem.linear(plate_cols)
     r = problem.residual(plate_cols, plate_lin)
@@ -62,8 +66,8 @@ def probe(problem, plate_result, kappa: float) -> dict:
     as_data = Problem(replace(problem.obs, y=problem.mean(plate_cols, plate_lin)),
                       problem.backend, problem.lattice)
     best, dchi2 = math.inf, 0.0
-    for share in PROBE_DEPTHS:
-        cols = columns(share * width)
+    for depth in depths[1:]:
+        cols = columns(depth)
         r = problem.residual(cols, problem.linear(cols))
         best = min(best, float(r @ r))
         r = as_data.residual(cols, as_data.linear(cols))
@@ -79,18 +83,24 @@ def _visible(p, obs) -> list:
     return [f for f, ok in zip(box.faces(p), box.shown(p, obs.spots, obs.laser)) if ok]
 
 
-def _face_plates(problem, q, depth) -> np.ndarray:
-    """(1, D, n): the box of `depth` behind plate q, its visible faces (all upright) as plates
-    on the host, summed in one call: the front is q itself (remembered from its fit), each
-    side a plate across the depth (the device's forward op per face cost ~8 ms of a 50 ms
-    paper-scene locate). The same box as box.model_facets up to the lattice across the
-    depth (tests/test_model_depth.py)."""
-    rows, front = [q], plate.normal_of(q)
-    if depth > 0:
-        rows += [[*c, np.linalg.norm(u), np.linalg.norm(v), math.atan2(n[1], n[0])]
-                 for c, u, v, n in _visible(box.from_plate(q, depth), problem.obs)
-                 if not np.allclose(n, front)]
-    return problem.column_batch(np.array(rows, float)).sum(axis=0)[None]
+def _face_plates(problem, q, depths) -> list:
+    """Per depth, (1, D, n): the box of that depth behind plate q, its visible faces (all
+    upright) as plates on the host, summed; every depth's faces in one call: the front is q
+    itself (remembered from its fit), each side a plate across the depth (the device's
+    forward op per face cost ~8 ms of a 50 ms paper-scene locate; one host call per depth
+    ~0.7 ms each). The same box as box.model_facets up to the lattice across the depth
+    (tests/test_model_depth.py)."""
+    rows, owner, front = [q], [None], plate.normal_of(q)
+    for k, depth in enumerate(depths):
+        if depth > 0:
+            sides = [[*c, np.linalg.norm(u), np.linalg.norm(v), math.atan2(n[1], n[0])]
+                     for c, u, v, n in _visible(box.from_plate(q, depth), problem.obs)
+                     if not np.allclose(n, front)]
+            rows += sides
+            owner += [k] * len(sides)
+    cols = problem.column_batch(np.array(rows, float))
+    owner = np.array([-1 if o is None else o for o in owner])
+    return [(cols[0] + cols[owner == k].sum(axis=0))[None] for k in range(len(depths))]
 
 
 CLOSED_WARNING = ("the depth of target {k} is poorly determined (sd {sd:.2f} m): its centre is "
