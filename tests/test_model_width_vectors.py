@@ -1,4 +1,4 @@
-"""The warm fit's solver variables (model.fit.WidthVectors): each plate's (width, yaw) stepped
+"""The warm fit's solver variables (model.width_vectors.WidthVectors): each plate's (width, yaw) stepped
 as its width vector. The map and its Jacobians are checked against each other and against
 finite differences; a fit in them reaches the optimum of a fit in (width, yaw), and on the
 stream bench's valley frame (a noise draw whose fit from the previous draw's plate crawled
@@ -8,7 +8,8 @@ import pytest
 
 import nlos_cl as nl
 from nlos_cl.localization.model import ModelEstimator, plate
-from nlos_cl.localization.model.fit import WidthVectors, _Objective, fit
+from nlos_cl.localization.model.fit import _Objective, fit
+from nlos_cl.localization.model.width_vectors import WidthVectors
 
 ROWS = np.array([[4.0, 2.0, 0.0, 0.31, 1.55, -3.12], [2.5, 3.0, 0.2, 0.5, 0.8, 0.7]])
 

@@ -48,6 +48,11 @@ from .shadow import occluders_of, shade
 # either way) unchanged.
 CHUNK_ROWS = 6
 PASS_PAIRS = 16 * 1536 * 3
+
+
+def rows_per_pass(lattice, n_spots: int) -> int:
+    """Plates a NumPy pass evaluates (PASS_PAIRS, CHUNK_ROWS): 2 x 2 Gauss points a cell."""
+    return max(CHUNK_ROWS, PASS_PAIRS // (4 * lattice[0] * lattice[1] * n_spots))
 HISTS_BYTES = 32 * 2 ** 20  # the remembered histograms at most (HostProblem._hists)
 
 
@@ -86,9 +91,7 @@ class HostProblem(Problem):
         self._hists = {}  # row bytes -> its histograms, evaluated with its own statistics
         self._keep_hists = int(min(64, HISTS_BYTES // max(8 * obs.y.size, 1)))
         self._taps = {}  # (pad, scale) -> the deposit's taps (model.deposit.taps_of)
-        some = unique_sorted(np.linspace(0, len(obs.spots) - 1, min(len(obs.spots),
-                                                                 plate.STAT_SPOTS)).round())
-        self._some = some.astype(int)
+        self._some = _statistics_spots(len(obs.spots))
         self._stat_spots = obs.spots[self._some]  # the cell statistics' spots
         self._affine = _affine_spread(obs, self._some, self.paired)
         self._coarser = {}
@@ -127,9 +130,8 @@ class HostProblem(Problem):
                 todo.append(i)
         if len(self._hists) > self._keep_hists:
             self._hists.clear()
-        chunk = max(CHUNK_ROWS, PASS_PAIRS // (4 * self.lattice[0] * self.lattice[1]
-                                               * len(self.obs.spots)))
-        for at in range(0, len(todo), chunk):  # see PASS_PAIRS
+        chunk = rows_per_pass(self.lattice, len(self.obs.spots))
+        for at in range(0, len(todo), chunk):
             part = todo[at:at + chunk]
             out[part] = self._evaluate(rows[part], None if like is None else like[part],
                                        [occ[i] for i in part])
@@ -204,6 +206,13 @@ class HostProblem(Problem):
             return None
         which = occluders_of(rows, self.obs.laser, self.obs.spots, self.lattice)
         return None if not any(len(w) for w in which) else [rows[w] for w in which]
+
+
+def _statistics_spots(n_spots: int) -> np.ndarray:
+    """Indices of the (at most plate.STAT_SPOTS) spots, spread over all, whose cell
+    statistics a problem measures."""
+    return unique_sorted(np.linspace(0, n_spots - 1, min(n_spots, plate.STAT_SPOTS))
+                         .round()).astype(int)
 
 
 def _affine_spread(obs, some, paired):

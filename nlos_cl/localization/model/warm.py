@@ -42,7 +42,7 @@ WARM_TAU = 1e-6
 # 38.3 -> 28.9 ms; sds within the forward differences' ~2-5 % of the analytic ones
 # (docs/model-estimator.md, "Uncertainty").
 REUSE_JACOBIAN = True
-# The warm fit steps each plate's width and yaw as its width vector (model.fit.WidthVectors:
+# The warm fit steps each plate's width and yaw as its width vector (model.width_vectors:
 # the data's width-yaw valley is straight there). Stream bench, interleaved: 12.95 -> 11.73 ms
 # a frame; the two noise draws that crawled along the valley 34-35 -> 25-31 model calls, to a
 # lower cost. Cold fits keep (width, yaw): their frames' median moved < 2 % (51.3 -> 49.8 ms,
