@@ -3,6 +3,7 @@ they still hold white bin-to-bin noise, which filter.looks_unfiltered tells from
 filter's output, and they are filtered first and kept as `raw`, with a warning. Filtered
 signals, from the host or the device, pass as they are; so do coarse bins, where the filter's
 sigma spans under a few bins and the two cannot be told apart."""
+import dataclasses
 import warnings
 
 import numpy as np
@@ -46,7 +47,9 @@ def test_filtered_signals_pass_as_they_are(clean):
     noisy = nl.add_noise(clean, 10.0, seed=3)
     for h_s in (0.3e-9, 0.65e-9):  # the paper's h, and a user's narrower filter
         filtered = nl.gauss_filter(noisy, h_s)
-        assert not looks_unfiltered(filtered)
+        assert filtered.filtered_h_s == h_s and not looks_unfiltered(filtered)
+        # the rows themselves, measured (the filter's own output is not read at all)
+        assert not looks_unfiltered(dataclasses.replace(filtered, filtered_h_s=None))
         assert not looks_unfiltered(as_signals(filtered.histograms()))
     assert not looks_unfiltered(clean)  # noise-free: smooth at the filter's scale (not told)
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -51,7 +52,8 @@ class GaussFilter:
         sig = as_signals(signals, self.backend)
         if sig.layout.time_axis != self._axis:
             self._prepare(sig.layout.time_axis)
-        return sig.derive(sig.backend.call("gauss_filter", sig.handle, self._taps))
+        out = sig.derive(sig.backend.call("gauss_filter", sig.handle, self._taps))
+        return replace(out, filtered_h_s=self.h_s)
 
 
 # Rows that still hold the bin-to-bin noise the paper's filter removes (`looks_unfiltered`):
@@ -68,10 +70,11 @@ UNFILTERED_SAMPLE_ROWS = 16  # rows read from the middle of the record: bounded 
 
 def looks_unfiltered(signals: Signals, h_s: float = PAPER_H_S) -> bool:
     """Do these signals still hold white, bin-to-bin noise that the Gauss filter of window
-    h_s would have removed? (The median row of UNFILTERED_SAMPLE_ROWS; False where the filter's
-    sigma spans under UNFILTERED_MIN_SIGMA_BINS bins, or the rows are constant.)"""
+    h_s would have removed? (The median row of UNFILTERED_SAMPLE_ROWS; False for the Gauss
+    filter's own output, where the filter's sigma spans under UNFILTERED_MIN_SIGMA_BINS bins,
+    or where the rows are constant.)"""
     sigma_bins = h_s / 3.0 / signals.layout.time_axis.dt_s
-    if sigma_bins < UNFILTERED_MIN_SIGMA_BINS:
+    if signals.filtered_h_s is not None or sigma_bins < UNFILTERED_MIN_SIGMA_BINS:
         return False
     n = signals.n_detectors
     take = min(n, UNFILTERED_SAMPLE_ROWS)

@@ -17,13 +17,17 @@ from .backend import NumpyBackend, read_values, resolve_backend
 class Signals:
     """Physical value (W) = scale_w * values in `handle`, rows laid out as `layout` says.
     host: the float32 host array an upload copied to the device (the same values), kept so that
-    reading them costs nothing (`values`); None for a stage's output."""
+    reading them costs nothing (`values`); None for a stage's output. filtered_h_s: the Gauss
+    filter's window where they are its output (a later stage's output has none)."""
 
     backend: object
     handle: object
     scale_w: float
     layout: Layout
     host: np.ndarray | None = field(default=None, compare=False, repr=False)
+    # the Gauss filter's window (s) where these are its output (localization.filter), else
+    # None: nl.locate then checks that they are not the histograms themselves
+    filtered_h_s: float | None = field(default=None, compare=False, repr=False)
 
     @property
     def n_detectors(self) -> int:
