@@ -280,6 +280,15 @@ class Runtime:
     def to_numpy(self, handle):
         return self.read(handle).astype(np.float64)
 
-    def read(self, handle):
-        """As stored (float32 from the device; a host array itself): for reading only."""
-        return handle if isinstance(handle, np.ndarray) else handle.get(self.queue)
+    def read(self, handle, out=None):
+        """As stored (float32 from the device; a host array itself): for reading only; into
+        `out` (a pyopencl Array's shape and dtype, reused: no new pages) where given."""
+        return _read(handle, self.queue, out)
+
+
+def _read(handle, queue, out=None):
+    """Runtime.read: a host array itself, else the handle's values (into `out` if given:
+    pyopencl Arrays take it, the score maps' own get does not)."""
+    if isinstance(handle, np.ndarray):
+        return handle
+    return handle.get(queue) if out is None else handle.get(queue, ary=out)

@@ -100,7 +100,8 @@ class Scored:
     raw: object = None  # the unfiltered Signals, where the caller passed them (model fits)
     paper: object = None  # the paper's Estimate, where the Locator's fused search made it
     host_rows: object = None  # the filtered rows as the Locator read them to the host (its
-    # detection), in their stored dtype, or None: read them from `signals` (for reading only)
+    # detection), in their stored dtype, or None: read them from `signals` (for reading only;
+    # a large record's are valid until the Locator's next call: locator.KEEP_ROWS_BYTES)
 
 
 @dataclass(frozen=True)

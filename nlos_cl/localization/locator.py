@@ -109,6 +109,7 @@ class Locator:
         # what the last frame's search did (search.Found), and its argmax's (ix, iy, iz)
         self.last_search = self.last_cell = None
         self._window = None  # each row's bins a target in the grid can reach (detection)
+        self._kept = {}  # the host array a large record's rows are read into (detected_in)
 
     @property
     def chosen(self) -> str | None:
@@ -157,7 +158,7 @@ class Locator:
         self._search, mode = self._plans.get(trial, self._search), _kind(trial)
         if detect and self._window is None:  # the detection's bins, once
             self._window = reachable_bins(self.layout, self.grid)
-        rows, detection = detected_in(sig, self._window) if detect else (None, None)
+        rows, detection = detected_in(sig, self._window, self._kept) if detect else (None, None)
         if detection is not None and not detection.detected and not return_map:
             return Location.undetected(self._fused(sig, mode), self.grid, sig.layout.truth,
                                        detection, self.estimator.name)
@@ -273,12 +274,32 @@ def _checked(sig: Signals, layout) -> Signals:
     return sig
 
 
-def detected_in(signals: Signals, window):
+# Records at least this large (bytes) are read into a host array the Locator keeps between
+# frames (`detected_in`'s `kept`): a fresh one of a 1,024 x 60,042-bin SPAD record (246 MB,
+# above glibc's largest mmap threshold, so every new array is new pages) took 0.12-0.64 s to
+# read, most of it page faults; below it an array costs nothing to make.
+KEEP_ROWS_BYTES = 32 * 2 ** 20
+
+
+def detected_in(signals: Signals, window, kept=None):
     """(the filtered rows on the host as stored, whether they hold target signal in each row's
     reachable bins `window`: localization.detection.detect): one read, which the model fit's
-    observation reads too (Scored.host_rows)."""
-    rows = signals.values()
+    observation reads too (Scored.host_rows). kept: a dict in which a large record's host
+    array is kept for the next frame (KEEP_ROWS_BYTES): the rows are then valid until the
+    Locator's next call."""
+    rows = None
+    handle = signals.handle
+    if kept is not None and signals.host is None and hasattr(handle, "get") and \
+            handle.nbytes >= KEEP_ROWS_BYTES and getattr(signals.backend, "reads_into", False):
+        out = kept.get("rows")
+        if out is None or out.shape != handle.shape or out.dtype != handle.dtype:
+            kept.clear()  # the old one first: never two of them
+            out = kept["rows"] = np.empty(handle.shape, handle.dtype)
+        rows = signals.backend.read(handle, out=out)
+    if rows is None:
+        rows = signals.values()
     return rows, detect(rows, window)
+
 
 
 def _in_grid(estimate, grid: Grid, found):

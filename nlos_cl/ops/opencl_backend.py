@@ -10,6 +10,8 @@ from .registry import OperationCalls, operation
 class OpenCLBackend(OperationCalls, Runtime):
     """A Runtime that runs registered operations by name: `call("gauss_filter", ...)`."""
 
+    reads_into = True  # read(handle, out=...) fills a given host array (Runtime.read)
+
     def call(self, op, *args, out=None):
         """Run a registered operation's launcher; out of device memory, retry in smaller chunks."""
         launcher = operation(op).opencl
