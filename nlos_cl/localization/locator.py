@@ -301,7 +301,6 @@ def detected_in(signals: Signals, window, kept=None):
     return rows, detect(rows, window)
 
 
-
 def _in_grid(estimate, grid: Grid, found):
     """An estimate made on a sub-grid (the coarse-to-fine search's `found`), with the best
     cell's centre as the whole grid computes it (the sub-grid's origin differs from it by
