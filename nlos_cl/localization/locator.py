@@ -289,8 +289,8 @@ def detected_in(signals: Signals, window, kept=None):
     Locator's next call."""
     rows = None
     handle = signals.handle
-    if kept is not None and signals.host is None and hasattr(handle, "get") and \
-            handle.nbytes >= KEEP_ROWS_BYTES and getattr(signals.backend, "reads_into", False):
+    if kept is not None and signals.host is None and handle.nbytes >= KEEP_ROWS_BYTES and \
+            getattr(signals.backend, "reads_into", False):
         out = kept.get("rows")
         if out is None or out.shape != handle.shape or out.dtype != handle.dtype:
             kept.clear()  # the old one first: never two of them

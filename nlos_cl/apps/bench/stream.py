@@ -7,7 +7,8 @@ per frame, timed interleaved in one run (each repeat runs every case once, in tu
   filter, locate, Kalman), with the paper's estimator and with the model-based one (issue 12's
   goals: >= 500 and >= 30 frames/s; issue 23 raised the model tracker's to 100); the model
   tracker warm-starts each frame's fit from its confirmed track (nlos_cl.tracking.warm), and a
-  second row, warm_start=False, fits every frame from its data alone (the rate before warm starts, measured in the same run).
+  second row, warm_start=False, fits every frame from its data alone (the rate before warm
+  starts, measured in the same run).
 
 The model trackers run fewer frames per repeat; their twin column is empty. One more row,
 `crossing_row`: two targets crossing (crossing draw 1 of `reproduce draws`: 8 spots, a 3-D
@@ -82,10 +83,15 @@ def _cases(rt, clean, frames, grid, smoke):
     }
 
 
-def stream_rows(rt, smoke, Row):
+def _grid(smoke):
+    """(the rows' search grid: a 4 m square of 512^2 cells, 64^2 smoke; its side in cells)."""
     from ...core.grid import Grid
     size = 64 if smoke else 512
-    grid = Grid((2.0, 0.5, 0.0), (4 / size, 4 / size, 0.01), (size, size, 1))
+    return Grid((2.0, 0.5, 0.0), (4 / size, 4 / size, 0.01), (size, size, 1)), size
+
+
+def stream_rows(rt, smoke, Row):
+    grid, size = _grid(smoke)
     clean, frames = _frames(rt)
     cases = _cases(rt, clean, frames, grid, smoke)
     for step, _, _ in cases.values():  # warm-up: programs, and "auto" searches' trials
@@ -132,9 +138,7 @@ def cold_row(rt, smoke, Row):
     draws x 5 repeats, the median frame. The median, not the mean: one draw of the 8 (noise
     seed 0, copy 2) has the depth probe send the fit on to the closed shapes (~2-3 s; the
     warm_start=False tracker row's mean is mostly that frame), which the note counts."""
-    from ...core.grid import Grid
-    size = 64 if smoke else 512
-    grid = Grid((2.0, 0.5, 0.0), (4 / size, 4 / size, 0.01), (size, size, 1))
+    grid, size = _grid(smoke)
     _, frames = _frames(rt)
     frames = frames[:2] if smoke else frames
     pairs = [(f, nl.gauss_filter(f, backend=rt)) for f in frames]

@@ -48,12 +48,12 @@ from .shadow import occluders_of, shade
 # either way) unchanged.
 CHUNK_ROWS = 6
 PASS_PAIRS = 16 * 1536 * 3
+HISTS_BYTES = 32 * 2 ** 20  # the remembered histograms at most (HostProblem._hists)
 
 
 def rows_per_pass(lattice, n_spots: int) -> int:
     """Plates a NumPy pass evaluates (PASS_PAIRS, CHUNK_ROWS): 2 x 2 Gauss points a cell."""
     return max(CHUNK_ROWS, PASS_PAIRS // (4 * lattice[0] * lattice[1] * n_spots))
-HISTS_BYTES = 32 * 2 ** 20  # the remembered histograms at most (HostProblem._hists)
 
 
 class HostProblem(Problem):

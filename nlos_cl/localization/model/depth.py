@@ -90,7 +90,7 @@ def _face_plates(problem, q, depths) -> list:
     forward op per face cost ~8 ms of a 50 ms paper-scene locate; one host call per depth
     ~0.7 ms each). The same box as box.model_facets up to the lattice across the depth
     (tests/test_model_depth.py)."""
-    rows, owner, front = [q], [None], plate.normal_of(q)
+    rows, owner, front = [q], [-1], plate.normal_of(q)  # owner: the depth a row is a side of
     for k, depth in enumerate(depths):
         if depth > 0:
             sides = [[*c, np.linalg.norm(u), np.linalg.norm(v), math.atan2(n[1], n[0])]
@@ -98,8 +98,7 @@ def _face_plates(problem, q, depths) -> list:
                      if not np.allclose(n, front)]
             rows += sides
             owner += [k] * len(sides)
-    cols = problem.column_batch(np.array(rows, float))
-    owner = np.array([-1 if o is None else o for o in owner])
+    cols, owner = problem.column_batch(np.array(rows, float)), np.array(owner)
     return [(cols[0] + cols[owner == k].sum(axis=0))[None] for k in range(len(depths))]
 
 

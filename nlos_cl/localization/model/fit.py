@@ -112,9 +112,9 @@ class _Objective:
         the columns there where the caller has them (model.lockstep's batches)."""
         key = np.asarray(theta).tobytes()
         if key != self._key:
-            if cols is None and self.speculate:
-                cols = self._with_steps(theta, key)
-            cols = self.problem.columns(self.full(theta)) if cols is None else cols
+            if cols is None:
+                cols = self._with_steps(theta, key) if self.speculate else \
+                    self.problem.columns(self.full(theta))
             self._lin = self.problem.linear(cols, self._warm(cols))
             self._key, self._cols = key, cols
         return self._cols, self._lin
