@@ -144,3 +144,30 @@ def test_strided_medians_locate_as_every_bin_does(runtime, monkeypatch):
     assert np.linalg.norm(every.position - np.array(truth)) < 0.01
     sd = math.sqrt(float(np.trace(every.covariance)))
     assert np.linalg.norm(strided.position - every.position) < 0.25 * sd
+
+
+def _windows_by_definition(filtered, noise, margin, frac, n_sigma=6.0):
+    """signal_windows as its docstring defines it, row by row in float64."""
+    floors = data.row_median(data._every(filtered))
+    out = []
+    for row, floor, sd in zip(filtered.astype(np.float64), floors, noise):
+        rows = row - floor
+        above = np.flatnonzero(rows > max(n_sigma * sd, frac * rows.max()))
+        first, last = (above[0], above[-1]) if above.size else (rows.argmax(), rows.argmax())
+        out.append((first - margin, last + margin))
+    return np.array(out)
+
+
+def test_signal_windows_follow_their_definition():
+    """The windows found without float64 copies of the rows (rows > level + floor; the last
+    bin from a reversed copy) are the definition's, rows with no bin above (the peak) and a
+    floor included."""
+    rng = np.random.default_rng(5)
+    rows = (0.1 * rng.standard_normal((150, 3000)) + 0.4).astype(np.float32)  # a floor
+    rows[:, 1200:1300] += np.linspace(0.5, 6.0, 150)[:, None].astype(np.float32)
+    rows[7] = -1.0  # nothing above: the peak's bin
+    rows[9, 10:12] += 9.0  # a lone early spike
+    noise = np.full(len(rows), 0.1)
+    got = data.signal_windows(rows, noise, 40, data.ONE_TARGET_FRAC)
+    assert np.array_equal(got, _windows_by_definition(rows, noise, 40, data.ONE_TARGET_FRAC))
+    assert tuple(got[7]) == (-40, 40) and got[9, 0] == 10 - 40

@@ -120,12 +120,19 @@ def signal_windows(filtered, noise, margin_bins, frac=ONE_TARGET_FRAC, n_sigma=6
     floors = row_median(_every(filtered))  # photon counts sit on a dark/ambient floor
     out = np.empty((len(filtered), 2), np.int64)
     for at in range(0, len(filtered), WINDOW_ROWS):
-        rows = filtered[at:at + WINDOW_ROWS] - floors[at:at + WINDOW_ROWS, None]
-        above = rows > np.maximum(n_sigma * np.asarray(noise[at:at + WINDOW_ROWS]),
-                                  frac * rows.max(axis=1))[:, None]
-        found = above.any(axis=1)
-        first = np.where(found, above.argmax(axis=1), rows.argmax(axis=1))  # none: the peak
-        last = np.where(found, rows.shape[1] - 1 - above[:, ::-1].argmax(axis=1), first)
+        # rows - floor > t as rows > t + floor: no float64 copy of the rows (a 1,024 x 60,042
+        # SPAD record: 0.21 -> ~0.1 s); a row's first and last bin above from argmax on
+        # booleans, which stops at the first True (the last: on a reversed contiguous copy)
+        rows, floor = filtered[at:at + WINDOW_ROWS], floors[at:at + WINDOW_ROWS]
+        level = np.maximum(n_sigma * np.asarray(noise[at:at + WINDOW_ROWS]),
+                           frac * (rows.max(axis=1) - floor)) + floor
+        above = rows > level[:, None]
+        first = above.argmax(axis=1)
+        found = above[np.arange(len(rows)), first]
+        if not found.all():  # none above: the peak
+            first[~found] = rows[~found].argmax(axis=1)
+        last = rows.shape[1] - 1 - np.ascontiguousarray(above[:, ::-1]).argmax(axis=1)
+        last = np.where(found, last, first)
         out[at:at + WINDOW_ROWS] = np.stack([first - margin_bins, last + margin_bins], axis=1)
     return out
 
