@@ -202,3 +202,84 @@ def test_exhaustive_score_map_in_slabs(runtime, grid):
         assert np.array_equal(a.cell_position, b.cell_position) and a.score == b.score
         assert np.array_equal(a.position, b.position)
     assert len(plan._scores.slabs) > 1
+
+
+@pytest.mark.parametrize("noise", [0.0, 0.1])
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_long_window_bounds_with_block_maxima(runtime, noise, seed):
+    """Many detectors (20: the host-side search, `run`) and a window longer than max_filter's
+    one-launch form (a wide signal on 3 mm bins): the bound dilates block maxima on a coarser
+    axis (search._bound_blocks) and the search still finds the exhaustive argmax, near-tied
+    targets included (log scoring, as for any many-detector frame)."""
+    from nlos_cl.localization import search
+    hist = histograms([(4.0, 2.0, 0.0), (3.2, 2.9, 0.1)], [1.0, 0.98], 20, 0.15, noise, seed,
+                      n_bins=6000)  # 18 m of path: both targets' paths from every spot
+    grid = nl.Grid.from_ranges(x=(2.0, 6.0), y=(0.5, 4.0), step_m=0.01)
+    plan = CoarseToFine(grid, np.array([1 / (nl.SPEED_OF_LIGHT * DT_S)]), 0.15)
+    assert 2 * plan.half + 1 > search.DIRECT_MAX_WINDOW and plan.block > 1
+    assert (plan.block_half - 1) * plan.block >= plan.half + 1
+    how = same_answer(hist, grid, runtime, True, 0.15)
+    assert how is not None and how.blocks > 0 and how.cells_scored < grid.n_cells / 4
+
+
+@pytest.mark.parametrize("blocks", [True, False])
+def test_the_bound_is_above_every_cell_of_its_block(runtime, blocks, monkeypatch):
+    """The property the search rests on, checked cell by cell: each coarse block's bound (on
+    the dilated record, or on dilated block maxima: search._bound_blocks) is at least the
+    score of every fine cell in the block (SLACK: float32 rounding), where the block's
+    centre is a fine cell. Many detectors, noise, a window of ~100 bins."""
+    from nlos_cl.localization import search
+    from nlos_cl.ops.signals import as_signals
+    if not blocks:
+        monkeypatch.setattr(search, "_bound_blocks", lambda half: (None, None))
+    hist = histograms([(4.0, 2.0, 0.0), (3.2, 2.9, 0.1)], [1.0, 0.98], 20, 0.15, 0.1, 4,
+                      n_bins=6000)
+    grid = nl.Grid.from_ranges(x=(2.0, 4.5), y=(1.0, 3.5), step_m=0.01)
+    plan = Locator(hist.layout, grid, search="exhaustive", log_mode=True, backend=runtime,
+                   signal_width_m=0.15, estimator="paper")
+    sig = as_signals(hist, runtime)
+    args = plan._args(sig)
+    fine = runtime.to_numpy(plan.scores(sig, args))[0]  # (ny, nx)
+    c2f = CoarseToFine(grid, args[4], 0.15)
+    assert (c2f.block is not None) == blocks
+    rows, wide = c2f._bounding_rows(runtime, sig.handle, args)
+    bound = runtime.to_numpy(c2f._score(runtime, "bound", rows, wide, c2f.coarse))[0]
+    f = c2f.fa[0]
+    ny, nx = fine.shape
+    for j, i in zip(*np.nonzero(c2f.valid[0])):
+        best = fine[j * f:min((j + 1) * f, ny), i * f:min((i + 1) * f, nx)].max()
+        assert bound[j, i] >= best - search.SLACK * (abs(best) + 1.0), (j, i, bound[j, i], best)
+
+
+@pytest.mark.parametrize("n_bins, half", [(6000, 49), (997, 120), (300, 33)])
+def test_block_maxima_cover_every_window_between_their_samples(runtime, n_bins, half):
+    """What `_bounding_rows` must give, at every point u of the record (in bins, and a block
+    beyond its ends): the interpolation of the two bounding samples around u is at least the
+    record's maximum over [floor(u) + 1 - half, floor(u) + half] (zero outside the record),
+    which bounds any fine cell within half - 1 bins of u (module docstring). On noise, whose
+    maxima change from bin to bin, and lone spikes on a negative floor, which only the
+    windows reaching them may see: samples two blocks off, or a dilation a block short, fail."""
+    from nlos_cl.localization import search
+    rng = np.random.default_rng(half)
+    record = rng.standard_normal((3, n_bins)).astype(np.float32)
+    record[1] = -1.0  # all negative: the zeros outside the record must count
+    record[1, np.arange(3, n_bins, 3 * half + 11)] = 5.0  # apart by more than a bound reaches
+    plan = CoarseToFine(nl.Grid.from_ranges(step_m=0.01), np.array([1.0]), 0.065)
+    plan.half = half
+    plan.block, plan.block_half = search._bound_blocks(half)
+    path0, inv = np.full(3, 0.25), np.full(3, 4.0)  # bin k at path 0.25 + k / 4
+    rows, wide = plan._bounding_rows(runtime, runtime.from_numpy(record),
+                                     (None, None, None, path0, inv, True, 0.0))
+    rows = runtime.to_numpy(rows)
+    padded = np.concatenate([np.zeros((3, half + 1)), record, np.zeros((3, half + 1))], axis=1)
+    for u in np.arange(-plan.block, n_bins + plan.block, 0.25):
+        k = int(np.floor(u))
+        lo, hi = k + 1 - half, k + half  # the window, shifted into `padded`
+        need = padded[:, max(lo + half + 1, 0):max(hi + half + 2, 0)].max(axis=1, initial=-np.inf)
+        at = (path0 + u / inv - wide[3]) * wide[4]  # u on the bounding rows' axis
+        i0 = np.floor(at).astype(int)
+        t = at - i0
+        value = [(1 - t[d]) * (rows[d, i0[d]] if 0 <= i0[d] < rows.shape[1] else 0.0)
+                 + t[d] * (rows[d, i0[d] + 1] if 0 <= i0[d] + 1 < rows.shape[1] else 0.0)
+                 for d in range(3)]
+        assert np.all(np.asarray(value) >= need - 1e-6), (u, value, need)

@@ -2,8 +2,8 @@
 definition, OpenCL launcher and float64 NumPy twin, with example inputs and tolerances) + one
 line below. Backends call them by name (`backend.call("gauss_filter", ...)`, or
 `backend.gauss_filter(...)`); tests, self-check, bench and the oclgrind check walk this list."""
-from . import (add_awgn, argmax, argmax_patch, ellipse_score, forward, fused_search, gauss_filter,
-               max_filter, plate_model, row_stats, stats_dilate, subtract_background)
+from . import (add_awgn, argmax, argmax_patch, block_max, ellipse_score, forward, fused_search,
+               gauss_filter, max_filter, plate_model, row_stats, stats_dilate, subtract_background)
 from .base import Operation
 
 OPERATIONS: dict[str, Operation] = {op.name: op for op in (
@@ -15,6 +15,7 @@ OPERATIONS: dict[str, Operation] = {op.name: op for op in (
     argmax.OP,
     subtract_background.OP,
     max_filter.OP,
+    block_max.OP,
     argmax_patch.OP,
     fused_search.OP,
     stats_dilate.OP,
