@@ -19,7 +19,8 @@
 // exactly), then one correlation with the bin-integrated pulse per phase of the sub-bins
 // gives every bin. The deposit is a scatter, made deterministic by summing in 64-bit fixed
 // point with 32-bit integer atomics (core OpenCL 1.1): integer sums do not depend on the
-// order of the additions, so the result is bit-identical run after run.
+// order of the additions, so the result is bit-identical run after run. deposit_rows adds the
+// same integers without atomics, one work item per detector (many detectors on a CPU).
 //
 // Build options: -D CHUNK=<facets per chunk> [-D REFLECTANCE_FACTOR(n, to_laser, to_detector)=...]
 // (with the GGX model also -D GGX_A2, GGX_KD, GGX_KS; with the retroreflective one -D
@@ -209,6 +210,38 @@ __kernel void deposit(__global const float *path, __global const float *weight,
         const uint old = atomic_add(lo + at, low);
         const uint carry = (old + low < old) ? 1u : 0u;
         atomic_add(hi + at, (uint)(q >> 32) + carry);
+    }
+}
+
+// deposit_rows: the same sums, one work item per detector over all of its facets in order: it
+// owns that detector's sub-bins, so each 64-bit fixed-point sum is a plain read, add and write,
+// and integer addition makes the result the atomic kernel's, bit for bit. For many detectors
+// on devices without fast atomics (CPUs: nlos_cl/ops/forward.py `_deposit_kernel`).
+__kernel void deposit_rows(__global const float *path, __global const float *weight,
+                           const int n_pad,
+                           __global const float4 *win,
+                           const int padded, const int det0,
+                           __global uint *lo, __global uint *hi)
+{
+    const int det = get_global_id(0);
+    const float4 w = win[det0 + det];
+    __global const float *p = path + det * n_pad, *gw = weight + det * n_pad;
+    for (int f = 0; f < n_pad; ++f) {
+        const float g = gw[f];
+        if (g == 0.0f) continue;
+        const float u = (p[f] - w.x) * w.y - 0.5f;  // from sub-bin centres
+        const float fu = floor(u);
+        const float t = u - fu;
+        const int j = (int)fu;
+        for (int side = 0; side < 2; ++side) {
+            const int k = j + side;
+            if (k < 0 || k / OS >= padded) continue;
+            const ulong q = convert_ulong_rte(g * (side ? t : 1.0f - t) * w.z);
+            const int at = (det * OS + k % OS) * padded + k / OS;
+            const ulong sum = ((((ulong)hi[at]) << 32) | (ulong)lo[at]) + q;
+            lo[at] = (uint)sum;
+            hi[at] = (uint)(sum >> 32);
+        }
     }
 }
 
