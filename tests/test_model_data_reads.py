@@ -171,3 +171,23 @@ def test_signal_windows_follow_their_definition():
     got = data.signal_windows(rows, noise, 40, data.ONE_TARGET_FRAC)
     assert np.array_equal(got, _windows_by_definition(rows, noise, 40, data.ONE_TARGET_FRAC))
     assert tuple(got[7]) == (-40, 40) and got[9, 0] == 10 - 40
+
+
+def test_raw_filtered_at_the_samples_is_each_windows_dot_product():
+    """_filtered_at against its definition: sum over taps of raw[idx + t - half] x taps[t],
+    zero outside the record; rows inside, across both ends (clipped samples repeat a bin),
+    and one sample a row. (Reading evenly spaced windows as a strided view was tried: 1.8x
+    faster on float32 rows, but slower and not bit-identical on the float64 rows a raw SPAD
+    frame arrives as.)"""
+    rng = np.random.default_rng(2)
+    raw = rng.standard_normal((40, 900)).astype(np.float32)
+    taps = data.full_gauss_taps(0.3e-9, 10e-12)
+    half = (len(taps) - 1) // 2
+    k0 = rng.integers(-300, 900, len(raw))
+    idx = np.clip(k0[:, None] + 7 * np.arange(30)[None], 0, 899)
+    padded = np.pad(raw.astype(np.float64), ((0, 0), (half, half)))
+    want = np.array([[padded[d, k:k + len(taps)] @ taps for k in row] for d, row in
+                     enumerate(idx)])
+    assert np.allclose(data._filtered_at(raw, idx, taps), want, rtol=1e-12, atol=1e-12)
+    assert np.allclose(data._filtered_at(raw, idx[:, :1], taps), want[:, :1], rtol=1e-12,
+                       atol=1e-12)
