@@ -11,7 +11,8 @@ cell. Per frame:
    plus a bin for float32 rounding, over the record widened by as much, since the maximum
    reaches past its ends) bound every fine cell of the block from above: U(block) (where
    that window spans more bins than max_filter's one-launch form, maxima of blocks of bins
-   dilated over blocks: `_bounding_rows`, a looser bound for a tenth of the reads);
+   dilated over blocks: `_bounding_rows`, a slightly looser bound from one read of the
+   record instead of max_filter's three reads and three writes per bin);
 3. score every fine cell of the blocks with U >= L (a relative slack of 1e-4 for float32
    rounding): any cell scoring more than L lies in one of them, so their best cell is the
    grid's argmax. Ties go to the lowest flat index, as exhaustive scoring's argmax does.
