@@ -187,6 +187,22 @@ __kernel void pulse_bins(__global const float *path,
 #define SPAN 1
 #endif
 
+// A facet's weight g at hidden path `p`, split linearly between the two sub-bins around it:
+// share `side` (0 the lower, 1 the upper) as a 64-bit fixed-point number, and where it goes in
+// the detector's [OS][padded] sub-bins (-1: off the time axis by more than the reach). Both
+// deposits below take their numbers from here, so their sums are the same integers.
+inline int split_share(const float g, const float p, const float4 w, const int padded,
+                       const int side, ulong *q)
+{
+    const float u = (p - w.x) * w.y - 0.5f;  // from sub-bin centres
+    const float fu = floor(u);
+    const float t = u - fu;
+    const int k = (int)fu + side;
+    if (k < 0 || k / OS >= padded) return -1;
+    *q = convert_ulong_rte(g * (side ? t : 1.0f - t) * w.z);
+    return (k % OS) * padded + k / OS;
+}
+
 __kernel void deposit(__global const float *path, __global const float *weight,
                       const int n_pad,
                       __global const float4 *win,      // per detector: base path, 1 / dsub, fixed-point scale
@@ -197,15 +213,11 @@ __kernel void deposit(__global const float *path, __global const float *weight,
     const float g = weight[det * n_pad + f];
     if (g == 0.0f) return;
     const float4 w = win[det0 + det];
-    const float u = (path[det * n_pad + f] - w.x) * w.y - 0.5f;  // from sub-bin centres
-    const float fu = floor(u);
-    const float t = u - fu;
-    const int j = (int)fu;
     for (int side = 0; side < 2; ++side) {
-        const int k = j + side;
-        if (k < 0 || k / OS >= padded) continue;  // out of the time axis by more than the reach
-        const ulong q = convert_ulong_rte(g * (side ? t : 1.0f - t) * w.z);
-        const int at = (det * OS + k % OS) * padded + k / OS;
+        ulong q;
+        const int k = split_share(g, path[det * n_pad + f], w, padded, side, &q);
+        if (k < 0) continue;
+        const int at = det * OS * padded + k;
         const uint low = (uint)q;
         const uint old = atomic_add(lo + at, low);
         const uint carry = (old + low < old) ? 1u : 0u;
@@ -216,7 +228,8 @@ __kernel void deposit(__global const float *path, __global const float *weight,
 // deposit_rows: the same sums, one work item per detector over all of its facets in order: it
 // owns that detector's sub-bins, so each 64-bit fixed-point sum is a plain read, add and write,
 // and integer addition makes the result the atomic kernel's, bit for bit. For many detectors
-// on devices without fast atomics (CPUs: nlos_cl/ops/forward.py `_deposit_kernel`).
+// on CPU devices, whose atomics cost more than the arithmetic (nlos_cl/ops/forward.py
+// `_deposit_kernel`).
 __kernel void deposit_rows(__global const float *path, __global const float *weight,
                            const int n_pad,
                            __global const float4 *win,
@@ -226,21 +239,17 @@ __kernel void deposit_rows(__global const float *path, __global const float *wei
     const int det = get_global_id(0);
     const float4 w = win[det0 + det];
     __global const float *p = path + det * n_pad, *gw = weight + det * n_pad;
+    __global uint *row_lo = lo + det * OS * padded, *row_hi = hi + det * OS * padded;
     for (int f = 0; f < n_pad; ++f) {
         const float g = gw[f];
         if (g == 0.0f) continue;
-        const float u = (p[f] - w.x) * w.y - 0.5f;  // from sub-bin centres
-        const float fu = floor(u);
-        const float t = u - fu;
-        const int j = (int)fu;
         for (int side = 0; side < 2; ++side) {
-            const int k = j + side;
-            if (k < 0 || k / OS >= padded) continue;
-            const ulong q = convert_ulong_rte(g * (side ? t : 1.0f - t) * w.z);
-            const int at = (det * OS + k % OS) * padded + k / OS;
-            const ulong sum = ((((ulong)hi[at]) << 32) | (ulong)lo[at]) + q;
-            lo[at] = (uint)sum;
-            hi[at] = (uint)(sum >> 32);
+            ulong q;
+            const int at = split_share(g, p[f], w, padded, side, &q);
+            if (at < 0) continue;
+            const ulong sum = ((((ulong)row_hi[at]) << 32) | (ulong)row_lo[at]) + q;
+            row_lo[at] = (uint)sum;
+            row_hi[at] = (uint)(sum >> 32);
         }
     }
 }

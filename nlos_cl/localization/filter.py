@@ -11,6 +11,7 @@ from ..core.constants import PAPER_H_S
 from ..core.errors import require
 from ..core.histograms import Layout
 from ..core.paths import TimeAxis
+from ..core.stats import median, row_median
 from ..ops.gauss_filter import gauss_taps
 from ..ops.signals import Signals, as_signals
 
@@ -85,12 +86,12 @@ def looks_unfiltered(signals: Signals, h_s: float = PAPER_H_S) -> bool:
         from ..ops.backend import read_values
         rows = read_values(signals.backend, signals.handle[first:first + take])
     x = np.asarray(rows, np.float64)
-    x = x - np.median(x, axis=1, keepdims=True)
+    x = x - row_median(x)[:, None]  # core.stats: np.median would import numpy.ma on the way
     size = np.sqrt(np.einsum("ij,ij->i", x, x))
     step = np.diff(x, axis=1)
     steps = np.sqrt(np.einsum("ij,ij->i", step, step))
     lit = size > 0
     if not lit.any():
         return False
-    ratio = float(np.median(steps[lit] / size[lit]))
+    ratio = median(steps[lit] / size[lit])
     return ratio > UNFILTERED_STEP_FACTOR / (sigma_bins * math.sqrt(2.0))

@@ -183,12 +183,10 @@ def _deposit_bins(rt, defines, group, span, total, edge0, dpath, sigma_path, n_b
     from ..device.runtime import cl
     for buf in (low, high):
         cl.enqueue_fill_buffer(rt.queue, buf.data, np.uint32(0), 0, buf.nbytes)
-    if _deposit_kernel(rt, n, path.shape[1]) == "deposit_rows":
-        rt.run(rt.kernel("forward", "deposit_rows", **kw), (n,), path, weight,
-               np.int32(path.shape[1]), win, np.int32(padded), np.int32(0), low, high)
-    else:
-        rt.run(rt.kernel("forward", "deposit", **kw), (path.shape[1], n), path, weight,
-               np.int32(path.shape[1]), win, np.int32(padded), np.int32(0), low, high)
+    kernel = _deposit_kernel(rt, n, path.shape[1])
+    items = (n,) if kernel == "deposit_rows" else (path.shape[1], n)
+    rt.run(rt.kernel("forward", kernel, **kw), items, path, weight, np.int32(path.shape[1]),
+           win, np.int32(padded), np.int32(0), low, high)
     dep = rt.empty((n, os_, padded))
     rt.run(rt.kernel("forward", "resolve", **kw), (os_ * padded, n), low, high, win,
            np.int32(padded), np.int32(0), dep)

@@ -143,7 +143,8 @@ def cold_row(rt, smoke, Row):
     frames = frames[:2] if smoke else frames
     pairs = [(f, nl.gauss_filter(f, backend=rt)) for f in frames]
     for f, g in pairs[:2]:  # warm-up: programs and plans
-        nl.locate(g, grid, raw=f), nl.locate(g, grid, estimator="paper")
+        nl.locate(g, grid, raw=f)
+        nl.locate(g, grid, estimator="paper")
     model, paper, closed = [], [], set()
     for _ in range(2 if smoke else 5):
         for k, (f, g) in enumerate(pairs):

@@ -54,20 +54,16 @@ def probe(problem, plate_result, kappa: float) -> dict:
     # the plate and the boxes through one model (host plates, or the device's box model, whose
     # depth-0 box is the plate): the comparison must not carry the two models' difference
     depths = [0.0] + [share * width for share in PROBE_DEPTHS]
-    if on_host:  # every depth's faces in one host call
-        by_depth = dict(zip(depths, _face_plates(problem, q, depths)))
-        columns = by_depth.__getitem__
-    else:
-        columns = (lambda d: boxes.columns(box.from_plate(q, d)[None]))
-    plate_cols = columns(0.0)
+    by_depth = _face_plates(problem, q, depths) if on_host else \
+        [boxes.columns(box.from_plate(q, d)[None]) for d in depths]  # host: one call for all
+    plate_cols = by_depth[0]
     plate_lin = problem.linear(plate_cols)
     r = problem.residual(plate_cols, plate_lin)
     plate_cost = float(r @ r)
     as_data = Problem(replace(problem.obs, y=problem.mean(plate_cols, plate_lin)),
                       problem.backend, problem.lattice)
     best, dchi2 = math.inf, 0.0
-    for depth in depths[1:]:
-        cols = columns(depth)
+    for cols in by_depth[1:]:
         r = problem.residual(cols, problem.linear(cols))
         best = min(best, float(r @ r))
         r = as_data.residual(cols, as_data.linear(cols))
