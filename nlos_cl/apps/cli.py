@@ -163,9 +163,10 @@ def _targets(text):
 
 
 def _estimator_args(p):
-    p.add_argument("--estimator", choices=["model", "paper"], default=None,
+    p.add_argument("--estimator", choices=["model", "paper", "mean"], default=None,
                    help="model: fit a plate's centre, size and yaw with the forward model, with "
-                   "a covariance (docs/model-estimator.md); paper: the paper's argmax "
+                   "a covariance (docs/model-estimator.md); paper: the paper's argmax; mean: "
+                   "the mean and covariance of the paper's likelihood "
                    "(default: model; paper for paired and confocal captures)")
     p.add_argument("--targets", type=_targets, default=1,
                    help="targets to fit (model estimator): a count, or 'auto' (by BIC)")
@@ -183,9 +184,10 @@ def _reflectance_arg(p):
 def _track_args(p):
     p.add_argument("file", help="a sequence (or capture) .h5 file: docs/tracking.md")
     p.add_argument("--video", default=None, help="write an animation (.gif, or .mp4 with ffmpeg)")
-    p.add_argument("--estimator", choices=["paper", "model"], default=None,
+    p.add_argument("--estimator", choices=["paper", "mean", "model"], default=None,
                    help="per-frame estimator (model: centre and covariance, warm-started from "
-                   "the tracks; paper: the argmax, faster; default: model, paper for paired "
+                   "the tracks; paper: the argmax, faster; mean: the mean and covariance of "
+                   "the paper's likelihood; default: model, paper for paired "
                    "and confocal captures)")
     p.add_argument("--targets", type=_number("targets", "pass a count, e.g. 1", minimum=1,
                                              integer=True, maximum=MAX_TARGETS),

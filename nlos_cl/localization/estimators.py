@@ -1,10 +1,11 @@
-"""The estimator registry: names ('paper', 'model') to estimators, and the default.
+"""The estimator registry: names ('paper', 'mean', 'model') to estimators, and the default.
 
 The default (`as_estimator(None)`) is the model fit (localization.model, loaded on first use)."""
 from __future__ import annotations
 
 from ..core.errors import InputError
 from .paper import PaperArgmax
+from .posterior import PosteriorMean
 
 
 def _model_estimator():
@@ -12,7 +13,7 @@ def _model_estimator():
     return ModelEstimator()
 
 
-ESTIMATORS = {"paper": PaperArgmax, "model": _model_estimator}
+ESTIMATORS = {"paper": PaperArgmax, "mean": PosteriorMean, "model": _model_estimator}
 
 
 # The default (issue 11): the most accurate estimator within the time budget, the model fit.
@@ -20,7 +21,7 @@ DEFAULT_ESTIMATOR = "model"
 
 
 def as_estimator(value):
-    """A name ('paper', 'model'), an object with estimate(scored), or None: the default."""
+    """A name ('paper', 'mean', 'model'), an object with estimate(scored), or None: the default."""
     if value is None:
         value = DEFAULT_ESTIMATOR
     if isinstance(value, str):
