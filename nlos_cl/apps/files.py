@@ -170,8 +170,9 @@ def _estimator(args):
         return args.estimator
     from ..core.errors import require
     from ..localization.model import ModelEstimator
-    require(args.estimator != "paper", "--reflectance", "is for the model fit; the paper's "
-            "argmax has no reflectance", "leave out --estimator paper, or --reflectance")
+    require(args.estimator in (None, "model"), "--reflectance", "is for the model fit; the "
+            "paper's likelihood has no reflectance", f"leave out --estimator {args.estimator}, "
+            "or --reflectance")
     return ModelEstimator(targets=args.targets, reflectance=args.reflectance)
 
 
