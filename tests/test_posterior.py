@@ -77,12 +77,23 @@ def test_sub_grid_and_box_are_cells_of_the_grid():
     assert np.allclose(sub.step, np.asarray(GRID.step) * 2)
     plane = Grid((0.0, 0.5, 0.0), (0.01, 0.01, 0.01), (11, 7, 1))
     assert sub_grid(plane, 2).shape == (6, 4, 1)  # a plane's one z stays
-    box = box_around(GRID, np.array([0.3, 0.5, 0.5]), np.array([0.05, 0.1, 0.3]))
-    idx = (np.asarray(box.origin) - GRID.origin) / np.asarray(GRID.step)
-    assert np.allclose(idx, np.round(idx)) and np.all(idx >= 0)  # on the grid's cells
-    # cells 0.26..0.34 (x), 0.41..0.59 (y), 0.2..0.65 (z: 0.8 clipped at the region's end)
-    assert box.shape == (5, 7, 10)
-    assert box_around(GRID, np.array([9.0, 9.0, 9.0]), np.array([0.1] * 3)).shape == (1, 1, 1)
+    centre, half = np.array([0.3, 0.5, 0.5]), np.array([0.05, 0.1, 0.3])
+    box = box_around(GRID, centre, half)
+    first = (np.asarray(box.origin) - GRID.origin) / np.asarray(GRID.step)
+    assert np.allclose(first, np.round(first)) and np.all(first >= 0)  # on the grid's cells
+    last = first + np.asarray(box.shape) - 1
+    assert np.all(last <= np.asarray(GRID.shape) - 1)  # inside it
+    # the asked cells 0.26..0.34 (x), 0.41..0.59 (y), 0.2..0.65 (z: 0.8 is past the end) held,
+    # their counts 5, 7, 16 rounded up to powers of two (z: 16 of the grid's 20)
+    assert box.shape == (8, 8, 16)
+    lo, hi = np.asarray(box.origin), np.asarray(box.origin) + np.asarray(GRID.step) * last
+    assert np.all(lo <= [0.26 + 1e-9, 0.41 + 1e-9, 0.2 + 1e-9]) and np.all(hi >= [0.34 - 1e-9, 0.59 - 1e-9, 0.65 - 1e-9])
+    # wider than the grid along x: the grid's own count, not a power of two
+    assert box_around(GRID, centre, np.array([2.0, 0.1, 0.1])).shape[0] == GRID.shape[0]
+    far = box_around(GRID, np.array([9.0, 9.0, 9.0]), np.array([0.1] * 3))  # moved inside
+    assert far.shape == (16, 8, 8)  # 11, 7 and 5 cells asked
+    assert np.allclose(np.asarray(far.origin) + np.asarray(GRID.step) * (np.asarray(far.shape) - 1),
+                       np.asarray(GRID.origin) + np.asarray(GRID.step) * (np.asarray(GRID.shape) - 1))
 
 
 def _plate_capture(runtime, snr_db, seed):

@@ -62,7 +62,7 @@ class PosteriorMean:
         if mean is None:  # no cell of the sub-grid above zero: the argmax's cell alone
             return paper
         box = box_around(grid, mean, np.sqrt(np.diag(cov)) * BOX_SD)
-        if box is not None and np.prod(box.shape) < np.prod(sub.shape):
+        if np.prod(box.shape) < np.prod(sub.shape):
             fine = self._score(sig, stats, box, scored.log_mode, None)
             mean, cov = likelihood_moments(be.to_numpy(fine), box, scored.log_mode)
         target = LocatedTarget(mean, covariance=cov,
@@ -89,16 +89,22 @@ def sub_grid(grid: Grid, stride: int) -> Grid:
     return Grid(grid.origin, tuple(step), tuple(shape))
 
 
-def box_around(grid: Grid, centre, half) -> Grid | None:
-    """`grid`'s cells within `half` (3,) of `centre` (the grid's own cells, clipped to it);
-    None where none is."""
+def box_around(grid: Grid, centre, half) -> Grid:
+    """`grid`'s cells within `half` (3,) of `centre` (at least the cells either side), the
+    count along each axis rounded up to a power of two (or the grid's own count where that is
+    fewer) and the box moved inside the grid. Why the rounding: PoCL builds a kernel anew for
+    each local size it picks, and picks it from the global size, so boxes of every shape would
+    each cost a build (~1 s) on a cold kernel cache and a file in it; snapped, the shapes are a
+    few (the consumer walk's 475 frames: 6 builds of ellipse_score in all, the Locator's own
+    among them)."""
     o, st, n = (np.asarray(v, dtype=np.float64) for v in (grid.origin, grid.step, grid.shape))
-    half = np.maximum(half, st)  # at least the cells either side
-    lo = np.clip(np.ceil((centre - half - o) / st), 0, n - 1).astype(int)
-    hi = np.clip(np.floor((centre + half - o) / st), 0, n - 1).astype(int)
-    if np.any(hi < lo):
-        return None
-    return Grid(tuple(o + lo * st), tuple(st), tuple(hi - lo + 1))
+    half = np.maximum(half, st)
+    lo = np.ceil((centre - half - o) / st)
+    hi = np.floor((centre + half - o) / st)
+    want = np.maximum(hi - lo + 1, 1)
+    size = np.minimum(2.0 ** np.ceil(np.log2(want)), n)
+    first = np.clip(lo - np.floor((size - want) / 2), 0, n - size)
+    return Grid(tuple(o + first * st), tuple(st), tuple(int(v) for v in size))
 
 
 def likelihood_moments(scores: np.ndarray, grid: Grid, log_mode: bool):

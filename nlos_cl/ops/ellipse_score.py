@@ -156,16 +156,26 @@ def opencl(rt, signal, stats, spots, laser, path0, inv_dpath, grid, log_mode=Fal
 
 def _blocks(rt, common, grid, blocks, tile, n_det, log_mode, log_floor, is_paired):
     from pyopencl import cltypes
+    from ..device.runtime import cl
     tx, ty, tz = (int(v) for v in tile)
     first = np.zeros((len(blocks), 4), np.int32)
     first[:, :3] = blocks
     first_buf = rt.constant(first, np.int32)
     out = rt.empty((len(blocks), tz, ty, tx))
 
+    # A CPU device gets a fixed local size of one item: PoCL builds a kernel anew for each
+    # local size it picks, and it picks it from the global size, which here follows the block
+    # count or a tracker's window, frame by frame. On the consumer walk's first run (a cold
+    # kernel cache) that was 165 builds of this kernel, 48 s against 22.6 s now (the argmax's
+    # track 19.4 -> 10.9 s); warm, the walk, the crossing tracker and the SPAD search timed
+    # alike (interleaved), the scores the same cell by cell. A GPU keeps its driver's choice.
+    local = (1, 1, 1) if rt.device.type & cl.device_type.CPU else None
+    items = -(-tx // CELLS_PER_ITEM)
+
     def ellipse_score_blocks(kern, det0, acc):
-        rt.run(kern, (-(-tx // CELLS_PER_ITEM), ty, len(blocks) * tz), *common,
+        rt.run(kern, (items, ty, len(blocks) * tz), *common,
                cltypes.make_int4(*grid.shape, 0), first_buf, cltypes.make_int4(tx, ty, tz, 0),
-               det0, acc, out)
+               det0, acc, out, local_size=local)
     _tiled(rt, n_det, log_mode, log_floor, ellipse_score_blocks, is_paired)
     return out
 
