@@ -13,7 +13,7 @@ track's distance to the plate's centre.
     .venv/bin/python scripts/confocal_track_draws.py [--draws 24] [--estimators paper mean]
 
 Stop 47 (docs/tracking.md): 24 draws, paper -> mean: per-draw median error 0.134 -> 0.108 m
-(median over draws), 90th percentile 0.232 -> 0.218, worst 0.236 -> 0.263; the mean nearer on
+(median over draws), 90th percentile 0.232 -> 0.219, worst 0.236 -> 0.263; the mean nearer on
 19 of 24. ~12 s a draw on 2 cores (4 min 40 s for the 24).
 """
 from __future__ import annotations
