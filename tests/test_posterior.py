@@ -174,3 +174,11 @@ def test_paired_sequences_are_tracked_with_the_mean_by_default(tmp_path, capsys)
     assert cli(["track", str(tmp_path / "walk.h5"), "--json", "--no-progress",
                 "--targets", "2"]) == 0
     assert "paper's argmax by default with several targets" in capsys.readouterr().err
+
+
+def test_no_positive_likelihood_gives_no_moments():
+    """A product map of zeros (or all NaN): (None, None), which the estimator answers with the
+    argmax's cell, never a NaN position."""
+    zeros = np.zeros(GRID.shape[::-1], np.float32)
+    assert likelihood_moments(zeros, GRID, False) == (None, None)
+    assert likelihood_moments(np.full_like(zeros, np.nan), GRID, True) == (None, None)

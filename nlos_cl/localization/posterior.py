@@ -64,7 +64,9 @@ class PosteriorMean:
         box = box_around(grid, mean, np.sqrt(np.diag(cov)) * BOX_SD)
         if np.prod(box.shape) < np.prod(sub.shape):
             fine = self._score(sig, stats, box, scored.log_mode, None)
-            mean, cov = likelihood_moments(be.to_numpy(fine), box, scored.log_mode)
+            fine_mean, fine_cov = likelihood_moments(be.to_numpy(fine), box, scored.log_mode)
+            if fine_mean is not None:  # (a box of zeros keeps the sub-grid's answer)
+                mean, cov = fine_mean, fine_cov
         target = LocatedTarget(mean, covariance=cov,
                                details={"argmax_m": [float(v) for v in paper.targets[0].position]})
         return Estimate([target], paper.cell_position, paper.score)
