@@ -55,7 +55,8 @@ def locate(signals, grid: Grid | None = None, *, log_mode: bool = False,
     """Score every grid cell by the signals at its ellipse path |c - O| + |c - spot| per
     detector, combine (product, or sum of logs when log_mode), and estimate the position
     (default: the model estimator, which fits a target to the histograms; "paper": the paper's
-    argmax, refined with a parabola per axis). `raw`: the unfiltered
+    argmax, refined with a parabola per axis; "mean": the likelihood's mean and covariance over
+    the grid, localization.posterior). `raw`: the unfiltered
     signals, for estimators that fit a model to the histograms. search: "coarse_to_fine"
     (default: the same argmax cell as "exhaustive" for a fraction of the work; see `Locator`)
     or "exhaustive"; signal_width_m: the filtered signal's width in path metres (speed only);

@@ -40,7 +40,7 @@ NO_SIGNAL = "no cell has a non-zero likelihood"
 
 
 class Tracker:
-    """`Tracker(layout, grid, estimator='paper'|'model'|object, motion=Interacting())`;
+    """`Tracker(layout, grid, estimator='paper'|'mean'|'model'|object, motion=Interacting())`;
     `update(frame, t_s=None) -> list[Track]` (the live tracks, confirmed and tentative).
 
     layout: a nl.Layout or anything with `.layout` (HistogramSet, Signals, a read Sequence).
