@@ -182,3 +182,15 @@ def test_no_positive_likelihood_gives_no_moments():
     zeros = np.zeros(GRID.shape[::-1], np.float32)
     assert likelihood_moments(zeros, GRID, False) == (None, None)
     assert likelihood_moments(np.full_like(zeros, np.nan), GRID, True) == (None, None)
+
+
+def test_the_mean_is_refused_for_several_targets(tmp_path, capsys):
+    """A mean of two targets lies between them: `--estimator mean --targets 2` is a one-line
+    error naming the option and the fix, before anything is tracked."""
+    from test_datasets_sequences import converted
+    converted(tmp_path)
+    capsys.readouterr()
+    assert cli(["track", str(tmp_path / "walk.h5"), "--json", "--no-progress",
+                "--estimator", "mean", "--targets", "2"]) != 0
+    out = capsys.readouterr()
+    assert out.out == "" and "--estimator" in out.err and "--estimator paper or model" in out.err

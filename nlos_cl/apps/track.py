@@ -103,6 +103,9 @@ def _estimator(args, first):
         print(f"nlos-cl: warning: {PAIRED_TRACK_DEFAULT[choice]}", file=sys.stderr)
     if choice in ("paper", "mean"):
         from ..core.errors import require
+        require(choice != "mean" or args.targets == 1, "--estimator", "mean gives one position "
+                "a frame, the likelihood's mean over the region, which lies between two "
+                "targets", "pass --estimator paper or model with --targets above 1")
         require(args.reflectance is None, "--reflectance", "is for the model fit; the paper's "
                 "likelihood has no reflectance", f"leave out --estimator {choice}, or "
                 "--reflectance")
