@@ -14,7 +14,7 @@ import nlos_cl as nl
 from nlos_cl.apps.cli import main as cli
 from nlos_cl.core.grid import Grid
 from nlos_cl.localization.posterior import (LOG_SPAN, box_around, likelihood_moments,
-                                            sub_grid)
+                                            strided)
 
 GRID = Grid((0.1, 0.2, -0.3), (0.02, 0.03, 0.05), (40, 30, 20))
 
@@ -72,11 +72,11 @@ def test_a_gaussian_likelihood_gives_its_mean_and_covariance():
 
 
 def test_sub_grid_and_box_are_cells_of_the_grid():
-    sub = sub_grid(GRID, 2)
+    sub = strided(GRID, 2)
     assert sub.origin == GRID.origin and sub.shape == (20, 15, 10)
     assert np.allclose(sub.step, np.asarray(GRID.step) * 2)
     plane = Grid((0.0, 0.5, 0.0), (0.01, 0.01, 0.01), (11, 7, 1))
-    assert sub_grid(plane, 2).shape == (6, 4, 1)  # a plane's one z stays
+    assert strided(plane, 2).shape == (6, 4, 1)  # a plane's one z stays
     centre, half = np.array([0.3, 0.5, 0.5]), np.array([0.05, 0.1, 0.3])
     box = box_around(GRID, centre, half)
     first = (np.asarray(box.origin) - GRID.origin) / np.asarray(GRID.step)

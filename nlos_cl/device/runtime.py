@@ -147,12 +147,11 @@ class Runtime:
         self.context = cl.Context([self.device])
         self.queue = cl.CommandQueue(self.context)
         self.allocator = cltools.MemoryPool(cltools.ImmediateAllocator(self.queue))
-        self._programs: dict = {}
-        self._kernels: dict = {}
-        self._constants: dict = {}
-        self._resources: dict = {}
+        self._programs, self._kernels, self._constants, self._resources = {}, {}, {}, {}
         self.launched: set = set()  # (kernel file, kernel name) run so far (the oclgrind check)
         self.name = devices.describe(self.device)
+        # a CPU device (PoCL, Intel's, Oclgrind): the ops pick their CPU paths from it
+        self.on_cpu = bool(self.device.type & cl.device_type.CPU)
 
     # ------------------------------------------------------------ programs
     def kernel(self, source: str, name: str, **defines) -> "cl.Kernel":

@@ -80,11 +80,11 @@ class PosteriorMean:
 
     def _sub_grid(self, grid: Grid) -> Grid:
         if self._plan is None or self._plan[0] != grid:
-            self._plan = (grid, sub_grid(grid, self.stride), None)
+            self._plan = (grid, strided(grid, self.stride), None)
         return self._plan[1]
 
 
-def sub_grid(grid: Grid, stride: int) -> Grid:
+def strided(grid: Grid, stride: int) -> Grid:
     """Every `stride`-th cell of `grid` along each axis with more than one cell, from its first."""
     step = [s * stride if n > 1 else s for s, n in zip(grid.step, grid.shape)]
     shape = [(n - 1) // stride + 1 if n > 1 else 1 for n in grid.shape]

@@ -156,7 +156,6 @@ def opencl(rt, signal, stats, spots, laser, path0, inv_dpath, grid, log_mode=Fal
 
 def _blocks(rt, common, grid, blocks, tile, n_det, log_mode, log_floor, is_paired):
     from pyopencl import cltypes
-    from ..device.runtime import cl
     tx, ty, tz = (int(v) for v in tile)
     first = np.zeros((len(blocks), 4), np.int32)
     first[:, :3] = blocks
@@ -169,7 +168,7 @@ def _blocks(rt, common, grid, blocks, tile, n_det, log_mode, log_floor, is_paire
     # kernel cache) that was 165 builds of this kernel, 48 s against 22.6 s now (the argmax's
     # track 19.4 -> 10.9 s); warm, the walk, the crossing tracker and the SPAD search timed
     # alike (interleaved), the scores the same cell by cell. A GPU keeps its driver's choice.
-    local = (1, 1, 1) if rt.device.type & cl.device_type.CPU else None
+    local = (1, 1, 1) if rt.on_cpu else None
     items = -(-tx // CELLS_PER_ITEM)
 
     def ellipse_score_blocks(kern, det0, acc):

@@ -134,9 +134,8 @@ ROWS_MIN_DETECTORS, ROWS_MAX_FACETS = 16, 1000
 
 
 def _deposit_kernel(rt, n_detectors: int, n_facets: int) -> str:
-    from ..device.runtime import cl
     rows = n_detectors >= ROWS_MIN_DETECTORS and n_facets <= ROWS_MAX_FACETS * n_detectors
-    return "deposit_rows" if rows and rt.device.type & cl.device_type.CPU else "deposit"
+    return "deposit_rows" if rows and rt.on_cpu else "deposit"
 
 
 def _plan_passes(rt, n_det, n_pad, n_bins, sigma_path, dpath, method):

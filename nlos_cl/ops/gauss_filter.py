@@ -39,11 +39,6 @@ def numpy(signal, taps, taps_space=None, method=None):
                        axis=-1, mode="constant", cval=0.0)
 
 
-def _on_cpu(rt) -> bool:
-    from ..device.runtime import cl
-    return bool(rt.device.type & cl.device_type.CPU)
-
-
 def _fft(rt, signal, taps, out):
     """Overlap-add FFT on the host (CPU devices): zero outside the record, as the kernel."""
     from scipy.signal import oaconvolve
@@ -58,7 +53,7 @@ def _fft(rt, signal, taps, out):
 
 def opencl(rt, signal, taps, taps_space=None, method=None, out=None):
     if method is None:
-        method = "fft" if taps_space is None and len(taps) >= FFT_MIN_TAPS and _on_cpu(rt) \
+        method = "fft" if taps_space is None and len(taps) >= FFT_MIN_TAPS and rt.on_cpu \
             else "direct"
     if method == "fft":
         return _fft(rt, signal, taps, out)
