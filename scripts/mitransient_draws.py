@@ -78,49 +78,65 @@ def render(out: Path, indices, spp: int, splits: int):
     import mitsuba as mi
     mi.set_variant("llvm_ad_mono" if "llvm_ad_mono" in mi.variants() else "llvm_ad_rgb")
     import mitransient as mitr  # noqa: F401  (registers the plugins)
-    from mitsuba import ScalarTransform4f as T
     for i in indices:
         target = out / f"draw{i}_render.npy"
         if target.exists():
             continue
         meta = json.loads((out / f"draw{i}.json").read_text())
         t0 = time.perf_counter()
-        rows = []
-        for spot in meta["spots"]:
-            reach = max(abs(spot[0]), abs(spot[2])) + 0.5  # the rectangle covers O
-            wall = {"type": "rectangle", "id": "relay_wall",
-                    "to_world": T().translate(spot) @ T().rotate([1, 0, 0], -90)
-                    @ T().scale([reach, reach, 1.0]),
-                    "bsdf": {"type": "diffuse",
-                             "reflectance": {"type": "rgb", "value": meta["wall_brdf"] * math.pi}},
-                    "nlos_sensor": {"type": "nlos_capture_meter", "sensor_origin": DEVICE,
-                                    "film": {"type": "transient_hdr_film", "width": 1,
-                                             "height": 1, "temporal_bins": meta["n_bins"],
-                                             "bin_width_opl": meta["bin_opl"],
-                                             "start_opl": meta["start_opl"],
-                                             "rfilter": {"type": "box"}}}}
-            desc = {"type": "scene", "relay_wall": wall,
-                    "integrator": {"type": "transient_nlos_path", "max_depth": 3,
-                                   "nlos_laser_sampling": True,
-                                   "nlos_hidden_geometry_sampling": True,
-                                   "account_first_and_last_bounces": False},
-                    "laser": {"type": "projector", "id": "laser", "fov": 0.05,
-                              "to_world": T().translate(DEVICE), "irradiance": 1.0}}
-            for k in range(meta["n_targets"]):
-                desc[f"target_{k}"] = {
-                    "type": "ply", "filename": str(out / f"draw{i}_{k}.ply"), "face_normals": True,
-                    "bsdf": {"type": "diffuse",
-                             "reflectance": {"type": "rgb", "value": meta["brdf"] * math.pi}}}
-            scene = mi.load_dict(desc)
-            relay = [s for s in scene.shapes() if s.id() == "relay_wall"][0]
-            mitr.nlos.focus_emitter_at_relay_wall_3dpoint(mi.Point3f(*meta["laser"]), relay,
-                                                          scene.emitters()[0])
-            rows.append([np.array(mi.render(scene, spp=max(1, spp // splits), seed=seed)[1])
-                         [0, 0, :, 0] for seed in range(splits)])
+        plys = [out / f"draw{i}_{k}.ply" for k in range(meta["n_targets"])]
+        rows = [render_pair(mi, mitr, meta, meta["laser"], spot, plys, spp, splits)
+                for spot in meta["spots"]]
         np.save(target, np.array(rows, np.float32))  # (spots, splits, bins)
         (out / f"draw{i}_render.json").write_text(json.dumps(
             {"spp": splits * max(1, spp // splits), "seconds": time.perf_counter() - t0}))
         print(f"draw {i}: {len(rows)} spots, {time.perf_counter() - t0:.1f} s", flush=True)
+
+
+def render_pair(mi, mitr, meta: dict, laser, spot, plys, spp: int, splits: int) -> list:
+    """`splits` independent renders (each spp / splits samples) of the hidden path laser spot
+    -> targets (plys) -> `spot` on meta's time axis (start_opl, bin_opl, n_bins): a list of
+    (bins,) arrays. The laser may be the spot itself (a confocal pair)."""
+    from mitsuba import ScalarTransform4f as T
+    reach = max(abs(spot[0] - laser[0]), abs(spot[2] - laser[2])) + 0.5  # covers the laser spot
+    wall = {"type": "rectangle", "id": "relay_wall",
+            "to_world": T().translate(spot) @ T().rotate([1, 0, 0], -90)
+            @ T().scale([reach, reach, 1.0]),
+            "bsdf": {"type": "diffuse",
+                     "reflectance": {"type": "rgb", "value": meta["wall_brdf"] * math.pi}},
+            "nlos_sensor": {"type": "nlos_capture_meter", "sensor_origin": DEVICE,
+                            "film": {"type": "transient_hdr_film", "width": 1,
+                                     "height": 1, "temporal_bins": meta["n_bins"],
+                                     "bin_width_opl": meta["bin_opl"],
+                                     "start_opl": meta["start_opl"],
+                                     "rfilter": {"type": "box"}}}}
+    desc = {"type": "scene", "relay_wall": wall,
+            "integrator": {"type": "transient_nlos_path", "max_depth": 3,
+                           "nlos_laser_sampling": True,
+                           "nlos_hidden_geometry_sampling": True,
+                           "account_first_and_last_bounces": False},
+            "laser": {"type": "projector", "id": "laser", "fov": 0.05,
+                      "to_world": T().translate(DEVICE), "irradiance": 1.0}}
+    for k, ply in enumerate(plys):
+        desc[f"target_{k}"] = {
+            "type": "ply", "filename": str(ply), "face_normals": True,
+            "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": meta["brdf"] * math.pi}}}
+    scene = mi.load_dict(desc)
+    relay = [s for s in scene.shapes() if s.id() == "relay_wall"][0]
+    mitr.nlos.focus_emitter_at_relay_wall_3dpoint(mi.Point3f(*laser), relay, scene.emitters()[0])
+    return [np.array(mi.render(scene, spp=max(1, spp // splits), seed=seed)[1])[0, 0, :, 0]
+            for seed in range(splits)]
+
+
+def delivered(laser) -> float:
+    """The power mitransient's projector puts on a wall point, relative to O: it is a point
+    source of fixed intensity at DEVICE (irradiance cos(incidence) / distance^2), where a laser
+    puts its whole power on the spot wherever it points (nlos_cl's model). One constant for the
+    one-laser layout; per laser point a factor of 0.97-1.11 in scripts/mitransient_layouts.py."""
+    def irradiance(p):
+        v = np.asarray(DEVICE, float) - np.asarray(p, float)
+        return v[1] / np.linalg.norm(v) ** 3  # the wall's normal is +y
+    return float(irradiance(laser) / irradiance([0.0, 0.0, 0.0]))
 
 
 def pulse_convolved(data, bin_m: float, sigma_m: float) -> np.ndarray:
