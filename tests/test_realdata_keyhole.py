@@ -50,19 +50,44 @@ def test_time_zero_follows_the_drift_and_the_truth_has_the_height():
     assert frames[0][1].time_axis.t0_s == pytest.approx(-0.5 * 16e-12)  # peak bin centred
 
 
-def test_range_of_a_simulated_point_target(runtime):
+POINT_TARGET = np.array([1.2, 1.6, 0.0])
+
+
+def _point_target_frame(runtime):
     """A confocal histogram simulated by the forward model (laser and detection spot 1 mm
-    apart) at a known range: the range is that distance, within a quarter of a 10 ps bin's
-    path and the plate's half-size seen obliquely."""
-    target = np.array([1.2, 1.6, 0.0])
+    apart) of a 5 cm plate facing the spot at POINT_TARGET."""
+    target = POINT_TARGET
     setup = nl.paper_setup(laser_spot=(0.0, 0.0, 0.0), detector_spots=[(1e-3, 0.0, 0.0)])
     scene = nl.Scene(setup, nl.Target(nl.rectangle(0.05, 0.05, centre=target,
                                                    normal=-target / np.linalg.norm(target),
                                                    cell_m=0.005)), 0.005, truth=target)
     h = nl.simulate(scene, nl.default_time_axis(setup, 1e-11), backend=runtime).histograms()
-    confocal = nl.HistogramSet(h.data, h.time_axis, [(0.0, 0.0, 0.0)], [(0.0, 0.0, 0.0)],
-                               h.calibration)
-    assert confocal_range(confocal) == pytest.approx(np.linalg.norm(target), abs=0.005)
+    return nl.HistogramSet(h.data, h.time_axis, [(0.0, 0.0, 0.0)], [(0.0, 0.0, 0.0)],
+                           h.calibration), setup
+
+
+def test_range_of_a_simulated_point_target(runtime):
+    """The range is the point's distance, within a quarter of a 10 ps bin's path and the
+    plate's half-size seen obliquely."""
+    confocal, _ = _point_target_frame(runtime)
+    assert confocal_range(confocal) == pytest.approx(np.linalg.norm(POINT_TARGET), abs=0.005)
+
+
+def test_range_rules_of_a_simulated_point_target(runtime):
+    """`reproduce real`'s diagnosis rules on a point's return: the peak at its range, the
+    near and far half-height edges either side of it by half the filtered pulse's full width
+    at half maximum (pulse and Gauss filter, sigma h / 3, added in quadrature: 2.3548 sigma of
+    time, c / 2 of range per second), to 5 % (the 5 cm plate widens it a little)."""
+    from nlos_cl.apps.reproduce.real_runs import _range_rules
+    from nlos_cl.core.constants import PAPER_H_S, SPEED_OF_LIGHT
+    confocal, setup = _point_target_frame(runtime)
+    rules = {k: float(v[0]) for k, v in _range_rules([(0.0, confocal)], PAPER_H_S).items()}
+    truth = float(np.linalg.norm(POINT_TARGET))
+    assert rules["peak"] == pytest.approx(truth, abs=0.005)
+    assert 0.5 * (rules["leading"] + rules["trailing"]) == pytest.approx(truth, abs=0.005)
+    sigma_s = np.hypot(setup.pulse.sigma_s, PAPER_H_S / 3)
+    width = 2.3548 * sigma_s * SPEED_OF_LIGHT / 2
+    assert rules["trailing"] - rules["leading"] == pytest.approx(width, rel=0.05)
 
 
 def test_range_only_needs_one_confocal_histogram():

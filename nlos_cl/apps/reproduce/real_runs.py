@@ -106,19 +106,44 @@ def keyhole(cfg: dict, root: Path) -> dict:
         stage = np.asarray(meta["stage_range_m"])
         offset = float(np.mean(ours - stage))
         corr = float(np.corrcoef(ours, stage)[0, 1])
-        rms = float(np.sqrt(np.mean((ours - stage - offset) ** 2)))
-        rms_measured = float(np.sqrt(np.mean((measured - stage - np.mean(measured - stage))
-                                             ** 2)))
+        rms, rms_measured = _rms_after_offset(ours, stage), _rms_after_offset(measured, stage)
         series[letter] = (ours, stage, offset)
         lateral, rms_lateral = _letter_lateral(ours, meta)
+        rules = {f"rms_{name}_m": round(_rms_after_offset(r, stage), 4)
+                 for name, r in _range_rules(frames, args.h_ns * 1e-9).items()}
         rows.append({"case": letter, "exposures": len(frames), "corr": round(corr, 3),
                      "rms_m": round(rms, 4), "rms_measured_m": round(rms_measured, 4),
                      "offset_m": round(offset, 3),
                      "letter_lateral_m": round(lateral, 3),
-                     "rms_letter_lateral_m": round(rms_lateral, 4),
+                     "rms_letter_lateral_m": round(rms_lateral, 4), **rules,
                      "seconds": round(seconds, 2), "read_s": round(read_s, 2),
                      "met": bool(corr >= cfg["goal"]["corr"] and rms <= cfg["goal"]["rms_m"])})
     return {"rows": rows, "series": series}
+
+
+def _rms_after_offset(ours, stage) -> float:
+    residual = np.asarray(ours) - np.asarray(stage)
+    return float(np.sqrt(np.mean((residual - residual.mean()) ** 2)))
+
+
+def _range_rules(frames, h_s: float) -> dict:
+    """A diagnosis: each frame's range (m) by other rules on the same Gauss-filtered return:
+    its peak, and the half-height crossings of its main lobe (the near edge, `leading`, and
+    the far one, `trailing`). A letter beside the grid's centre moves them apart: where each
+    rule sits on the letter is another lateral place."""
+    from nlos_cl.localization.api import gauss_filter
+    out = {"peak": [], "leading": [], "trailing": []}
+    for _, h in frames:
+        y = gauss_filter(h, h_s).histograms().data[0].astype(np.float64)
+        half_path = 0.5 * h.hidden_path_axis()[0]
+        k = int(np.argmax(y))
+        half = 0.5 * y[k]
+        lo = k - int(np.argmax(y[k::-1] <= half))  # the first bin at or below half, each side
+        hi = k + int(np.argmax(y[k:] <= half))
+        at = lambda a, b: a + (half - y[a]) / (y[b] - y[a]) * (b - a)  # noqa: E731
+        for name, place in (("peak", k), ("leading", at(lo, lo + 1)), ("trailing", at(hi - 1, hi))):
+            out[name].append(float(np.interp(place, np.arange(len(y)), half_path)))
+    return {k: np.array(v) for k, v in out.items()}
 
 
 def _letter_lateral(ours, meta) -> tuple[float, float]:
@@ -133,8 +158,7 @@ def _letter_lateral(ours, meta) -> tuple[float, float]:
     x, z = np.asarray(meta["xpos_m"]), np.asarray(meta["zpos_m"])
 
     def rms(lateral):
-        residual = ours - stage_range_m(x, z, lateral)
-        return float(np.sqrt(np.mean((residual - residual.mean()) ** 2)))
+        return _rms_after_offset(ours, stage_range_m(x, z, lateral))
     best = minimize_scalar(rms, bounds=(-0.3, 0.3), method="bounded",
                            options={"xatol": 1e-4})
     return float(best.x), rms(best.x)
