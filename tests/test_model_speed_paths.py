@@ -120,6 +120,26 @@ def test_ellipse_point_with_its_jacobian_is_the_finite_difference_answer(obs):
     np.testing.assert_allclose(point[:2], differenced, atol=1e-6)
 
 
+def test_a_detector_without_signal_is_left_out_of_the_start(obs):
+    """A float32 record with one detector's values all zero (a CC-SOCR scan point's counts):
+    its mean path is NaN (0 / 0: a 1e-300 floor is 0 in float32), the others' are float64's,
+    and the ellipse start is the one the other detectors give (it raised 'x0: must be a
+    finite vector' from `--estimator model` on 24 CC-SOCR points); none seen: the region's
+    middle."""
+    from dataclasses import replace
+    y = obs.y.astype(np.float32)
+    y[1] = 0.0
+    dead = replace(obs, y=y)
+    paths = starts.mean_paths(dead)
+    assert np.isnan(paths[1]) and np.all(np.isfinite(paths[[0, 2]]))
+    np.testing.assert_allclose(paths[[0, 2]], starts.mean_paths(obs)[[0, 2]], rtol=1e-6)
+    rest = obs.detectors([0, 2])
+    np.testing.assert_allclose(starts.ellipse_point(dead, paths, ON_PLANE),
+                               starts.ellipse_point(rest, starts.mean_paths(rest), ON_PLANE),
+                               atol=1e-9)
+    middle = plate.Held(2, (1.0, 2.0, 0.5))
+    assert np.array_equal(starts.ellipse_point(obs, np.full(3, np.nan), middle), [1.0, 2.0, 0.5])
+
 def test_damped_step_without_index_arrays_is_the_indexed_one():
     rng = np.random.default_rng(4)
     j = rng.normal(size=(30, 5))

@@ -25,21 +25,29 @@ START_LATTICE = (8, 12)
 
 
 def mean_paths(obs, data=None) -> np.ndarray:
-    """(D,) signal-weighted mean hidden path per detector (background removed for counts)."""
-    y = obs.y if data is None else data
+    """(D,) signal-weighted mean hidden path per detector (background removed for counts);
+    NaN for a detector without signal above it (a CC-SOCR scan point whose counts are all 0).
+    In float64: a float32 record's sum of 0 would stay 0 under a 1e-300 floor (0 / 0)."""
+    y = np.asarray(obs.y if data is None else data, dtype=np.float64)
     if obs.mode == "poisson":
         edge = np.concatenate([y[:, :5], y[:, -5:]], axis=1).mean(axis=1, keepdims=True)
         y = y - edge
     w = np.maximum(y, 0.0) * obs.valid
-    total = np.maximum(w.sum(axis=1), 1e-300)
-    return (w * obs.centres()).sum(axis=1) / total
+    total = w.sum(axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(total > 0, (w * obs.centres()).sum(axis=1) / total, np.nan)
 
 
 def ellipse_point(obs, paths, held=plate.Held()) -> np.ndarray:
     """The point (y > 0) whose paths to the laser and each spot best match `paths` (its held
-    axis, if any, on the held plane)."""
+    axis, if any, on the held plane); detectors whose path is NaN (no signal) left out, and
+    the region's middle (held.at) where none has one."""
     from .lm import least_squares  # not SciPy's: its import costs a one-shot locate ~0.25 s
-    spots, laser = obs.spots, obs.laser
+    seen = np.isfinite(paths)
+    if not seen.any():
+        return held.put(held.at)
+    laser = obs.laser[seen] if np.ndim(obs.laser) == 2 else obs.laser
+    spots, paths = obs.spots[seen], np.asarray(paths)[seen]
     x0 = float(np.reshape(laser, (-1, 3))[:, 0].mean())  # a paired layout: its lasers' middle
     axes = held.free_axes()
 
