@@ -55,3 +55,46 @@ def test_the_exported_axis_is_nlos_cls_hidden_path(tmp_path):
     expected = (path - meta["start_opl"]) / meta["bin_opl"]
     assert np.all(np.abs(np.argmax(hist, axis=1) + 0.5 - expected) < 0.02 / meta["bin_opl"])
     assert math.isclose(meta["bin_opl"], nl.SPEED_OF_LIGHT * 1e-12)
+
+
+def _layouts_script():
+    import sys
+    sys.path.insert(0, str(SCRIPT.parent))  # it imports mitransient_draws beside it
+    spec = importlib.util.spec_from_file_location("mitransient_layouts",
+                                                  SCRIPT.with_name("mitransient_layouts.py"))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_layouts_pair_lasers_and_spots_as_documented():
+    """scripts/mitransient_layouts.py: one laser at O; confocal, laser = spot; paired, spot i
+    lit at spot i + 1 (no pair confocal); exhaustive, lasers O, spot 0 and spot S/2 with every
+    spot (its first row block is the one-laser layout)."""
+    m = _layouts_script()
+    spots = np.array([[-1.0, 0.0, 0.2], [-0.5, 0.0, -0.3], [0.4, 0.0, 0.1], [0.8, 0.0, 0.6]])
+    pairs = m.pairs_of(spots)
+    lasers, seen = pairs["one"]
+    assert np.array_equal(lasers, np.zeros((4, 3))) and np.array_equal(seen, spots)
+    assert all(np.array_equal(a, spots) for a in pairs["confocal"])
+    lasers, seen = pairs["paired"]
+    assert np.array_equal(lasers, spots[[1, 2, 3, 0]]) and np.array_equal(seen, spots)
+    lasers, seen = pairs["exhaustive"]
+    assert lasers.shape == seen.shape == (12, 3)
+    assert np.array_equal(lasers[:4], np.zeros((4, 3))) and np.array_equal(seen[:4], spots)
+    assert np.array_equal(lasers[4:8], np.repeat(spots[[0]], 4, 0))
+    assert np.array_equal(lasers[8:], np.repeat(spots[[2]], 4, 0))
+
+
+def test_every_laser_point_gets_one_power():
+    """mitransient_draws.delivered: the projector's irradiance at a wall point relative to O,
+    cos(incidence) / distance^2 from the device (the factor the layouts' renders are divided
+    by), 1 at O; further and more oblique points receive less."""
+    m = _script()
+    assert m.delivered([0.0, 0.0, 0.0]) == 1.0
+    p = np.array([-0.8, 0.0, -0.228])
+    v = np.asarray(m.DEVICE) - p
+    o = np.asarray(m.DEVICE, float)
+    expected = (v[1] / np.linalg.norm(v) ** 3) / (o[1] / np.linalg.norm(o) ** 3)
+    assert math.isclose(m.delivered(p), expected, rel_tol=1e-12)
+    assert 0.96 < m.delivered(p) < 0.97  # draw 0's spot 0: the 0.966 measured in its renders
