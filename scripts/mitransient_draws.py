@@ -120,7 +120,8 @@ def render_pair(mi, mitr, meta: dict, laser, spot, plys, spp: int, splits: int) 
     for k, ply in enumerate(plys):
         desc[f"target_{k}"] = {
             "type": "ply", "filename": str(ply), "face_normals": True,
-            "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": meta["brdf"] * math.pi}}}
+            "bsdf": {"type": "diffuse",
+                     "reflectance": {"type": "rgb", "value": meta["brdf"] * math.pi}}}
     scene = mi.load_dict(desc)
     relay = [s for s in scene.shapes() if s.id() == "relay_wall"][0]
     mitr.nlos.focus_emitter_at_relay_wall_3dpoint(mi.Point3f(*laser), relay, scene.emitters()[0])
