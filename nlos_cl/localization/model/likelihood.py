@@ -150,9 +150,16 @@ class Problem:
         y = obs.y
         flat = cols.reshape(k, -1)
         for _ in range(iters):
-            lam = np.maximum(np.tensordot(phi[:k], cols, 1) + phi[k:, None] * valid, 1e-12)
-            r = (y / lam - 1.0) * valid
-            w = valid * y / lam ** 2
+            # a column that barely overlaps the counts (a start candidate far off) can send
+            # its amplitude off without bound: the iteration stops at the last finite phi
+            # (its cost then rejects the candidate) instead of overflowing (CC-SOCR's
+            # 4 points as one laser: "overflow encountered in square" in the answer's warnings)
+            with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+                lam = np.maximum(np.tensordot(phi[:k], cols, 1) + phi[k:, None] * valid, 1e-12)
+                r = (y / lam - 1.0) * valid
+                w = valid * y / lam ** 2
+            if not (np.all(np.isfinite(w)) and np.all(np.isfinite(r))):
+                break
             hess = np.empty((k + len(y), k + len(y)))
             hess[:k, :k] = (flat * w.reshape(-1)) @ flat.T
             hess[:k, k:] = np.einsum("kdn,dn->kd", cols, w * valid)
@@ -162,6 +169,8 @@ class Problem:
             hess += 1e-9 * np.trace(hess) / len(hess) * np.eye(len(hess))
             step = np.linalg.solve(hess, grad)
             new = np.maximum(phi + step, 1e-12 * np.maximum(phi, 1e-6))
+            if not np.all(np.isfinite(new)):
+                break
             if np.allclose(new, phi, rtol=1e-9, atol=0):
                 phi = new
                 break
