@@ -52,6 +52,35 @@ def test_paths_that_contradict_the_argmax_fall_back_but_a_slide_along_its_ridge_
     assert doubt(ridge, argmax, SPOTS, LASER) is None
 
 
+def _diagnosed(shape, misfit_ratio, depth_unseen, birge=None):
+    """A target at the argmax's paths whose fit reports these diagnostics (as the estimator
+    does: the misfit ratio, Birge or counts' deviance per degree of freedom; depth_unseen)."""
+    fit = ModelFit(shape, shape, (Parameter("x", 4.0),), 1.0, np.array([0.0, -1.0, 0.0]),
+                   "poisson" if birge is None else "gauss", 1.0, 100, birge, False,
+                   diagnostics={"misfit_ratio": misfit_ratio, "depth_unseen": depth_unseen})
+    return LocatedTarget(np.array([4.0, 2.3, 0.0]), np.eye(3) * 1e-4,
+                         np.array([0.5, 0.5, 0.6]), fit=fit)
+
+
+def test_a_closed_shape_that_misfits_with_its_depth_unseen_falls_back_to_the_argmax():
+    """CC-SOCR as one laser and N detectors (reciprocity): the plate misses the measured
+    counts (deviance 320-450 per degree of freedom), a box or ellipsoid misses them too, its
+    depth unseen (sd 0.30-0.52 m): its centre, 0.24-0.40 m behind the "4", is a guess, and the
+    argmax on the "4" is reported. Each condition alone keeps the fit: a misfit closed shape
+    whose depth is seen (noise-free boxes: Birge ~1,200, centre right), a well-fitting one with
+    an unseen depth (noisy draws: warned, the centre the best guess), and a misfit plate (its
+    centre is its surface)."""
+    argmax = np.array([4.0, 2.0, 0.0])
+    guess = _diagnosed("box", 427.0, True)
+    with pytest.warns(UserWarning, match="the fitted box does not explain the data .residual 427"):
+        out = checked([guess], argmax, SPOTS, LASER)
+    assert np.array_equal(out[0].position, argmax)
+    assert out[0].details["rejected_fit"]["model"] == "box"
+    for kept in (_diagnosed("box", 1238.0, False, birge=1238.0), _diagnosed("box", 1.4, True),
+                 _diagnosed("plate", 427.0, True)):
+        assert doubt(kept, argmax, SPOTS, LASER) is None
+
+
 def test_several_targets_are_warned_about_not_replaced():
     big = target((4.0, 2.0, 0.0), (3.0, 1.0, 0.0))
     ok = target((2.0, 4.0, 0.0), (0.3, 0.3, 0.0), birge=500.0)

@@ -36,8 +36,9 @@ PLAN_CACHE = 8
 # fitted a 0.7 m square as a 2.1 x 3.0 m box, 0.56 m off), or where a detector's ellipse path
 # through its centre differs from the path through the paper's argmax (on the target's visible
 # surface) by more than the fitted diagonal + 2 ARGMAX_MARGIN_M. A Birge ratio (residual
-# variance / noise's) above MISFIT_BIRGE is warned about only (measured paired captures gave
-# 370-500 and a wrong depth; a closed box, 1,238 and the right centre).
+# variance / noise's) above MISFIT_BIRGE alone is warned about only (measured paired captures
+# gave 370-500 and a wrong depth; a closed box, 1,238 and the right centre); a closed shape
+# above it whose depth the spots cannot tell falls back to the argmax (model.sanity).
 MAX_EXTENT_M = 2.5
 MISFIT_BIRGE = 100.0
 ARGMAX_MARGIN_M = 0.15

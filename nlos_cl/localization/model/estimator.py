@@ -144,6 +144,12 @@ class ModelEstimator:
         if warm_info is not None:
             info = dict(info, warm_start=warm_info)
         notes = _notes(held, chosen.shape, result, cov_all, info)
+        # what sanity.doubt reads: the misfit (the Birge ratio, or counts' deviance per degree
+        # of freedom, as select.misfit) and whether one target's depth is unseen
+        from .select import misfit
+        info = dict(info, misfit_ratio=misfit(chosen, result, free, info)[1],
+                    depth_unseen=len(result.params) == 1 and
+                    unseen_note(chosen.shape, result, cov_all, info) is not None)
         for note in notes:
             warnings.warn(note, stacklevel=3)
         self.timings = _stages(clock, problem)

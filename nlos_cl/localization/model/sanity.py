@@ -13,9 +13,15 @@ One target: a fit that fails one is replaced by the paper's argmax (no covarianc
 uses its fallback sigma) and the reason is warned. Several targets: the paper's argmax gives
 one position only, on one of them, so the paths check is skipped and a target failing the
 others is kept and warned about.
-A Birge ratio above MISFIT_BIRGE is warned about but not replaced: closed shapes fitted to
-noise-free boxes reach 1,238 with the centre right, so the ratio alone does not say the
-position is wrong."""
+- misfit and depth unseen: a closed shape (box, ellipsoid, cylinder) whose Birge ratio is
+  above MISFIT_BIRGE AND whose depth these spots cannot tell (depth.unseen_note): the closed
+  shape was tried because the plate missed the data, missed it too, and its centre lies a
+  guessed depth behind the surface (CC-SOCR as one laser and N detectors by reciprocity: plate
+  Birge 320-450, an ellipsoid or box centre 0.24-0.40 m behind the "4", depth sd 0.30-0.52 m,
+  where the argmax is on it).
+A Birge ratio above MISFIT_BIRGE alone is warned about but not replaced: closed shapes fitted
+to noise-free boxes reach 1,238 with the centre right (their depth seen), so the ratio alone
+does not say the position is wrong."""
 from __future__ import annotations
 
 import warnings
@@ -37,6 +43,13 @@ def doubt(target: LocatedTarget, paper_position, spots, lasers) -> str | None:
         size = " x ".join(f"{v:.2f}" for v in extent if v > 0)
         return (f"the fitted {fit.shape} is {size} m, larger than the {MAX_EXTENT_M} m any "
                 "target is expected to be")
+    seen = fit.diagnostics or {}
+    ratio = seen.get("misfit_ratio")
+    if fit.shape != "plate" and ratio is not None and ratio > MISFIT_BIRGE and \
+            seen.get("depth_unseen"):
+        return (f"the fitted {fit.shape} does not explain the data (residual {ratio:.0f} times "
+                f"the noise's, above {MISFIT_BIRGE:.0f}) and these spots cannot tell its depth, "
+                "so its centre is a guess behind the surface")
     if paper_position is None:
         return None
     reach = float(np.linalg.norm(extent if extent is not None else 0.0)) + 2 * ARGMAX_MARGIN_M
