@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 import nlos_cl as nl
+from nlos_cl.core.errors import require
 from nlos_cl.core.geometry import farthest_points
 
 
@@ -36,7 +37,10 @@ def ccsocr(cfg: dict, root: Path) -> dict:
     low, high = cfg["goal"]["depth_m"]
     cases = [("full", full.n_detectors, full)] * bool(cfg["full"]) + [
         (f"{k} points", k, full.select(farthest_points(full.laser_spots, k)))
-        for k in cfg["subsets"]]
+        for k in cfg["subsets"]] + [
+        (f"{k} points, one laser (reciprocity)", k,
+         reciprocal(full.select(farthest_points(full.laser_spots, k))))
+        for k in cfg.get("reciprocal", [])]
     rows = []
     for name, count, h in cases:
         position, seconds = _timed(lambda: _located(h))
@@ -47,6 +51,15 @@ def ccsocr(cfg: dict, root: Path) -> dict:
                      "seconds": round(seconds, 2),
                      "met": bool(low <= depth <= high and seconds <= cfg["goal"]["max_s"])})
     return {"rows": rows, "read_s": round(read_s, 2)}
+
+
+def reciprocal(h):
+    """A capture of N laser points and ONE detection point read by reciprocity as one laser
+    (that point) and N detector spots (the laser points): the same paths, the same data."""
+    require(np.allclose(h.detector_spots, h.detector_spots[0]), "capture",
+            "has more than one detection point", "pass a scan with one detector")
+    return nl.HistogramSet(h.data, h.time_axis, h.laser_spots, h.detector_spots[0],
+                           h.calibration)
 
 
 def backprojection_peak(h, step_m, every, half_width_m, depth_m) -> np.ndarray:
