@@ -141,15 +141,8 @@ class ModelEstimator:
         free = held.free_mask()
         fitted, warm_info = _warm_or_cold(self, scored, obs, paper, free, held, prior, clock)
         problem, chosen, result, free, (cov_all, info), history = fitted
-        if warm_info is not None:
-            info = dict(info, warm_start=warm_info)
+        info = _reported(chosen, result, free, cov_all, info, warm_info)
         notes = _notes(held, chosen.shape, result, cov_all, info)
-        # what sanity.doubt reads: the misfit (the Birge ratio, or counts' deviance per degree
-        # of freedom, as select.misfit) and whether one target's depth is unseen
-        from .select import misfit
-        info = dict(info, misfit_ratio=misfit(chosen, result, free, info)[1],
-                    depth_unseen=len(result.params) == 1 and
-                    unseen_note(chosen.shape, result, cov_all, info) is not None)
         for note in notes:
             warnings.warn(note, stacklevel=3)
         self.timings = _stages(clock, problem)
@@ -313,6 +306,18 @@ def _held_axis(spots: bytes, laser: bytes, laser_ndim: int, grid) -> plate.Held 
         return plate.Held(None, middle)
     axis = unseen_axis(np.vstack([np.reshape(laser, (-1, 3)), spots]))
     return None if axis is None else plate.Held(axis, middle)
+
+
+def _reported(chosen, result, free, cov_all, info, warm_info) -> dict:
+    """info with the warm start's report (where one was tried) and what sanity.doubt reads:
+    the misfit (the Birge ratio, or counts' deviance per degree of freedom, as select.misfit)
+    and whether one target's depth is unseen."""
+    from .select import misfit
+    if warm_info is not None:
+        info = dict(info, warm_start=warm_info)
+    return dict(info, misfit_ratio=misfit(chosen, result, free, info)[1],
+                depth_unseen=len(result.params) == 1 and
+                unseen_note(chosen.shape, result, cov_all, info) is not None)
 
 
 def _notes(held, shape, result, cov_all, info) -> list[str]:

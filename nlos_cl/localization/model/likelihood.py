@@ -143,39 +143,8 @@ class Problem:
         Hessian are built by blocks (a-a, a-b, diagonal b-b) rather than one einsum over
         (K + D)^2 x D x n: the same numbers, and a 64-detector frame's call 12 ms -> ~0.3 ms
         (a 256-spot SPAD patch's fit spent 70 of its 84 s in that einsum)."""
-        obs = self.obs
-        k = len(cols)
-        valid = obs.valid.astype(np.float64)
         phi = self._poisson_start(cols) if warm is None else np.array(warm, float)
-        y = obs.y
-        flat = cols.reshape(k, -1)
-        for _ in range(iters):
-            # a column that barely overlaps the counts (a start candidate far off) can send
-            # its amplitude off without bound: the iteration stops at the last finite phi
-            # (its cost then rejects the candidate) instead of overflowing (CC-SOCR's
-            # 4 points as one laser: "overflow encountered in square" in the answer's warnings)
-            with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-                lam = np.maximum(np.tensordot(phi[:k], cols, 1) + phi[k:, None] * valid, 1e-12)
-                r = (y / lam - 1.0) * valid
-                w = valid * y / lam ** 2
-            if not (np.all(np.isfinite(w)) and np.all(np.isfinite(r))):
-                break
-            hess = np.empty((k + len(y), k + len(y)))
-            hess[:k, :k] = (flat * w.reshape(-1)) @ flat.T
-            hess[:k, k:] = np.einsum("kdn,dn->kd", cols, w * valid)
-            hess[k:, :k] = hess[:k, k:].T
-            hess[k:, k:] = np.diag(np.sum(w * valid, axis=1))
-            grad = np.concatenate([flat @ r.reshape(-1), np.sum(r * valid, axis=1)])
-            hess += 1e-9 * np.trace(hess) / len(hess) * np.eye(len(hess))
-            step = np.linalg.solve(hess, grad)
-            new = np.maximum(phi + step, 1e-12 * np.maximum(phi, 1e-6))
-            if not np.all(np.isfinite(new)):
-                break
-            if np.allclose(new, phi, rtol=1e-9, atol=0):
-                phi = new
-                break
-            phi = new
-        return phi
+        return _poisson_newton(self.obs.y, self.obs.valid.astype(np.float64), cols, phi, iters)
 
     def _poisson_start(self, cols):
         obs, k = self.obs, len(cols)
@@ -209,3 +178,36 @@ class Problem:
         cols = self.columns(params)
         r = self.residual(cols, self.linear(cols))
         return float(r @ r)
+
+
+def _poisson_newton(y, valid, cols, phi, iters):
+    """Problem._poisson_linear's Newton iterations from phi (a, then b per detector)."""
+    k = len(cols)
+    flat = cols.reshape(k, -1)
+    for _ in range(iters):
+        # a column that barely overlaps the counts (a start candidate far off) can send
+        # its amplitude off without bound: the iteration stops at the last finite phi
+        # (its cost then rejects the candidate) instead of overflowing (CC-SOCR's
+        # 4 points as one laser: "overflow encountered in square" in the answer's warnings)
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            lam = np.maximum(np.tensordot(phi[:k], cols, 1) + phi[k:, None] * valid, 1e-12)
+            r = (y / lam - 1.0) * valid
+            w = valid * y / lam ** 2
+        if not (np.all(np.isfinite(w)) and np.all(np.isfinite(r))):
+            break
+        hess = np.empty((k + len(y), k + len(y)))
+        hess[:k, :k] = (flat * w.reshape(-1)) @ flat.T
+        hess[:k, k:] = np.einsum("kdn,dn->kd", cols, w * valid)
+        hess[k:, :k] = hess[:k, k:].T
+        hess[k:, k:] = np.diag(np.sum(w * valid, axis=1))
+        grad = np.concatenate([flat @ r.reshape(-1), np.sum(r * valid, axis=1)])
+        hess += 1e-9 * np.trace(hess) / len(hess) * np.eye(len(hess))
+        step = np.linalg.solve(hess, grad)
+        new = np.maximum(phi + step, 1e-12 * np.maximum(phi, 1e-6))
+        if not np.all(np.isfinite(new)):
+            break
+        if np.allclose(new, phi, rtol=1e-9, atol=0):
+            phi = new
+            break
+        phi = new
+    return phi
