@@ -79,6 +79,10 @@ def test_a_closed_shape_that_misfits_with_its_depth_unseen_falls_back_to_the_arg
     for kept in (_diagnosed("box", 1238.0, False, birge=1238.0), _diagnosed("box", 1.4, True),
                  _diagnosed("plate", 427.0, True)):
         assert doubt(kept, argmax, SPOTS, LASER) is None
+    # counts have no Birge ratio: their misfit is warned about by the deviance per dof
+    seen = _diagnosed("ellipsoid", 301.0, False)
+    with pytest.warns(UserWarning, match="deviance per degree of freedom 301 > 100"):
+        assert checked([seen], argmax, SPOTS, LASER) == [seen]
 
 
 def test_several_targets_are_warned_about_not_replaced():

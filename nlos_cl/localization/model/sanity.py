@@ -62,11 +62,17 @@ def doubt(target: LocatedTarget, paper_position, spots, lasers) -> str | None:
 
 
 def misfit(target: LocatedTarget) -> str | None:
+    """The misfit warning: the Birge ratio, or for counts (no Birge ratio) the deviance per
+    degree of freedom the estimator reports as misfit_ratio, above MISFIT_BIRGE."""
     fit = target.fit
-    if fit is None or fit.birge_ratio is None or fit.birge_ratio <= MISFIT_BIRGE:
+    ratio = None if fit is None else fit.birge_ratio
+    if fit is not None and ratio is None:
+        ratio = (fit.diagnostics or {}).get("misfit_ratio")
+    if ratio is None or ratio <= MISFIT_BIRGE:
         return None
-    return (f"the fit does not explain the data (Birge ratio {fit.birge_ratio:.0f} > "
-            f"{MISFIT_BIRGE:.0f}: the residual is that many times the noise's variance)")
+    name = "Birge ratio" if fit.birge_ratio is not None else "deviance per degree of freedom"
+    return (f"the fit does not explain the data ({name} {ratio:.0f} > {MISFIT_BIRGE:.0f}: the "
+            "residual is that many times the noise's variance)")
 
 
 def unfittable_line(spots, laser) -> str | None:
