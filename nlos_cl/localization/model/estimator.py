@@ -164,7 +164,8 @@ class ModelEstimator:
         clock["covariance"] = time.perf_counter()
         chosen = problem
         if len(result.params) == 1:  # one target: a plate, or a box where the data ask for it
-            chosen, result, free, cov = _plate_or_closed(self, problem, result, free, cov)
+            from .closed import plate_or_closed
+            chosen, result, free, cov = plate_or_closed(self, problem, result, free, cov)
             clock["box"] = time.perf_counter()
         return problem, chosen, result, free, cov, history
 
@@ -304,39 +305,6 @@ def _held_axis(spots: bytes, laser: bytes, laser_ndim: int, grid) -> plate.Held 
         return plate.Held(None, middle)
     axis = unseen_axis(np.vstack([np.reshape(laser, (-1, 3)), spots]))
     return None if axis is None else plate.Held(axis, middle)
-
-
-def _plate_or_closed(est, problem, result, free, cov):
-    """closed.closed_or_plate on the fitted plate. With more than SEARCH_DETECTORS detectors
-    and a plate that misses the data (so closed shapes will be fitted), the choice is made on
-    the search's spread subset (as _fit's search) and only the chosen closed shape is refitted
-    on all of them: closed fits cost their detectors (CC-SOCR's scan
-    as one laser, its plate a misfit: 64 points 51 s, 256 points 134 s, 117 of them closed
-    fits on every detector, 4,096 points over 10 min)."""
-    from .closed import closed_or_plate
-    from .fit import fit, shape_of
-    from .select import misfit
-    obs = problem.obs
-    if len(obs.spots) <= SEARCH_DETECTORS or est.closed != "auto" or \
-            not misfit(problem, result, free, cov[1])[0]:  # no closed fits, or few spots
-        return closed_or_plate(problem, result, free, est.final_nfev, cov, est.closed)
-    rows = farthest_points(np.hstack([obs.spots, np.broadcast_to(obs.laser, obs.spots.shape)]),
-                           SEARCH_DETECTORS)
-    search = est.problem(obs.detectors(rows), problem.backend)
-    plate_there = fit(search, result.params, free, est.final_nfev)
-    chosen, there, free_there, (_, why) = closed_or_plate(
-        search, plate_there, free, est.final_nfev, covariance(search, plate_there, free),
-        est.closed)
-    problem.calls += search.calls
-    if chosen is search:  # the plate: its fit on every detector stands, with the choice's notes
-        cov[1].update({k: v for k, v in why.items() if k not in cov[1]})
-        return problem, result, free, cov
-    from .host_shapes import shape_problem
-    full = shape_problem(problem, shape_of(chosen))
-    refit = fit(full, there.params, free_there, est.final_nfev)
-    cov_full = covariance(full, refit, free_there)
-    cov_full[1].update({k: v for k, v in why.items() if k not in cov_full[1]})
-    return full, refit, free_there, cov_full
 
 
 def _reported(chosen, result, free, cov_all, info, warm_info) -> dict:
