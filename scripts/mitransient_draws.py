@@ -52,45 +52,56 @@ def _indices(args) -> range:
 
 
 def export(out: Path, indices, family: str = "one"):
-    import nlos_cl as nl
     from nlos_cl.apps.reproduce import draws_gen, draws_scene
     from nlos_cl.apps.reproduce.common import Settings
     s = Settings.make()
     for i in indices:
         d = draws_gen.draw(family, i)
-        sc = draws_scene.scene(d, s)
         for k, t in enumerate(d["targets"]):
             draws_scene.mesh_of(t, s.facet_m).export(out / f"draw{i}_{k}.ply")
-        axis = nl.default_time_axis(sc.setup, s.dt_s)
-        c = nl.SPEED_OF_LIGHT
-        # nlos_cl's bin k holds light that left at t = t0 + k dt minus the pulse's peak delay
-        # and the two device legs: its hidden path
-        start_opl = c * (axis.t0_s - sc.setup.pulse.peak_delay_s) - 2 * sc.setup.device_distance_m
         meta = {"draw": d, "spots": np.asarray(d["layout"]["spots"], float).tolist(),
                 "laser": [0.0, 0.0, 0.0], "n_targets": len(d["targets"]),
-                "brdf": 0.1284, "wall_brdf": float(sc.setup.wall_brdf),
-                "start_opl": start_opl, "bin_opl": c * axis.dt_s, "n_bins": axis.n_bins,
-                "sigma_m": c * sc.setup.pulse.sigma_s}
+                **render_axis(draws_scene.scene(d, s), s)}
         (out / f"draw{i}.json").write_text(json.dumps(meta))
 
 
+def render_axis(scene, s) -> dict:
+    """What a render needs of a draw's scene besides its geometry: nlos_cl's time axis as
+    hidden path (bin k holds light that left at t0 + k dt minus the pulse's peak delay and the
+    two device legs), the pulse's width in path, and the reflectances."""
+    import nlos_cl as nl
+    setup, c = scene.setup, nl.SPEED_OF_LIGHT
+    axis = nl.default_time_axis(setup, s.dt_s)
+    return {"brdf": 0.1284, "wall_brdf": float(setup.wall_brdf),
+            "start_opl": c * (axis.t0_s - setup.pulse.peak_delay_s) - 2 * setup.device_distance_m,
+            "bin_opl": c * axis.dt_s, "n_bins": axis.n_bins, "sigma_m": c * setup.pulse.sigma_s}
+
+
 def render(out: Path, indices, spp: int, splits: int):
+    render_each(out, indices, spp, splits, "render", lambda meta, plys: [
+        (meta["laser"], spot, plys) for spot in meta["spots"]])
+
+
+def render_each(out: Path, indices, spp: int, splits: int, name: str, pairs):
+    """Each exported draw i not rendered yet: render_pair of every (laser, spot, plys) that
+    pairs(meta, plys) lists, saved as draw{i}_{name}.npy (pairs, splits, bins) with its
+    samples and seconds in draw{i}_render.json."""
     import mitsuba as mi
     mi.set_variant("llvm_ad_mono" if "llvm_ad_mono" in mi.variants() else "llvm_ad_rgb")
     import mitransient as mitr  # noqa: F401  (registers the plugins)
     for i in indices:
-        target = out / f"draw{i}_render.npy"
+        target = out / f"draw{i}_{name}.npy"
         if target.exists():
             continue
         meta = json.loads((out / f"draw{i}.json").read_text())
         t0 = time.perf_counter()
         plys = [out / f"draw{i}_{k}.ply" for k in range(meta["n_targets"])]
-        rows = [render_pair(mi, mitr, meta, meta["laser"], spot, plys, spp, splits)
-                for spot in meta["spots"]]
-        np.save(target, np.array(rows, np.float32))  # (spots, splits, bins)
+        rows = [render_pair(mi, mitr, meta, laser, spot, p, spp, splits)
+                for laser, spot, p in pairs(meta, plys)]
+        np.save(target, np.array(rows, np.float32))
         (out / f"draw{i}_render.json").write_text(json.dumps(
             {"spp": splits * max(1, spp // splits), "seconds": time.perf_counter() - t0}))
-        print(f"draw {i}: {len(rows)} spots, {time.perf_counter() - t0:.1f} s", flush=True)
+        print(f"draw {i}: {len(rows)} pairs, {time.perf_counter() - t0:.1f} s", flush=True)
 
 
 def render_pair(mi, mitr, meta: dict, laser, spot, plys, spp: int, splits: int) -> list:

@@ -35,13 +35,12 @@ import csv
 import json
 import math
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from mitransient_draws import delivered, pulse_convolved, render_pair  # noqa: E402
+from mitransient_draws import delivered, pulse_convolved, render_axis, render_each  # noqa: E402
 
 LAYOUTS = ("one", "confocal", "paired", "exhaustive")
 ESTIMATORS = (("paper", {"estimator": "paper"}), ("mean", {"estimator": "mean"}),
@@ -71,46 +70,24 @@ def _key(laser, spot) -> str:
 
 
 def export(out: Path, indices):
-    import nlos_cl as nl
     from nlos_cl.apps.reproduce import draws_gen, draws_scene
     from nlos_cl.apps.reproduce.common import Settings
     s = Settings.make()
     for i in indices:
         d = draws_gen.draw("one", i)
-        sc = draws_scene.scene(d, s)
         draws_scene.mesh_of(d["targets"][0], s.facet_m).export(out / f"draw{i}_0.ply")
-        axis = nl.default_time_axis(sc.setup, s.dt_s)
-        c = nl.SPEED_OF_LIGHT
-        start_opl = c * (axis.t0_s - sc.setup.pulse.peak_delay_s) - 2 * sc.setup.device_distance_m
         layouts = pairs_of(np.asarray(d["layout"]["spots"], float))
         keys = sorted({_key(a, b) for lasers, spots in layouts.values()
                        for a, b in zip(lasers, spots)})
-        meta = {"draw": d, "pairs": keys, "n_targets": 1, "brdf": 0.1284,
-                "wall_brdf": float(sc.setup.wall_brdf), "start_opl": start_opl,
-                "bin_opl": c * axis.dt_s, "n_bins": axis.n_bins,
-                "sigma_m": c * sc.setup.pulse.sigma_s}
+        meta = {"draw": d, "pairs": keys, "n_targets": 1,
+                **render_axis(draws_scene.scene(d, s), s)}
         (out / f"draw{i}.json").write_text(json.dumps(meta))
 
 
 def render(out: Path, indices, spp: int, splits: int):
-    import mitsuba as mi
-    mi.set_variant("llvm_ad_mono" if "llvm_ad_mono" in mi.variants() else "llvm_ad_rgb")
-    import mitransient as mitr  # noqa: F401  (registers the plugins)
-    for i in indices:
-        target = out / f"draw{i}_pairs.npy"
-        if target.exists():
-            continue
-        meta = json.loads((out / f"draw{i}.json").read_text())
-        t0 = time.perf_counter()
-        rows = []
-        for key in meta["pairs"]:
-            v = [float(x) for x in key.split()]
-            rows.append(render_pair(mi, mitr, meta, v[:3], v[3:], [out / f"draw{i}_0.ply"],
-                                    spp, splits))
-        np.save(target, np.array(rows, np.float32))  # (pairs, splits, bins)
-        (out / f"draw{i}_render.json").write_text(json.dumps(
-            {"spp": splits * max(1, spp // splits), "seconds": time.perf_counter() - t0}))
-        print(f"draw {i}: {len(rows)} pairs, {time.perf_counter() - t0:.1f} s", flush=True)
+    def pairs(meta, plys):  # every distinct (laser, spot) of the four layouts, as exported
+        return [((v := [float(x) for x in key.split()])[:3], v[3:], plys) for key in meta["pairs"]]
+    render_each(out, indices, spp, splits, "pairs", pairs)
 
 
 def simulated(d: dict, lasers, spots, axis, facet_m: float):
