@@ -195,14 +195,15 @@ def _poisson_newton(y, valid, cols, phi, iters):
             w = valid * y / lam ** 2
         if not (np.all(np.isfinite(w)) and np.all(np.isfinite(r))):
             break
-        hess = np.empty((k + len(y), k + len(y)))
-        hess[:k, :k] = (flat * w.reshape(-1)) @ flat.T
-        hess[:k, k:] = np.einsum("kdn,dn->kd", cols, w * valid)
-        hess[k:, :k] = hess[:k, k:].T
-        hess[k:, k:] = np.diag(np.sum(w * valid, axis=1))
-        grad = np.concatenate([flat @ r.reshape(-1), np.sum(r * valid, axis=1)])
-        hess += 1e-9 * np.trace(hess) / len(hess) * np.eye(len(hess))
-        step = np.linalg.solve(hess, grad)
+        h_aa = (flat * w.reshape(-1)) @ flat.T
+        h_ab = np.einsum("kdn,dn->kd", cols, w * valid)
+        h_bb = np.sum(w * valid, axis=1)  # the backgrounds' block is diagonal
+        ridge = 1e-9 * (np.trace(h_aa) + h_bb.sum()) / (k + len(y))
+        h_aa[np.diag_indices(k)] += ridge
+        h_bb = h_bb + ridge
+        g_a, g_b = flat @ r.reshape(-1), np.sum(r * valid, axis=1)
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            step = _arrow_solve(h_aa, h_ab, h_bb, g_a, g_b)
         new = np.maximum(phi + step, 1e-12 * np.maximum(phi, 1e-6))
         if not np.all(np.isfinite(new)):
             break
@@ -211,3 +212,13 @@ def _poisson_newton(y, valid, cols, phi, iters):
             break
         phi = new
     return phi
+
+
+def _arrow_solve(h_aa, h_ab, h_bb, g_a, g_b) -> np.ndarray:
+    """The Newton step of [[h_aa, h_ab], [h_ab^T, diag(h_bb)]] x = [g_a, g_b]: the backgrounds
+    eliminated (Schur complement of their diagonal block), O(K^2 D) instead of the dense
+    (K + D)^3 solve, which cost 1,024 reciprocal CC-SOCR points ~10 ms a call (0.3 G flops)
+    and 4,096 points ~0.5 s (23 G flops) a call."""
+    scaled = h_ab / h_bb  # (K, D): h_ab diag(h_bb)^-1
+    step_a = np.linalg.solve(h_aa - scaled @ h_ab.T, g_a - scaled @ g_b)
+    return np.concatenate([step_a, (g_b - h_ab.T @ step_a) / h_bb])
