@@ -219,36 +219,3 @@ def closed_or_plate(problem, plate_result, free, final_nfev, plate_cov, closed="
         return shaped, result, free_shaped, shaped_cov
     plate_cov[1].update(why)
     return problem, plate_result, free, plate_cov
-
-
-def plate_or_closed(est, problem, result, free, cov):
-    """closed_or_plate on the fitted plate of estimator `est` (model.estimator's _cold). With
-    more than SEARCH_DETECTORS detectors and a plate that misses the data (so closed shapes
-    will be fitted), the choice is made on the search's spread subset (as the estimator's
-    _fit searches) and only the chosen closed shape is refitted on all of them: closed fits
-    cost their detectors (CC-SOCR's scan as one laser, its plate a misfit: 256 points 134 s,
-    117 of them closed fits on every detector -> 48 s; 4,096 points still over 7 min)."""
-    from ...core.geometry import farthest_points
-    from ...core.tuning import SEARCH_DETECTORS
-    from .fit import shape_of
-    obs = problem.obs
-    if len(obs.spots) <= SEARCH_DETECTORS or est.closed != "auto" or \
-            not misfit(problem, result, free, cov[1])[0]:  # no closed fits, or few spots
-        return closed_or_plate(problem, result, free, est.final_nfev, cov, est.closed)
-    rows = farthest_points(np.hstack([obs.spots, np.broadcast_to(obs.laser, obs.spots.shape)]),
-                           SEARCH_DETECTORS)
-    search = est.problem(obs.detectors(rows), problem.backend)
-    plate_there = fit(search, result.params, free, est.final_nfev)
-    chosen, there, free_there, (_, why) = closed_or_plate(
-        search, plate_there, free, est.final_nfev, covariance(search, plate_there, free),
-        est.closed)
-    problem.calls += search.calls
-    if chosen is search:  # the plate: its fit on every detector stands, with the choice's notes
-        cov[1].update({k: v for k, v in why.items() if k not in cov[1]})
-        return problem, result, free, cov
-    from .host_shapes import shape_problem
-    full = shape_problem(problem, shape_of(chosen))
-    refit = fit(full, there.params, free_there, est.final_nfev)
-    cov_full = covariance(full, refit, free_there)
-    cov_full[1].update({k: v for k, v in why.items() if k not in cov_full[1]})
-    return full, refit, free_there, cov_full

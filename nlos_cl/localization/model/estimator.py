@@ -12,7 +12,6 @@ import numpy as np
 
 from ...core.constants import FWHM_PER_SIGMA, PAPER_H_S
 from ...core.errors import require
-from ...core.geometry import farthest_points
 from ...core.limits import require_targets
 from ...core.tuning import SEARCH_DETECTORS
 from ..estimate import Capabilities, Estimate, LocatedTarget, Prior
@@ -158,14 +157,17 @@ class ModelEstimator:
         """The full fit: starts, short fits, final fit, covariance, plate or closed shape.
         (problem, chosen problem, result, free, (cov_all, info), history)."""
         problem = self.problem(obs, self.backend or scored.backend)
-        result, history = self._fit(problem, paper.targets[0].position, free, held)
+        result, history, choice = self._fit(problem, paper.targets[0].position, free, held)
         clock["fit"] = time.perf_counter()
+        if result is None:  # decided on a subset of many detectors (model.subset.cold_fit)
+            return (problem, *choice[1], history)
         cov = covariance(problem, result, free, reuse=result.jacobian is not None)
         clock["covariance"] = time.perf_counter()
         chosen = problem
         if len(result.params) == 1:  # one target: a plate, or a box where the data ask for it
-            from .closed import plate_or_closed
-            chosen, result, free, cov = plate_or_closed(self, problem, result, free, cov)
+            from .subset import plate_or_closed
+            chosen, result, free, cov = plate_or_closed(self, problem, result, free, cov,
+                                                        choice)
             clock["box"] = time.perf_counter()
         return problem, chosen, result, free, cov, history
 
@@ -187,28 +189,18 @@ class ModelEstimator:
         return self.lattice or (GAUSS_LATTICE if obs.mode == "gauss" else POISSON_LATTICE)
 
     def _fit(self, problem, argmax_position, free, held):
-        """fit_targets, on a spread subset of the detectors when there are many, then the
-        final fit on all of them (its answer and covariance use every detector). That final
-        fit keeps its last Jacobian for the covariance (model.covariance's `reuse`, as the
-        warm fits do): on the device's forward op, central differences cost 13 more columns
-        (a 1,024-spot SPAD patch: 0.49 -> 0.035 s of a ~3.3 s locate, sds within 0.5 %);
-        fewer detectors keep the exact analytic derivatives, which cost a host call."""
-        from .fit import fit
+        """(result, history, choice): fit_targets; with more than SEARCH_DETECTORS detectors
+        on a spread subset, then the final fit on all of them (model.subset.cold_fit: result
+        None where the choice made on the subset ends the fit; choice: that choice, or None).
+        The final fit keeps its last Jacobian for the covariance (model.covariance's `reuse`,
+        as the warm fits do): on the device's forward op, central differences cost 13 more
+        columns (a 1,024-spot SPAD patch: 0.49 -> 0.035 s of a ~3.3 s locate, sds within
+        0.5 %); fewer detectors keep the exact analytic derivatives, which cost a host call."""
         from .select import fit_targets
-        n_det = len(problem.obs.spots)
-        if n_det <= SEARCH_DETECTORS:
-            return fit_targets(problem, self, argmax_position, free, held)
-        obs = problem.obs  # spread over the wall (an index stride can pick one line of a raster)
-        rows = farthest_points(np.hstack([obs.spots, np.broadcast_to(obs.laser, obs.spots.shape)]),
-                               SEARCH_DETECTORS)
-        # the subset's model where a problem of its size runs (the host's batch for <= 64
-        # spots: a SPAD patch's starts and short fits 3-5x faster than device launches)
-        search = self.problem(problem.obs.detectors(rows), problem.backend)
-        rough, history = fit_targets(search, self, argmax_position, free, held)
-        result = fit(problem, rough.params, free, self.final_nfev, keep_jacobian=True)
-        problem.calls += search.calls
-        problem.model_s += search.model_s
-        return result, history
+        if len(problem.obs.spots) <= SEARCH_DETECTORS:
+            return (*fit_targets(problem, self, argmax_position, free, held), None)
+        from .subset import cold_fit
+        return cold_fit(self, problem, argmax_position, free, held)
 
     def _target(self, result, cov_all, k, info, notes, obs, history, observable, shape):
         p = result.params[k]
