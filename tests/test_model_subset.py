@@ -1,15 +1,16 @@
 """Many detectors (model.subset): what is decided on the spread subset. The fits are stubs
 here (their numbers are other tests'): this checks the flow, i.e. that a closed shape the
-sanity check will reject on the subset ends the fit there (nothing fitted on every detector),
-and that a choice made before the final fit is reused, not made twice. The real case
-(CC-SOCR's scan read as one laser: 4,096 points 113 -> 35 s, the same answer) is in
+sanity check will reject on the choice's subset (CHOICE_DETECTORS spread detectors) ends the
+fit there (nothing fitted on every detector), and that a choice made before the final fit is
+reused, not made twice. The real case
+(CC-SOCR's scan read as one laser: 4,096 points 113 -> 10 s, the same answer) is in
 tests/test_realdata_ccsocr.py's reach only where ../shared is present."""
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from nlos_cl.core.tuning import MISFIT_BIRGE, SEARCH_DETECTORS
+from nlos_cl.core.tuning import CHOICE_DETECTORS, MISFIT_BIRGE, SEARCH_DETECTORS
 from nlos_cl.localization.model import box, plate, subset
 from nlos_cl.localization.model.data import Observation
 
@@ -75,9 +76,10 @@ def test_a_doomed_closed_shape_on_the_subset_ends_the_fit(stubs):
     problem = _Problem(_obs(4 * SEARCH_DETECTORS))
     free = np.ones(plate.N_PARAMS, bool)
     result, history, choice = subset.cold_fit(_est(), problem, np.zeros(3), free, None)
-    assert result is None and stubs["fit_on"] == [] and stubs["choices"] == 1
+    # the plate refitted on the choice's spread detectors, nothing on every detector
+    assert result is None and stubs["fit_on"] == [CHOICE_DETECTORS] and stubs["choices"] == 1
     chosen, closed_result, _, (_, info) = choice[1]
-    assert chosen.shape is box and info["subset_detectors"] == SEARCH_DETECTORS
+    assert chosen.shape is box and info["subset_detectors"] == CHOICE_DETECTORS
     assert subset.doomed(*choice[1])
 
 
@@ -89,11 +91,12 @@ def test_a_closed_shape_whose_depth_is_seen_is_refitted_on_every_detector(stubs)
     problem = _Problem(_obs(n_det))
     free = np.ones(plate.N_PARAMS, bool)
     result, _, choice = subset.cold_fit(_est(), problem, np.zeros(3), free, None)
-    assert result is not None and stubs["fit_on"] == [n_det]
+    assert result is not None and stubs["fit_on"] == [CHOICE_DETECTORS, n_det]
     misfit_plate = _result(plate.N_PARAMS, 400.0 * 993)  # the final plate misses them too
     chosen, refit, _, _ = subset.plate_or_closed(_est(), problem, misfit_plate, free,
                                                  (None, {}), choice)
-    assert chosen.shape is box and stubs["choices"] == 1 and stubs["fit_on"] == [n_det, n_det]
+    assert chosen.shape is box and stubs["choices"] == 1
+    assert stubs["fit_on"] == [CHOICE_DETECTORS, n_det, n_det]
 
 
 def test_without_the_sanity_check_nothing_ends_on_the_subset(stubs):

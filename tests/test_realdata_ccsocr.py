@@ -69,3 +69,25 @@ def test_one_laser_by_reciprocity_puts_the_4_at_its_depth_without_numpy_noise(fu
     assert not any("overflow" in n or "invalid value" in n for n in notes)
     if k == 3:
         assert any("model fit rejected: the fitted ellipsoid does not explain" in n for n in notes)
+
+
+def test_the_full_scan_as_one_laser_is_decided_on_a_spread_subset(full, monkeypatch):
+    """All 4,096 points read as one laser and 4,096 detectors (model.subset): the plate
+    misses the counts, the closed shape chosen on CHOICE_DETECTORS spread points is one the
+    sanity check rejects, so the answer is the argmax on the "4" and nothing was fitted on
+    every detector (stop 48: over 7 minutes; now ~10 s on the 2-core machine, not asserted)."""
+    from nlos_cl.apps.reproduce.real_runs import reciprocal
+    from nlos_cl.core.tuning import CHOICE_DETECTORS
+    from nlos_cl.localization.model import subset
+    fitted_on = []
+    cold_fit = subset.cold_fit
+
+    def watched(est, problem, *args):
+        answer = cold_fit(est, problem, *args)
+        fitted_on.append(answer[0] is None and answer[2][0].obs.spots.shape[0])
+        return answer
+    monkeypatch.setattr(subset, "cold_fit", watched)
+    depth, notes = _depth(reciprocal(full))
+    assert 0.85 <= depth <= 1.00
+    assert fitted_on == [CHOICE_DETECTORS]  # ended on the subset
+    assert any("model fit rejected" in n and "does not explain the data" in n for n in notes)

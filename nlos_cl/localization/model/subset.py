@@ -1,24 +1,28 @@
-"""Many detectors (more than SEARCH_DETECTORS): what the estimator decides on a spread subset
+"""Many detectors (more than SEARCH_DETECTORS): what the estimator decides on spread subsets
 of them, and what it fits on all of them.
 
-- The starts and short fits run on the subset (`cold_fit`), the final plate fit on all.
+- The starts and short fits run on SEARCH_DETECTORS (64) spread detectors (`cold_fit`), the
+  final plate fit on all.
 - The choice of plate or closed shape (model.closed.closed_or_plate: ~45 LM fits of three
-  families) is made on the subset, and only the chosen closed shape is refitted on all
-  (`plate_or_closed`): closed fits cost their detectors (CC-SOCR's scan read as one laser,
-  its plate a misfit: 256 points 134 -> 48 s).
-- Where the subset's plate already misses the data, the choice is made before the final fit,
-  and a closed shape that sanity.doubt will reject there (`doomed`: its misfit above
-  MISFIT_BIRGE and its depth unseen) ends the fit on the subset: the answer is the paper's
-  argmax with the reason, and nothing is fitted on every detector. On CC-SOCR's 4,096 points
-  as one laser the ellipsoid refitted on all of them was rejected for the same reasons as on
-  the subset (residual 374 times the noise's, depth sd 0.30 m), after 113 s.
+  families) is made on CHOICE_DETECTORS (16) spread detectors (`_choice`), and only the chosen
+  closed shape is refitted on all (`plate_or_closed`): closed fits cost their detectors.
+- Where the search subset's plate already misses the data, the choice is made before the
+  final fit, and a closed shape that sanity.doubt will reject there (`doomed`: its misfit
+  above MISFIT_BIRGE and its depth unseen) ends the fit on the subset: the answer is the
+  paper's argmax with the reason, and nothing is fitted on every detector. On CC-SOCR's
+  4,096 points as one laser the ellipsoid refitted on all of them was rejected for the same
+  reasons as on the subset (residual 374 times the noise's, depth sd 0.30 m), after 113 s.
+Measured (core/tuning.py's CHOICE_DETECTORS): that capture 113 s (stop 48's path, after the
+Poisson Newton fix) -> 35 s (the choice on 64, ended there) -> 10.3 s (on 16), depth
+0.955 m each time. The SPAD patch (1,024 spots, an adequate plate) is unchanged: 2.5-2.9 s
+either way, interleaved.
 """
 from __future__ import annotations
 
 import numpy as np
 
 from ...core.geometry import farthest_points
-from ...core.tuning import MISFIT_BIRGE, SEARCH_DETECTORS
+from ...core.tuning import CHOICE_DETECTORS, MISFIT_BIRGE, SEARCH_DETECTORS
 from .closed import closed_or_plate
 from .covariance import covariance
 from .depth import unseen_note
@@ -27,11 +31,23 @@ from .select import misfit
 from . import plate
 
 
-def spread_rows(obs) -> np.ndarray:
-    """SEARCH_DETECTORS detectors spread over the wall (an index stride can pick one line of a
+def spread_rows(obs, count=SEARCH_DETECTORS) -> np.ndarray:
+    """`count` detectors spread over the wall (an index stride can pick one line of a
     raster), by their spots and lasers."""
     return farthest_points(np.hstack([obs.spots, np.broadcast_to(obs.laser, obs.spots.shape)]),
-                           SEARCH_DETECTORS)
+                           count)
+
+
+def _choice(est, problem, plate_result, free):
+    """(the subset's problem, closed_or_plate on it): the plate refitted on CHOICE_DETECTORS
+    spread detectors from `plate_result`, and the choice made there."""
+    few = est.problem(problem.obs.detectors(spread_rows(problem.obs, CHOICE_DETECTORS)),
+                      problem.backend)
+    plate_there = fit(few, plate_result.params, free, est.final_nfev)
+    answer = closed_or_plate(few, plate_there, free, est.final_nfev,
+                             covariance(few, plate_there, free), est.closed)
+    _count(problem, few)
+    return few, answer
 
 
 def cold_fit(est, problem, argmax_position, free, held):
@@ -48,11 +64,10 @@ def cold_fit(est, problem, argmax_position, free, held):
     if len(rough.params) == 1 and est.closed == "auto":
         cov = covariance(search, rough, free)
         if misfit(search, rough, free, cov[1])[0]:
-            choice = (search, closed_or_plate(search, rough, free, est.final_nfev, cov,
-                                              est.closed))
+            choice = _choice(est, problem, rough, free)
     _count(problem, search)
     if choice is not None and est.sanity and doomed(*choice[1]):
-        choice[1][3][1].update(subset_detectors=len(search.obs.spots))  # what was fitted
+        choice[1][3][1].update(subset_detectors=len(choice[0].obs.spots))  # what was fitted
         return None, history, choice
     result = fit(problem, rough.params, free, est.final_nfev, keep_jacobian=True)
     return result, history, choice
@@ -77,11 +92,7 @@ def plate_or_closed(est, problem, result, free, cov, choice=None):
             not misfit(problem, result, free, cov[1])[0]:  # no closed fits, or few spots
         return closed_or_plate(problem, result, free, est.final_nfev, cov, est.closed)
     if choice is None:
-        search = est.problem(obs.detectors(spread_rows(obs)), problem.backend)
-        plate_there = fit(search, result.params, free, est.final_nfev)
-        choice = (search, closed_or_plate(search, plate_there, free, est.final_nfev,
-                                          covariance(search, plate_there, free), est.closed))
-        _count(problem, search)
+        choice = _choice(est, problem, result, free)
     search, (chosen, there, free_there, (_, why)) = choice
     if chosen is search:  # the plate: its fit on every detector stands, with the choice's notes
         cov[1].update({k: v for k, v in why.items() if k not in cov[1]})
