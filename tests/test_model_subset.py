@@ -118,3 +118,18 @@ def test_doomed_reads_the_sanity_checks_two_conditions():
     assert not subset.doomed(_Problem(obs, plate), _result(plate.N_PARAMS, 4e5),
                              np.ones(plate.N_PARAMS, bool), (cov, {}))
 
+
+
+@pytest.mark.parametrize("n_det, on_subset", [(CHOICE_DETECTORS, False),
+                                              (2 * CHOICE_DETECTORS, True)])
+def test_the_choice_is_made_on_a_subset_above_choice_detectors(stubs, n_det, on_subset):
+    """Up to CHOICE_DETECTORS the closed shapes are fitted on every detector; above, on that
+    many spread ones, and a doomed choice (misfit 400, depth sd 0.5 m) is not refitted on all."""
+    problem = _Problem(_obs(n_det))
+    misfit_plate = _result(plate.N_PARAMS, 400.0 * 993)
+    chosen, _, _, (_, info) = subset.plate_or_closed(_est(), problem, misfit_plate,
+                                                     np.ones(plate.N_PARAMS, bool), (None, {}))
+    assert chosen.shape is box and stubs["choices"] == 1
+    assert len(chosen.obs.spots) == (CHOICE_DETECTORS if on_subset else n_det)
+    assert stubs["fit_on"] == ([CHOICE_DETECTORS] if on_subset else [])
+    assert ("subset_detectors" in info) is on_subset

@@ -1,11 +1,13 @@
-"""Many detectors (more than SEARCH_DETECTORS): what the estimator decides on spread subsets
-of them, and what it fits on all of them.
+"""Many detectors: what the estimator decides on spread subsets of them, and what it fits on
+all of them.
 
-- The starts and short fits run on SEARCH_DETECTORS (64) spread detectors (`cold_fit`), the
-  final plate fit on all.
-- The choice of plate or closed shape (model.closed.closed_or_plate: ~45 LM fits of three
-  families) is made on CHOICE_DETECTORS (16) spread detectors (`_choice`), and only the chosen
-  closed shape is refitted on all (`plate_or_closed`): closed fits cost their detectors.
+- More than SEARCH_DETECTORS (64): the starts and short fits run on 64 spread detectors
+  (`cold_fit`), the final plate fit on all.
+- More than CHOICE_DETECTORS (16), and a plate that misses the data: the choice of plate or
+  closed shape (model.closed.closed_or_plate: ~45 LM fits of three families) is made on 16
+  spread detectors (`_choice`), and only the chosen closed shape is refitted on all
+  (`plate_or_closed`), unless the sanity check will reject it (`doomed`): closed fits cost
+  their detectors.
 - Where the search subset's plate already misses the data, the choice is made before the
   final fit, and a closed shape that sanity.doubt will reject there (`doomed`: its misfit
   above MISFIT_BIRGE and its depth unseen) ends the fit on the subset: the answer is the
@@ -84,11 +86,12 @@ def doomed(chosen, result, free, cov) -> bool:
 
 def plate_or_closed(est, problem, result, free, cov, choice=None):
     """closed_or_plate on the fitted plate of estimator `est` (model.estimator's _cold). With
-    more than SEARCH_DETECTORS detectors and a plate that misses the data (so closed shapes
-    will be fitted), the choice is made on the spread subset (`choice`, where `cold_fit` made
-    it already) and only the chosen closed shape is refitted on all of them."""
+    more than CHOICE_DETECTORS detectors and a plate that misses the data (so closed shapes
+    will be fitted), the choice is made on a spread subset (`choice`, where `cold_fit` made
+    it already) and only the chosen closed shape is refitted on all of them, unless it is
+    `doomed` (sanity on): then the subset's fit is the answer the check replaces."""
     obs = problem.obs
-    if len(obs.spots) <= SEARCH_DETECTORS or est.closed != "auto" or \
+    if len(obs.spots) <= CHOICE_DETECTORS or est.closed != "auto" or \
             not misfit(problem, result, free, cov[1])[0]:  # no closed fits, or few spots
         return closed_or_plate(problem, result, free, est.final_nfev, cov, est.closed)
     if choice is None:
@@ -97,6 +100,9 @@ def plate_or_closed(est, problem, result, free, cov, choice=None):
     if chosen is search:  # the plate: its fit on every detector stands, with the choice's notes
         cov[1].update({k: v for k, v in why.items() if k not in cov[1]})
         return problem, result, free, cov
+    if est.sanity and doomed(chosen, there, free_there, choice[1][3]):
+        choice[1][3][1].update(subset_detectors=len(search.obs.spots))
+        return choice[1]
     from .host_shapes import shape_problem
     full = shape_problem(problem, shape_of(chosen))
     refit = fit(full, there.params, free_there, est.final_nfev)
