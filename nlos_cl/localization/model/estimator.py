@@ -23,7 +23,7 @@ from .warm import checked_sizes, hidden_diagnostics
 from .covariance import centre_covariance, covariance
 from .likelihood import Problem
 from .depth import unseen_note
-from .sanity import checked, unfittable_line
+from .sanity import checked, fit_checks, unfittable_line
 from .shape import MODELS, name_of
 
 HEIGHT_WARNING = ("height (z) is unobservable with collinear wall spots (rotating the target "
@@ -303,12 +303,9 @@ def _reported(chosen, result, free, cov_all, info, warm_info) -> dict:
     """info with the warm start's report (where one was tried) and what sanity.doubt reads:
     the misfit (the Birge ratio, or counts' deviance per degree of freedom, as select.misfit)
     and whether one target's depth is unseen."""
-    from .select import misfit
     if warm_info is not None:
         info = dict(info, warm_start=warm_info)
-    return dict(info, misfit_ratio=misfit(chosen, result, free, info)[1],
-                depth_unseen=len(result.params) == 1 and
-                unseen_note(chosen.shape, result, cov_all, info) is not None)
+    return dict(info, **fit_checks(chosen, result, free, cov_all, info))
 
 
 def _notes(held, shape, result, cov_all, info) -> list[str]:

@@ -44,9 +44,8 @@ def doubt(target: LocatedTarget, paper_position, spots, lasers) -> str | None:
         return (f"the fitted {fit.shape} is {size} m, larger than the {MAX_EXTENT_M} m any "
                 "target is expected to be")
     seen = fit.diagnostics or {}
-    ratio = seen.get("misfit_ratio")
-    if fit.shape != "plate" and ratio is not None and ratio > MISFIT_BIRGE and \
-            seen.get("depth_unseen"):
+    if misfit_and_unseen(fit.shape, seen):
+        ratio = seen["misfit_ratio"]
         return (f"the fitted {fit.shape} does not explain the data (residual {ratio:.0f} times "
                 f"the noise's, above {MISFIT_BIRGE:.0f}) and these spots cannot tell its depth, "
                 "so its centre is a guess behind the surface")
@@ -59,6 +58,26 @@ def doubt(target: LocatedTarget, paper_position, spots, lasers) -> str | None:
         return (f"its ellipse paths differ from the paper's argmax's by up to {apart:.2f} m, "
                 f"more than its fitted size allows ({reach:.2f} m)")
     return None
+
+
+def fit_checks(chosen, result, free, cov_all, info) -> dict:
+    """What `doubt` reads from a fit's diagnostics (model.estimator reports them; model.subset
+    asks before it refits on every detector): misfit_ratio (the Birge ratio, or counts'
+    deviance per degree of freedom, as select.misfit) and depth_unseen (one target whose
+    depth these spots cannot tell: depth.unseen_note)."""
+    from .depth import unseen_note
+    from .select import misfit as misfit_of
+    return {"misfit_ratio": misfit_of(chosen, result, free, info)[1],
+            "depth_unseen": len(result.params) == 1 and
+            unseen_note(chosen.shape, result, cov_all, info) is not None}
+
+
+def misfit_and_unseen(shape: str, checks: dict) -> bool:
+    """A closed shape whose misfit ratio is above MISFIT_BIRGE and whose depth is unseen
+    (`fit_checks`' fields): `doubt` replaces it with the argmax."""
+    ratio = checks.get("misfit_ratio")
+    return shape != "plate" and ratio is not None and ratio > MISFIT_BIRGE and \
+        bool(checks.get("depth_unseen"))
 
 
 def misfit(target: LocatedTarget) -> str | None:

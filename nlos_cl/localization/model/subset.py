@@ -24,13 +24,13 @@ from __future__ import annotations
 import numpy as np
 
 from ...core.geometry import farthest_points
-from ...core.tuning import CHOICE_DETECTORS, MISFIT_BIRGE, SEARCH_DETECTORS
+from ...core.tuning import CHOICE_DETECTORS, SEARCH_DETECTORS
 from .closed import closed_or_plate
 from .covariance import covariance
-from .depth import unseen_note
 from .fit import fit, shape_of
+from .sanity import fit_checks, misfit_and_unseen
 from .select import misfit
-from . import plate
+from .shape import name_of
 
 
 def spread_rows(obs, count=SEARCH_DETECTORS) -> np.ndarray:
@@ -68,20 +68,26 @@ def cold_fit(est, problem, argmax_position, free, held):
         if misfit(search, rough, free, cov[1])[0]:
             choice = _choice(est, problem, rough, free)
     _count(problem, search)
-    if choice is not None and est.sanity and doomed(*choice[1]):
-        choice[1][3][1].update(subset_detectors=len(choice[0].obs.spots))  # what was fitted
+    if choice is not None and _ended(est, choice) is not None:
         return None, history, choice
     result = fit(problem, rough.params, free, est.final_nfev, keep_jacobian=True)
     return result, history, choice
 
 
 def doomed(chosen, result, free, cov) -> bool:
-    """Whether sanity.doubt will reject this fit for its misfit and unseen depth (the fields
-    model.estimator reports: misfit_ratio, depth_unseen)."""
-    if chosen.shape is plate or len(result.params) != 1:
-        return False
-    ratio = misfit(chosen, result, free, cov[1])[1]
-    return ratio > MISFIT_BIRGE and unseen_note(chosen.shape, result, cov[0], cov[1]) is not None
+    """Whether sanity.doubt will reject this fit for its misfit and unseen depth (from the
+    same fields model.estimator reports: sanity.fit_checks)."""
+    return misfit_and_unseen(name_of(chosen.shape), fit_checks(chosen, result, free, *cov))
+
+
+def _ended(est, choice):
+    """The subset's answer where the choice made there ends the fit (a `doomed` closed
+    shape, the sanity check on), with how many detectors it was fitted on; else None."""
+    few, answer = choice
+    if not est.sanity or answer[0] is few or not doomed(*answer):
+        return None
+    answer[3][1].update(subset_detectors=len(few.obs.spots))
+    return answer
 
 
 def plate_or_closed(est, problem, result, free, cov, choice=None):
@@ -100,9 +106,9 @@ def plate_or_closed(est, problem, result, free, cov, choice=None):
     if chosen is search:  # the plate: its fit on every detector stands, with the choice's notes
         cov[1].update({k: v for k, v in why.items() if k not in cov[1]})
         return problem, result, free, cov
-    if est.sanity and doomed(chosen, there, free_there, choice[1][3]):
-        choice[1][3][1].update(subset_detectors=len(search.obs.spots))
-        return choice[1]
+    ended = _ended(est, choice)
+    if ended is not None:
+        return ended
     from .host_shapes import shape_problem
     full = shape_problem(problem, shape_of(chosen))
     refit = fit(full, there.params, free_there, est.final_nfev)
