@@ -181,36 +181,46 @@ class Problem:
 
 
 def _poisson_newton(y, valid, cols, phi, iters):
-    """Problem._poisson_linear's Newton iterations from phi (a, then b per detector)."""
+    """Problem._poisson_linear's Newton iterations from phi (a, then b per detector). Written
+    for the per-call cost of one target's small fits (a (1, 16, 316) call ~85 us an
+    iteration): valid is 0 / 1, so y valid is formed once and the weights need no second mask;
+    the finiteness test reads the row sums (a non-finite weight or residual reaches its row's
+    sum: w >= 0, r >= -1); the same numbers as the straightforward form, bit for bit, in 0.6
+    of its time (tests/test_model_poisson.py)."""
     k = len(cols)
     flat = cols.reshape(k, -1)
+    yv = y * valid
+    lam = np.empty(np.shape(y))
     for _ in range(iters):
         # a column that barely overlaps the counts (a start candidate far off) can send
         # its amplitude off without bound: the iteration stops at the last finite phi
         # (its cost then rejects the candidate) instead of overflowing (CC-SOCR's
         # 4 points as one laser: "overflow encountered in square" in the answer's warnings)
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-            lam = np.maximum(np.tensordot(phi[:k], cols, 1) + phi[k:, None] * valid, 1e-12)
-            r = (y / lam - 1.0) * valid
-            w = valid * y / lam ** 2
-        if not (np.all(np.isfinite(w)) and np.all(np.isfinite(r))):
+            np.dot(phi[:k], flat, out=lam.reshape(-1))
+            lam += phi[k:, None] * valid
+            np.maximum(lam, 1e-12, out=lam)
+            r = yv / lam
+            w = yv / (lam * lam)
+            r -= valid
+        h_bb, g_b = np.sum(w, axis=1), np.sum(r, axis=1)
+        if not (np.all(np.isfinite(h_bb)) and np.all(np.isfinite(g_b))):
             break
         h_aa = (flat * w.reshape(-1)) @ flat.T
-        h_ab = np.einsum("kdn,dn->kd", cols, w * valid)
-        h_bb = np.sum(w * valid, axis=1)  # the backgrounds' block is diagonal
+        h_ab = np.einsum("kdn,dn->kd", cols, w)
         ridge = 1e-9 * (np.trace(h_aa) + h_bb.sum()) / (k + len(y))
         h_aa[np.diag_indices(k)] += ridge
-        h_bb = h_bb + ridge
-        g_a, g_b = flat @ r.reshape(-1), np.sum(r * valid, axis=1)
+        h_bb += ridge  # the backgrounds' block is diagonal
+        g_a = flat @ r.reshape(-1)
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
             step = _arrow_solve(h_aa, h_ab, h_bb, g_a, g_b)
         new = np.maximum(phi + step, 1e-12 * np.maximum(phi, 1e-6))
         if not np.all(np.isfinite(new)):
             break
-        if np.allclose(new, phi, rtol=1e-9, atol=0):
-            phi = new
-            break
+        done = np.all(np.abs(new - phi) <= 1e-9 * np.abs(phi))  # allclose(rtol 1e-9), 15 us less
         phi = new
+        if done:
+            break
     return phi
 
 
