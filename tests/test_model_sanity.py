@@ -52,12 +52,14 @@ def test_paths_that_contradict_the_argmax_fall_back_but_a_slide_along_its_ridge_
     assert doubt(ridge, argmax, SPOTS, LASER) is None
 
 
-def _diagnosed(shape, misfit_ratio, depth_unseen, birge=None):
+def _diagnosed(shape, misfit_ratio, depth_unseen, birge=None, explained=None):
     """A target at the argmax's paths whose fit reports these diagnostics (as the estimator
-    does: the misfit ratio, Birge or counts' deviance per degree of freedom; depth_unseen)."""
+    does: the misfit ratio, Birge or counts' deviance per degree of freedom; depth_unseen;
+    the share of the no-target cost explained)."""
     fit = ModelFit(shape, shape, (Parameter("x", 4.0),), 1.0, np.array([0.0, -1.0, 0.0]),
                    "poisson" if birge is None else "gauss", 1.0, 100, birge, False,
-                   diagnostics={"misfit_ratio": misfit_ratio, "depth_unseen": depth_unseen})
+                   diagnostics={"misfit_ratio": misfit_ratio, "depth_unseen": depth_unseen,
+                                "explained": explained})
     return LocatedTarget(np.array([4.0, 2.3, 0.0]), np.eye(3) * 1e-4,
                          np.array([0.5, 0.5, 0.6]), fit=fit)
 
@@ -83,6 +85,49 @@ def test_a_closed_shape_that_misfits_with_its_depth_unseen_falls_back_to_the_arg
     seen = _diagnosed("ellipsoid", 301.0, False)
     with pytest.warns(UserWarning, match="deviance per degree of freedom 301 > 100"):
         assert checked([seen], argmax, SPOTS, LASER) == [seen]
+
+
+def test_a_closed_shape_that_misfits_and_leaves_much_of_the_signal_falls_back():
+    """CC-SOCR's "4" as one laser with the counts' amplitudes converged: an ellipsoid 0.40 m
+    behind the letter, its depth seen (profile sd 0.08 m) but 19 % of the signal unexplained
+    at deviance 298 per degree of freedom: a guess, replaced. Kept: a nearly noise-free closed
+    fit (Birge in the thousands, 1e-5 unexplained), and a noisy one (Birge ~1, where the
+    noise itself is what is unexplained)."""
+    argmax = np.array([4.0, 2.3, 0.0])
+    guess = _diagnosed("ellipsoid", 298.0, False, explained=0.81)
+    with pytest.warns(UserWarning, match="leaves 19 % of the signal unexplained"):
+        out = checked([guess], argmax, SPOTS, LASER)
+    assert np.array_equal(out[0].position, argmax)
+    for kept in (_diagnosed("box", 5353.0, False, birge=5353.0, explained=1 - 1e-5),
+                 _diagnosed("ellipsoid", 1.3, False, birge=1.3, explained=0.4),
+                 _diagnosed("plate", 427.0, False, explained=0.7)):
+        assert doubt(kept, argmax, SPOTS, LASER) is None
+
+
+def test_the_null_cost_is_the_backgrounds_alone():
+    """Problem.null_cost, the reference of a fit's explained share: counts, the deviance of
+    each detector's mean count (the likelihood-best constant) summed by hand; Gaussian, the
+    data's own chi^2 about zero. A fit with the true model removes all but the noise's share."""
+    from types import SimpleNamespace
+    from nlos_cl.localization.model.likelihood import Problem
+    rng = np.random.default_rng(3)
+    t = np.arange(200)
+    pulse = np.exp(-((t - 90) / 5.0) ** 2)[None].repeat(4, 0)
+    valid = np.ones((4, 200), bool)
+    valid[:, :20] = False
+    y = rng.poisson(500.0 * pulse + 2.0).astype(np.float64)
+    obs = SimpleNamespace(y=y, valid=valid, mode="poisson")
+    problem = Problem(obs, None)
+    b = np.array([row[v].mean() for row, v in zip(y, valid)])[:, None]
+    terms = np.where(y > 0, y * np.log(np.where(y > 0, y, 1.0) / b), 0.0) - (y - b)
+    assert np.isclose(problem.null_cost(), 2.0 * terms[valid].sum(), rtol=1e-12)
+    cols = (pulse * valid)[None]
+    true_cost = float(np.sum(problem.residual(cols, problem.linear(cols)) ** 2))
+    # the true model leaves the noise's deviance, ~1 a bin (Poisson, mean >= 2), nothing more
+    assert true_cost < 1.3 * valid.sum() < 0.1 * problem.null_cost()
+    noise = np.full(4, 0.5)
+    g = SimpleNamespace(y=y, valid=valid, mode="gauss", noise=noise)
+    assert np.isclose(Problem(g, None).null_cost(), np.sum((y / 0.5)[valid] ** 2))
 
 
 def test_several_targets_are_warned_about_not_replaced():

@@ -26,9 +26,13 @@ def _obs(n_det):
 
 
 class _Problem:
-    def __init__(self, obs, shape=plate):
+    def __init__(self, obs, shape=plate, null=1e12):
         self.obs, self.shape, self.calls, self.model_s = obs, shape, 0, 0.0
         self.backend, self.closed_on_host, self.lattice = None, True, (16, 32)
+        self.null = null  # the no-target cost: by default the fits explain all but ~1e-6
+
+    def null_cost(self):
+        return self.null
 
 
 def _result(n_params, cost):
@@ -106,14 +110,18 @@ def test_without_the_sanity_check_nothing_ends_on_the_subset(stubs):
     assert result is not None and choice is not None
 
 
-def test_doomed_reads_the_sanity_checks_two_conditions():
+def test_doomed_reads_the_sanity_checks_conditions():
+    """Misfit AND (depth unseen OR less than EXPLAINED_MIN of the signal explained)."""
     obs = _obs(8)
     cov = np.zeros((box.N_PARAMS, box.N_PARAMS))
-    for ratio, sd, want in [(400, 0.5, True), (400, 0.01, False), (2, 0.5, False)]:
+    for ratio, sd, unexplained, want in [(400, 0.5, 1e-6, True), (400, 0.01, 1e-6, False),
+                                         (2, 0.5, 1e-6, False), (400, 0.01, 0.2, True),
+                                         (2, 0.01, 0.2, False)]:
         cov[box.DEPTH, box.DEPTH] = sd ** 2
         result = _result(box.N_PARAMS, ratio * (1000 - box.N_PARAMS - 1))
         free = np.ones(box.N_PARAMS, bool)
-        assert subset.doomed(_Problem(obs, box), result, free, (cov, {})) is want
+        problem = _Problem(obs, box, null=result.cost / unexplained)
+        assert subset.doomed(problem, result, free, (cov, {})) is want
         assert ratio > MISFIT_BIRGE or not want
     assert not subset.doomed(_Problem(obs, plate), _result(plate.N_PARAMS, 4e5),
                              np.ones(plate.N_PARAMS, bool), (cov, {}))

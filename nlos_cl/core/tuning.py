@@ -52,6 +52,13 @@ PLAN_CACHE = 8
 # above it whose depth the spots cannot tell falls back to the argmax (model.sanity).
 MAX_EXTENT_M = 2.5
 MISFIT_BIRGE = 100.0
+# ... and a closed shape above MISFIT_BIRGE that removes less than EXPLAINED_MIN of the
+# no-target cost (its depth seen or not) falls back too: closed fits to simulated closed
+# targets leave 3e-6 to 5e-5 of it at any noise (20-60 dB, Birge 2.5-14,000: stop 50, 15
+# scenes), CC-SOCR's "4" fitted as an ellipsoid or box as one laser 0.19-0.27 (Birge
+# 300-430, the centre 0.1-0.3 m behind the letter); 0.9 leaves a real closed target's model
+# error (pulse tails, reflectance) twice CC-SOCR's margin below it.
+EXPLAINED_MIN = 0.9
 ARGMAX_MARGIN_M = 0.15
 
 

@@ -13,22 +13,26 @@ One target: a fit that fails one is replaced by the paper's argmax (no covarianc
 uses its fallback sigma) and the reason is warned. Several targets: the paper's argmax gives
 one position only, on one of them, so the paths check is skipped and a target failing the
 others is kept and warned about.
-- misfit and depth unseen: a closed shape (box, ellipsoid, cylinder) whose Birge ratio is
-  above MISFIT_BIRGE AND whose depth these spots cannot tell (depth.unseen_note): the closed
+- misfit, and depth unseen or signal unexplained: a closed shape (box, ellipsoid, cylinder)
+  whose Birge ratio is above MISFIT_BIRGE AND whose depth these spots cannot tell
+  (depth.unseen_note) OR that leaves more than 1 - EXPLAINED_MIN of the signal unexplained
+  (the share of the no-target cost its fit leaves: likelihood.Problem.null_cost): the closed
   shape was tried because the plate missed the data, missed it too, and its centre lies a
   guessed depth behind the surface (CC-SOCR as one laser and N detectors by reciprocity: plate
-  Birge 320-450, an ellipsoid or box centre 0.24-0.40 m behind the "4", depth sd 0.30-0.52 m,
-  where the argmax is on it).
+  Birge 320-450, an ellipsoid or box centre 0.24-0.40 m behind the "4", depth sd 0.30-0.52 m
+  or, with the amplitudes converged, sd 0.08 m and 19-27 % of the signal unexplained, where
+  the argmax is on it).
 A Birge ratio above MISFIT_BIRGE alone is warned about but not replaced: closed shapes fitted
-to noise-free boxes reach 1,238 with the centre right (their depth seen), so the ratio alone
-does not say the position is wrong."""
+to nearly noise-free boxes reach 1,238 (and 60 dB simulations 1,300-10,000) with the centre
+right, their depth seen and under 1e-4 of the signal unexplained, so the ratio alone does not
+say the position is wrong."""
 from __future__ import annotations
 
 import warnings
 
 import numpy as np
 
-from ...core.tuning import ARGMAX_MARGIN_M, MAX_EXTENT_M, MISFIT_BIRGE
+from ...core.tuning import ARGMAX_MARGIN_M, EXPLAINED_MIN, MAX_EXTENT_M, MISFIT_BIRGE
 from ..estimate import LocatedTarget
 from ..region import line_direction, unseen_axis
 
@@ -45,10 +49,12 @@ def doubt(target: LocatedTarget, paper_position, spots, lasers) -> str | None:
                 "target is expected to be")
     seen = fit.diagnostics or {}
     if misfit_and_unseen(fit.shape, seen):
-        ratio = seen["misfit_ratio"]
+        ratio, left = seen["misfit_ratio"], 1.0 - (seen.get("explained") or 0.0)
+        why = ("these spots cannot tell its depth" if seen.get("depth_unseen") else
+               f"it leaves {100 * left:.0f} % of the signal unexplained")
         return (f"the fitted {fit.shape} does not explain the data (residual {ratio:.0f} times "
-                f"the noise's, above {MISFIT_BIRGE:.0f}) and these spots cannot tell its depth, "
-                "so its centre is a guess behind the surface")
+                f"the noise's, above {MISFIT_BIRGE:.0f}) and {why}, so its centre is a guess "
+                "behind the surface")
     if paper_position is None:
         return None
     reach = float(np.linalg.norm(extent if extent is not None else 0.0)) + 2 * ARGMAX_MARGIN_M
@@ -63,21 +69,25 @@ def doubt(target: LocatedTarget, paper_position, spots, lasers) -> str | None:
 def fit_checks(chosen, result, free, cov_all, info) -> dict:
     """What `doubt` reads from a fit's diagnostics (model.estimator reports them; model.subset
     asks before it refits on every detector): misfit_ratio (the Birge ratio, or counts'
-    deviance per degree of freedom, as select.misfit) and depth_unseen (one target whose
-    depth these spots cannot tell: depth.unseen_note)."""
+    deviance per degree of freedom, as select.misfit), explained (the share of the
+    no-target cost the fit removes, 1 - cost / Problem.null_cost) and depth_unseen (one
+    target whose depth these spots cannot tell: depth.unseen_note)."""
     from .depth import unseen_note
     from .select import misfit as misfit_of
+    null = chosen.null_cost()
     return {"misfit_ratio": misfit_of(chosen, result, free, info)[1],
+            "explained": 1.0 - result.cost / null if null > 0 else None,
             "depth_unseen": len(result.params) == 1 and
             unseen_note(chosen.shape, result, cov_all, info) is not None}
 
 
 def misfit_and_unseen(shape: str, checks: dict) -> bool:
-    """A closed shape whose misfit ratio is above MISFIT_BIRGE and whose depth is unseen
-    (`fit_checks`' fields): `doubt` replaces it with the argmax."""
-    ratio = checks.get("misfit_ratio")
-    return shape != "plate" and ratio is not None and ratio > MISFIT_BIRGE and \
-        bool(checks.get("depth_unseen"))
+    """A closed shape whose misfit ratio is above MISFIT_BIRGE and whose depth is unseen or
+    that explains less than EXPLAINED_MIN of the signal (`fit_checks`' fields): `doubt`
+    replaces it with the argmax."""
+    ratio, explained = checks.get("misfit_ratio"), checks.get("explained")
+    return shape != "plate" and ratio is not None and ratio > MISFIT_BIRGE and (
+        bool(checks.get("depth_unseen")) or (explained is not None and explained < EXPLAINED_MIN))
 
 
 def misfit(target: LocatedTarget) -> str | None:
