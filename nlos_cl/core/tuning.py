@@ -28,7 +28,12 @@ SEARCH_DETECTORS = 64
 # On 120 draws (one, closed, mismatch; 0-39, master seed 2201) 13 of the SPAD patches of
 # 25-64 spots moved, by at most 6 mm (6 closer, 7 farther), medians, p90s, worst errors and
 # failures unchanged; those draws' locates 1.4-3.5x faster, each family 28-33 % faster.
-CHOICE_DETECTORS = 16
+# On 8 (stop 50): 4,096 points 10.1-10.3 -> 7.8-7.9 s, 24 points 6.5 -> 4.4 s, 12 points
+# 5.8 -> 4.3 s (two interleaved rounds), depths 0.938-0.955 m; the same 120 draws: 15 moved
+# (mismatch 18 0.18 -> 0.06 m, 19 0.085 -> 0.116 m, the rest by <= 2 mm), medians, p90s
+# (mismatch 0.3019 -> 0.3027), worst errors unchanged, failures (> 0.15 m) 13 -> 12, each
+# family 21-30 % less time.
+CHOICE_DETECTORS = 8
 
 # search="auto": frames timed per search (after one warm-up each) before the Locator keeps the
 # faster one for its grid.
