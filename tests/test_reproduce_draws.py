@@ -111,7 +111,12 @@ def test_draws_respect_the_constraints(family):
             assert len(d["targets"]) == 1
         if family == "mismatch":
             assert d["mismatch"]["kind"] == CFG["families"]["mismatch"]["subfamilies"][i % 5]
-    fam = CFG["families"]["one" if family == "mismatch" else family]
+        if family == "counts":
+            c, fam_c = d["counting"], CFG["families"]["counts"]
+            assert _inside(c["signal_photons"], fam_c["signal_photons"])
+            assert _inside(c["ambient_rate_hz"], fam_c["ambient_rate_hz"])
+            assert _inside(c["tdc_ps"], fam_c["tdc_ps"]) and isinstance(c["tdc_ps"], int)
+    fam = CFG["families"]["one" if family in ("mismatch", "counts") else family]
     assert kinds == set(fam["layouts"]) and shapes == set(fam["shapes"])  # every one is drawn
     if family == "closed":
         assert "plate" not in shapes
@@ -267,3 +272,25 @@ def test_a_short_crossing_run_writes_its_section(tmp_path, monkeypatch):
         (written,) = list(csv.DictReader(f))
     assert written["ids_ok"] == str(row["ids_ok"]) and written["index"] == "0"
     assert cg.segments_cross(*[t["path"] for t in g.draw("crossings", 0, cfg=short)["targets"]])
+
+
+def test_a_counts_draw_is_photon_counts_with_its_drawn_signal():
+    """The counts family's frame: whole numbers in the drawn TDC bins, whose mean total per
+    detector is the drawn signal photons plus the dark and ambient counts' expectation (at
+    the pulses that signal needs), within 5 Poisson sd."""
+    from nlos_cl.apps.reproduce import draws_scene
+    from nlos_cl.physics.noise import PhotonCounter
+    d = g.draw("counts", 3)
+    clean, _ = draws_scene.simulate(d, Settings.make(quick=True))
+    frame = draws_scene.noisy(clean, d)
+    c = d["counting"]
+    assert np.array_equal(frame.data, np.round(frame.data)) and frame.data.min() >= 0
+    assert abs(frame.time_axis.dt_s - c["tdc_ps"] * 1e-12) < 1e-18
+    n_det, n_bins = frame.data.shape
+    quiet = PhotonCounter(n_pulses=1.0, dark_count_rate_hz=0.0, ambient_rate_hz=0.0,
+                          tdc_bin_s=c["tdc_ps"] * 1e-12)
+    pulses = c["signal_photons"] / np.mean(quiet.expected_counts(clean).data.sum(axis=1))
+    rate = c["ambient_rate_hz"] + PhotonCounter().dark_count_rate_hz
+    expected = c["signal_photons"] + rate * frame.time_axis.dt_s * n_bins * pulses
+    per_detector = frame.data.sum() / n_det
+    assert abs(per_detector - expected) < 5 * np.sqrt(expected / n_det), (per_detector, expected)

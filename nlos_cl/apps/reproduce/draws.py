@@ -1,5 +1,5 @@
 """`nlos-cl reproduce draws`: evaluation by random draws, not chosen cases (issue 22). Each
-family (draws.yaml: one, multi, closed, mismatch, crossings) draws its scenes at random
+family (draws.yaml: one, multi, closed, mismatch, crossings, counts) draws its scenes at random
 (draws_gen: a pure function of family, index and master seed), simulates each with nlos_cl's
 forward model, adds noise, and locates it with the paper's argmax and with the library's
 default estimator (draws_run); crossings are sequences of two targets whose paths cross,
@@ -147,6 +147,15 @@ def page(rows, summ, cfg, s: Settings, options: str, seconds: float, seed: int) 
            "see a closed object's depth). Times are per call, on shared cores: noisy (with "
            "--jobs N, N draws share the cores: inflated).")
     located = [r for r in rows if r["family"] != cross.FAMILY]
+    if any(r["family"] == "counts" for r in rows):
+        c = cfg["families"]["counts"]
+        how += (" A counts draw is a `one` scene whose frame is photon counts "
+                "(`nl.PhotonCounter`, draws_scene.photon_counts): mean signal photons per "
+                f"detector {c['signal_photons'][0]:g}-{c['signal_photons'][1]:g} and dark + "
+                f"ambient {c['ambient_rate_hz'][0]:g}-{c['ambient_rate_hz'][1]:g} Hz "
+                f"(log-uniform), TDC bins {c['tdc_ps'][0]}-{c['tdc_ps'][1]} ps, jitter 30 ps; "
+                "its row's 'mismatch' column holds these, its SNR is not used; both "
+                "estimators read the counts as counts (Poisson).")
     sections = [header, how, "## Goals (issue 22)",
                 report.goal_table(report.goals(summ) + cross.goals(summ))]
     if located:

@@ -18,7 +18,7 @@ from ...core.errors import require
 from . import draws_cross_gen
 from .common import load_data
 
-FAMILIES = ("one", "multi", "closed", "mismatch", "crossings")
+FAMILIES = ("one", "multi", "closed", "mismatch", "crossings", "counts")
 LASER = np.zeros(3)  # the paper's laser spot O, which every draw keeps
 TRIES = 1000  # rejection-sampling attempts before a draw gives up (a range that cannot be met)
 FACING_TRIES = 50  # yaws tried for a crossing plate before its paths are drawn again
@@ -232,6 +232,17 @@ def _mismatch(rng, cfg, fam, index) -> dict:
     return {**scene, "mismatch": m}
 
 
+def _counts(rng, cfg, fam) -> dict:
+    """A `one` scene whose frame is photon counts (draws_scene.noisy): signal photons per
+    detector, ambient rate and TDC bin drawn log-uniform / uniform (draws.yaml counts)."""
+    scene = _one(rng, cfg, cfg["families"]["one"])
+    photons = math.exp(_u(rng, [math.log(v) for v in fam["signal_photons"]]))
+    ambient = math.exp(_u(rng, [math.log(v) for v in fam["ambient_rate_hz"]]))
+    counting = {"signal_photons": round(photons, 1), "ambient_rate_hz": round(ambient, 1),
+                "tdc_ps": int(round(_u(rng, fam["tdc_ps"])))}
+    return {**scene, "counting": counting}
+
+
 def _facing_yaw(rng, reg, path, spots):
     """A yaw (and normal) for an upright plate walking `path` that faces O and every spot
     from both ends of it (and so from all of it: along a line the angle to a point turns one
@@ -295,6 +306,8 @@ def draw(family: str, index: int, master_seed: int | None = None, cfg: dict | No
         scene = _mismatch(rng, cfg, fam, index)
     elif family == "crossings":
         scene = _crossings(rng, cfg, fam)
+    elif family == "counts":
+        scene = _counts(rng, cfg, fam)
     else:
         scene = _one(rng, cfg, fam)
     scene.setdefault("mismatch", None)

@@ -102,10 +102,25 @@ def simulate(d: dict, s: Settings):
     return clean, sorted({str(w.message)[:120] for w in caught})
 
 
+def photon_counts(clean, counting: dict, seed: int):
+    """A counts draw's frame: PhotonCounter counts in TDC bins, its pulses set so that the
+    detectors' mean signal photons is the draw's (the ambient at the draw's rate)."""
+    quiet = nl.PhotonCounter(n_pulses=1.0, dark_count_rate_hz=0.0, ambient_rate_hz=0.0,
+                             tdc_bin_s=counting["tdc_ps"] * 1e-12)
+    per_pulse = float(np.mean(quiet.expected_counts(clean).data.sum(axis=1)))
+    counter = nl.PhotonCounter(n_pulses=counting["signal_photons"] / max(per_pulse, 1e-300),
+                               ambient_rate_hz=counting["ambient_rate_hz"],
+                               tdc_bin_s=counting["tdc_ps"] * 1e-12)
+    return counter.counts(clean, seed=seed)
+
+
 def noisy(clean, d: dict):
     """The frame the estimators see: AWGN at the draw's SNR (measured on the signal alone),
-    or noise relative to each peak; then the background where the draw has one."""
+    or noise relative to each peak; then the background where the draw has one. A counts
+    draw: Poisson photon counts instead (`photon_counts`)."""
     from nlos_cl.physics.noise import SensorNoise
+    if d.get("counting"):
+        return photon_counts(clean, d["counting"], d["noise_seed"])
     m = d["mismatch"] or {}
     if m.get("kind") == "peak_noise":
         model = SensorNoise(tuple(clean.data.max(axis=1) / 10 ** (m["peak_snr_db"] / 20)))
