@@ -7,14 +7,23 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from nlos_cl.localization.model.likelihood import (NEWTON_ITERS, Problem, _arrow_solve,
-                                                   _poisson_newton)
+from nlos_cl.localization.model.likelihood import (BOUND_SHARE, NEWTON_ITERS, Problem,
+                                                   _arrow_solve, _poisson_newton)
 
 
 def _damping(diagonal):
     """likelihood._ridge, written out: 1e-9 of each diagonal entry, or of a thousandth of its
     block's mean where the entry is ~0."""
     return 1e-9 * np.maximum(diagonal, 1e-3 * diagonal.mean()) + 1e-300
+
+
+def _converged(new, phi, basis, y, valid):
+    """Every entry moved by <= 1e-9 of itself, or moved the expected counts (its basis row's
+    sum over the valid bins times the move) by <= 1e-9 of the counts observed (+ 1)."""
+    moved = np.abs(new - phi)
+    counts = moved * np.sum(basis * valid[None], axis=(1, 2))
+    return np.all((moved <= 1e-9 * np.abs(phi)) |
+                  (counts <= 1e-9 * (np.sum(y * valid) + 1.0)))
 
 
 def full_basis_newton(problem, cols, iters=NEWTON_ITERS):
@@ -28,8 +37,8 @@ def full_basis_newton(problem, cols, iters=NEWTON_ITERS):
         d = np.diag(hess).copy()  # the damping: 1e-9 of each entry, per block (a, then b)
         for block in (slice(0, len(cols)), slice(len(cols), None)):
             hess[block, block] += np.diag(_damping(d[block]))
-        new = np.maximum(phi + np.linalg.solve(hess, grad), 1e-12 * np.maximum(phi, 1e-6))
-        if np.allclose(new, phi, rtol=1e-9, atol=0):
+        new = np.maximum(phi + np.linalg.solve(hess, grad), BOUND_SHARE * phi)
+        if _converged(new, phi, basis, obs.y, obs.valid):
             return new
         phi = new
     return phi
@@ -74,10 +83,11 @@ def plain_block_newton(y, valid, cols, phi, iters):
         g_a, g_b = flat @ r.reshape(-1), np.sum(r * valid, axis=1)
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
             step = _arrow_solve(h_aa, h_ab, h_bb, g_a, g_b)
-        new = np.maximum(phi + step, 1e-12 * np.maximum(phi, 1e-6))
+        new = np.maximum(phi + step, BOUND_SHARE * phi)
         if not np.all(np.isfinite(new)):
             break
-        if np.allclose(new, phi, rtol=1e-9, atol=0):
+        basis = np.concatenate([cols, np.eye(len(y))[:, :, None] * valid[None]], axis=0)
+        if _converged(new, phi, basis, y, valid):
             return new
         phi = new
     return phi
@@ -178,3 +188,33 @@ def test_a_column_in_small_units_converges_as_fast_as_one_in_counts():
         lam = phi[0] * cols[0] + phi[1:, None]
         assert abs(np.sum((y / lam - 1.0) * cols[0]) * phi[0]) < 1e-6 * y.sum()  # d/da = 0
     assert iterations[1] == iterations[0] <= 10, iterations
+
+
+def test_a_step_past_zero_does_not_throw_a_background_twelve_orders_down():
+    """Low counts (a weak SPAD patch: ~380 photons over 769 bins a detector): a background
+    started at 0.1 whose best level is ~0.04 is overshot past 0 by the first step. Stopped at
+    BOUND_SHARE of its value it converges in a few iterations (from 1e-12 of it, as before
+    stop 50, it took ~40 doublings, past the cap); a column that explains nothing has its
+    amplitude at the bound, and stops once its moves no longer change the expected counts."""
+    rng = np.random.default_rng(33)
+    n_det, n = 8, 769
+    t = np.arange(n)
+    cols = np.exp(-((t - 400) / 6.0) ** 2)[None, None].repeat(n_det, 1) * 1e-3
+    y = rng.poisson(cols[0] * 3.5e5 + 0.04).astype(np.float64)
+    valid = np.ones((n_det, n))
+    phi = np.concatenate([[3.7e5], np.full(n_det, 0.1)])
+    steps = []
+    for start in (phi, np.concatenate([[3.7e5], np.full(n_det, 1e-3)])):
+        p = _poisson_newton(y, valid, cols, start.copy(), NEWTON_ITERS)
+        # the iterations it took: the fewest that give the same answer
+        steps.append(next(m for m in range(1, NEWTON_ITERS + 1)
+                          if np.array_equal(_poisson_newton(y, valid, cols, start.copy(), m), p)))
+        lam = p[0] * cols[0] + p[1:, None]
+        assert np.allclose(np.sum(y / lam - 1.0, axis=1), 0.0, atol=1e-6 * n)  # d/db = 0
+    assert max(steps) <= 15, steps
+    empty = np.concatenate([cols, np.exp(-((t - 100) / 6.0) ** 2)[None, None].repeat(n_det, 1)])
+    y_empty = y.copy()
+    y_empty[:, 60:140] = 0.0  # nothing where the second column is
+    got = _poisson_newton(y_empty, valid, empty, np.concatenate([[3.7e5, 5.0], phi[1:]]),
+                          NEWTON_ITERS)
+    assert got[1] * empty[1].sum() < 1e-6 * y_empty.sum()  # its counts ~0: at the bound

@@ -51,8 +51,9 @@ def stubs(monkeypatch):
     def fit_targets(search, est, argmax, free, held):
         return plate_fit, ["search"]
 
-    def closed_or_plate(search, rough, free, nfev, cov, closed):
+    def closed_or_plate(search, rough, free, nfev, cov, closed, tried=False):
         calls["choices"] += 1
+        calls["tried"] = tried
         result = _result(box.N_PARAMS, 400.0 * 992)
         cov_box = np.zeros((box.N_PARAMS, box.N_PARAMS))
         cov_box[box.DEPTH, box.DEPTH] = calls["depth_sd"] ** 2
@@ -141,3 +142,31 @@ def test_the_choice_is_made_on_a_subset_above_choice_detectors(stubs, n_det, on_
     assert len(chosen.obs.spots) == (CHOICE_DETECTORS if on_subset else n_det)
     assert stubs["fit_on"] == ([CHOICE_DETECTORS] if on_subset else [])
     assert ("subset_detectors" in info) is on_subset
+
+
+@pytest.mark.parametrize("box_better", [False, True])
+def test_an_adequate_plate_on_many_detectors_tries_closed_shapes_only_on_the_subset(
+        stubs, monkeypatch, box_better):
+    """A plate that fits (deviance ~1 per dof) on 6 x CHOICE_DETECTORS detectors: the depth
+    probe runs on every detector; where it says a box behind would do better the closed
+    shapes are fitted on the subset (tried: whatever the subset's own plate does), not on
+    all; where it does not, the plate stands and nothing more is fitted."""
+    probed = []
+
+    def box_behind(problem, result, cov):
+        probed.append(len(problem.obs.spots))
+        cov[1].update(box_probe_better=box_better)
+        return box_better
+    monkeypatch.setattr(subset, "box_behind", box_behind)
+    n_det = 6 * CHOICE_DETECTORS
+    problem = _Problem(_obs(n_det))
+    adequate = _result(plate.N_PARAMS, 1.0 * 993)
+    chosen, _, _, (_, info) = subset.plate_or_closed(_est(), problem, adequate,
+                                                     np.ones(plate.N_PARAMS, bool), (None, {}))
+    assert probed == [n_det]
+    if box_better:
+        assert stubs["choices"] == 1 and stubs["tried"] is True
+        assert stubs["fit_on"][0] == CHOICE_DETECTORS and chosen.shape is box
+    else:
+        assert stubs["choices"] == 0 and stubs["fit_on"] == [] and chosen is problem
+        assert info["box_probe_better"] is False and info["closed_tried"] is False

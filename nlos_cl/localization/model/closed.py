@@ -28,15 +28,15 @@ def box_rows(q, centres=(), laser=None) -> np.ndarray:
     """Closed-shape starts around a fitted plate q (depths behind its face, yaws, narrower
     widths; none if q is None) and, facing the laser spot, at each of `centres`."""
     rows = []
-    for depth in BOX_DEPTHS if q is not None else ():
+    for behind in BOX_DEPTHS if q is not None else ():
         for dyaw in BOX_YAWS:
             for scale in BOX_WIDTHS:
                 p = np.array(q, float)
                 p[plate.WIDTH], p[plate.YAW] = p[plate.WIDTH] * scale, p[plate.YAW] + dyaw
-                rows.append(box.from_plate(p, depth))
+                rows.append(box.from_plate(p, behind))
     for c in centres:
-        for w, h, depth in CENTRE_SIZES:
-            rows.append(box.from_plate([*c[:3], w, h, plate.facing(c, laser)], depth))
+        for w, h, behind in CENTRE_SIZES:
+            rows.append(box.from_plate([*c[:3], w, h, plate.facing(c, laser)], behind))
     return np.array(rows)
 
 
@@ -178,13 +178,22 @@ def reseat_plate(problem, plate_result, free, final_nfev):
     return result if result.cost < plate_result.cost else plate_result
 
 
+def box_behind(problem, plate_result, plate_cov) -> bool:
+    """Would a box behind this plate, which fits the data, explain them better
+    (depth.probe)? The probe's findings go into plate_cov's info."""
+    seen = depth.probe(problem, plate_result, kappa(problem.obs))
+    plate_cov[1].update(depth_sd_m=seen["depth_sd_m"], box_probe_better=seen["box_better"])
+    return seen["box_better"]
+
+
 def closed_or_plate(problem, plate_result, free, final_nfev, plate_cov, closed="auto",
-                    probe_depth=True):
+                    probe_depth=True, tried=False):
     """Plate or closed shape for one target. The closed shapes (CLOSED) are fitted only where
-    the plate, re-seated (`reseat_plate`), still misses the data (`misfit`) or closed=True;
-    the one of lowest cost (they share the parameters) is kept where its one more parameter
-    (depth) passes the BIC test in units of its own residual variance (as `accepts`).
-    plate_cov: covariance(...) of the plate.
+    the plate, re-seated (`reseat_plate`), still misses the data (`misfit`), a box behind it
+    would do better (`box_behind`), tried (the caller's probe on more detectors said so:
+    model.subset) or closed=True; the one of lowest cost (they share the parameters) is kept
+    where its one more parameter (depth) passes the BIC test in units of its own residual
+    variance (as `accepts`). plate_cov: covariance(...) of the plate.
     Returns (problem, result, free, (cov_all, info)) of the chosen model."""
     inadequate, birge = misfit(problem, plate_result, free, plate_cov[1])
     if inadequate and closed is not True:  # a misfit plate is re-seated first
@@ -194,11 +203,9 @@ def closed_or_plate(problem, plate_result, free, final_nfev, plate_cov, closed="
             inadequate, birge = misfit(problem, plate_result, free, plate_cov[1])
             plate_cov[1].update(plate_reseated=True)
     plate_cov[1].update(plate_birge_ratio=birge, closed_tried=False)
-    if closed == "auto" and not inadequate and probe_depth:  # would a box behind it do better?
-        seen = depth.probe(problem, plate_result, kappa(problem.obs))
-        plate_cov[1].update(depth_sd_m=seen["depth_sd_m"], box_probe_better=seen["box_better"])
-        inadequate = seen["box_better"]
-    if closed is False or (closed == "auto" and not inadequate):
+    if closed == "auto" and not inadequate and probe_depth and not tried:
+        inadequate = box_behind(problem, plate_result, plate_cov)
+    if closed is False or (closed == "auto" and not inadequate and not tried):
         return problem, plate_result, free, plate_cov
     fits = [fit_closed(problem, plate_result, free, final_nfev, shape) for shape in CLOSED]
     fits = rounded(cross_seeded(fits, final_nfev), final_nfev)

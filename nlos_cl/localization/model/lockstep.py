@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from .fit import FitResult, _Objective, fit
-from .lm import drive_together, solve
+from .lm import drive_together
 
 
 def fit_together(problem, starts, free, max_nfev=30) -> list[FitResult]:

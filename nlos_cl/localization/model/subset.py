@@ -3,7 +3,8 @@ all of them.
 
 - More than SEARCH_DETECTORS (64): the starts and short fits run on 64 spread detectors
   (`cold_fit`), the final plate fit on all.
-- More than CHOICE_DETECTORS (8), and a plate that misses the data: the choice of plate or
+- More than CHOICE_DETECTORS (8), and a plate that misses the data or that a box behind it
+  would beat (the depth probe on every detector): the choice of plate or
   closed shape (model.closed.closed_or_plate: ~45 LM fits of three families) is made on 8
   spread detectors (`_choice`), and only the chosen closed shape is refitted on all
   (`plate_or_closed`), unless the sanity check will reject it (`doomed`): closed fits cost
@@ -26,7 +27,7 @@ import numpy as np
 
 from ...core.geometry import farthest_points
 from ...core.tuning import CHOICE_DETECTORS, SEARCH_DETECTORS
-from .closed import closed_or_plate
+from .closed import box_behind, closed_or_plate
 from .covariance import covariance
 from .fit import fit, shape_of
 from .sanity import fit_checks, misfit_and_unseen
@@ -41,14 +42,15 @@ def spread_rows(obs, count=SEARCH_DETECTORS) -> np.ndarray:
                            count)
 
 
-def _choice(est, problem, plate_result, free):
+def _choice(est, problem, plate_result, free, tried=False):
     """(the subset's problem, closed_or_plate on it): the plate refitted on CHOICE_DETECTORS
-    spread detectors from `plate_result`, and the choice made there."""
+    spread detectors from `plate_result`, and the choice made there (tried: the closed shapes
+    fitted there whatever the subset's plate does: every detector's probe asked for them)."""
     few = est.problem(problem.obs.detectors(spread_rows(problem.obs, CHOICE_DETECTORS)),
                       problem.backend)
     plate_there = fit(few, plate_result.params, free, est.final_nfev)
     answer = closed_or_plate(few, plate_there, free, est.final_nfev,
-                             covariance(few, plate_there, free), est.closed)
+                             covariance(few, plate_there, free), est.closed, tried=tried)
     _count(problem, few)
     return few, answer
 
@@ -93,16 +95,25 @@ def _ended(est, choice):
 
 def plate_or_closed(est, problem, result, free, cov, choice=None):
     """closed_or_plate on the fitted plate of estimator `est` (model.estimator's _cold). With
-    more than CHOICE_DETECTORS detectors and a plate that misses the data (so closed shapes
-    will be fitted), the choice is made on a spread subset (`choice`, where `cold_fit` made
-    it already) and only the chosen closed shape is refitted on all of them, unless it is
-    `doomed` (sanity on): then the subset's fit is the answer the check replaces."""
+    more than CHOICE_DETECTORS detectors and closed shapes to fit (a plate that misses the
+    data, or one a box behind would beat: closed.box_behind on every detector), the choice
+    is made on a spread subset (`choice`, where `cold_fit` made it already) and only the
+    chosen closed shape is refitted on all of them, unless it is `doomed` (sanity on): then
+    the subset's fit is the answer the check replaces."""
     obs = problem.obs
-    if len(obs.spots) <= CHOICE_DETECTORS or est.closed != "auto" or \
-            not misfit(problem, result, free, cov[1])[0]:  # no closed fits, or few spots
+    if len(obs.spots) <= CHOICE_DETECTORS or est.closed != "auto":  # few spots, or no choice
         return closed_or_plate(problem, result, free, est.final_nfev, cov, est.closed)
     if choice is None:
-        choice = _choice(est, problem, result, free)
+        inadequate, birge = misfit(problem, result, free, cov[1])
+        if not inadequate:
+            # a plate that fits: closed shapes only where the depth probe on every detector
+            # says a box behind it does better (as closed_or_plate), and then they too are
+            # chosen on the subset (a 48-spot SPAD patch of counts spent 371 s fitting them
+            # on all 48: stop 50)
+            cov[1].update(plate_birge_ratio=birge, closed_tried=False)
+            if not box_behind(problem, result, cov):
+                return problem, result, free, cov
+        choice = _choice(est, problem, result, free, tried=not inadequate)
     search, (chosen, there, free_there, (_, why)) = choice
     if chosen is search:  # the plate: its fit on every detector stands, with the choice's notes
         cov[1].update({k: v for k, v in why.items() if k not in cov[1]})
