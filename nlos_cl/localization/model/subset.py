@@ -4,22 +4,23 @@ all of them.
 - More than SEARCH_DETECTORS (64): the starts and short fits run on 64 spread detectors
   (`cold_fit`), the final plate fit on all.
 - More than CHOICE_DETECTORS (8), and a plate that misses the data or that a box behind it
-  would beat (the depth probe on every detector): the choice of plate or
-  closed shape (model.closed.closed_or_plate: ~45 LM fits of three families) is made on 8
-  spread detectors (`_choice`), and only the chosen closed shape is refitted on all
+  would beat (the depth probe on every detector): the choice of plate or closed shape
+  (model.closed.closed_or_plate: ~45 LM fits of three families) is made on 8 spread
+  detectors (`_choice`), and only the chosen closed shape is refitted on all
   (`plate_or_closed`), unless the sanity check will reject it (`doomed`): closed fits cost
   their detectors.
 - Where the search subset's plate already misses the data, the choice is made before the
   final fit, and a closed shape that sanity.doubt will reject there (`doomed`: its misfit
   above MISFIT_BIRGE and its depth unseen or the signal unexplained) ends the fit on the
-  subset: the answer is the
-  paper's argmax with the reason, and nothing is fitted on every detector. On CC-SOCR's
-  4,096 points as one laser the ellipsoid refitted on all of them was rejected for the same
-  reasons as on the subset (residual 374 times the noise's, depth sd 0.30 m), after 113 s.
+  subset: the answer is the paper's argmax with the reason, and nothing is fitted on every
+  detector. On CC-SOCR's 4,096 points as one laser the ellipsoid refitted on all of them was
+  rejected for the same reasons as on the subset (residual 374 times the noise's, depth sd
+  0.30 m), after 113 s.
 Measured (core/tuning.py's CHOICE_DETECTORS): that capture 113 s (stop 48's path, after the
-Poisson Newton fix) -> 35 s (the choice on 64, ended there) -> 10.3 s (on 16) -> 7.8 s
-(on 8, stop 50), depth 0.955 m each time. The SPAD patch (1,024 spots, an adequate plate) is unchanged: 2.5-2.9 s
-either way, interleaved.
+Poisson Newton fix) -> 35 s (the choice on 64, ended there) -> 10.3 s (on 16) -> 7.8 s (on
+8, stop 50), depth 0.955 m each time. The SPAD patch of the bench (1,024 spots, an adequate
+plate: no closed fits) was unchanged by the choice on 16 instead of 64 (2.5-2.9 s,
+interleaved, stop 49).
 """
 from __future__ import annotations
 
