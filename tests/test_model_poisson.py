@@ -172,7 +172,8 @@ def test_a_column_in_small_units_converges_as_fast_as_one_in_counts():
     rng = np.random.default_rng(5)
     n_det, n = 7, 91
     t = np.arange(n)
-    shape = np.exp(-((t - 45) / 4.0) ** 2)[None].repeat(n_det, 0) * (1 + 0.2 * np.arange(n_det))[:, None]
+    shape = np.exp(-((t - 45) / 4.0) ** 2)[None].repeat(n_det, 0) * \
+        (1 + 0.2 * np.arange(n_det))[:, None]
     y = rng.poisson(500.0 * shape + 2.0).astype(np.float64)
     valid = np.ones((n_det, n))
     iterations = []

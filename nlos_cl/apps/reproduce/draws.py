@@ -154,7 +154,7 @@ def page(rows, summ, cfg, s: Settings, options: str, seconds: float, seed: int) 
                 f"detector {c['signal_photons'][0]:g}-{c['signal_photons'][1]:g} and dark + "
                 f"ambient {c['ambient_rate_hz'][0]:g}-{c['ambient_rate_hz'][1]:g} Hz "
                 f"(log-uniform), TDC bins {c['tdc_ps'][0]}-{c['tdc_ps'][1]} ps, jitter 30 ps; "
-                "its row's 'mismatch' column holds these, its SNR is not used; both "
+                "its row's 'counting' column holds these, its SNR is not used; both "
                 "estimators read the counts as counts (Poisson).")
     sections = [header, how, "## Goals (issue 22)",
                 report.goal_table(report.goals(summ) + cross.goals(summ))]

@@ -101,8 +101,8 @@ def describe(d: dict) -> dict:
             "k_true": len(d["targets"]), "snr_db": d["snr_db"],
             "truths": " ; ".join(" ".join(f"{v:.3f}" for v in t["centre"])
                                  for t in d["targets"]),
-            "mismatch": json.dumps(m or d.get("counting"), sort_keys=True)
-            if m or d.get("counting") else ""}
+            "mismatch": json.dumps(m, sort_keys=True) if m else "",
+            "counting": json.dumps(d["counting"], sort_keys=True) if d.get("counting") else ""}
 
 
 def run(d: dict, s: Settings) -> list[dict]:

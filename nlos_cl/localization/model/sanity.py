@@ -48,7 +48,7 @@ def doubt(target: LocatedTarget, paper_position, spots, lasers) -> str | None:
         return (f"the fitted {fit.shape} is {size} m, larger than the {MAX_EXTENT_M} m any "
                 "target is expected to be")
     seen = fit.diagnostics or {}
-    if misfit_and_unseen(fit.shape, seen):
+    if closed_centre_guessed(fit.shape, seen):
         ratio, left = seen["misfit_ratio"], 1.0 - (seen.get("explained") or 0.0)
         why = ("these spots cannot tell its depth" if seen.get("depth_unseen") else
                f"it leaves {100 * left:.0f} % of the signal unexplained")
@@ -81,7 +81,7 @@ def fit_checks(chosen, result, free, cov_all, info) -> dict:
             unseen_note(chosen.shape, result, cov_all, info) is not None}
 
 
-def misfit_and_unseen(shape: str, checks: dict) -> bool:
+def closed_centre_guessed(shape: str, checks: dict) -> bool:
     """A closed shape whose misfit ratio is above MISFIT_BIRGE and whose depth is unseen or
     that explains less than EXPLAINED_MIN of the signal (`fit_checks`' fields): `doubt`
     replaces it with the argmax."""

@@ -31,7 +31,7 @@ from ...core.tuning import CHOICE_DETECTORS, SEARCH_DETECTORS
 from .closed import box_behind, closed_or_plate
 from .covariance import covariance
 from .fit import fit, shape_of
-from .sanity import fit_checks, misfit_and_unseen
+from .sanity import closed_centre_guessed, fit_checks
 from .select import misfit
 from .shape import name_of
 
@@ -79,9 +79,9 @@ def cold_fit(est, problem, argmax_position, free, held):
 
 
 def doomed(chosen, result, free, cov) -> bool:
-    """Whether sanity.doubt will reject this fit for its misfit and unseen depth (from the
-    same fields model.estimator reports: sanity.fit_checks)."""
-    return misfit_and_unseen(name_of(chosen.shape), fit_checks(chosen, result, free, *cov))
+    """Whether sanity.doubt will reject this fit: misfit, and depth unseen or signal
+    unexplained (the fields model.estimator reports: sanity.fit_checks)."""
+    return closed_centre_guessed(name_of(chosen.shape), fit_checks(chosen, result, free, *cov))
 
 
 def _ended(est, choice):
