@@ -10,6 +10,7 @@ import warnings
 
 import numpy as np
 
+from ...core.blas_threads import serial_blas
 from ...core.constants import FWHM_PER_SIGMA, PAPER_H_S
 from ...core.errors import require
 from ...core.limits import require_targets
@@ -122,36 +123,37 @@ class ModelEstimator:
         runs, from there (nlos_cl.localization.model.warm), and the full fit replaces it where
         it misses the data; each target's fit.warm_start says which. Its size, size_sd hold a
         plate the others hide (model.warm.size_prior). start=rows is prior=Prior(rows)."""
-        prior = Prior(start) if prior is None and start is not None else prior
-        clock = {"start": time.perf_counter()}
-        paper = scored.paper  # the Locator's fused search, or (no map read yet) from the scores
-        if paper is None:
-            paper = PaperArgmax().estimate(scored)  # also rejects frames with no signal
-        clock["argmax"] = time.perf_counter()
-        obs = self.observation(scored)
-        if isinstance(self.targets, int):  # before any fit: K the histograms can determine
-            require_targets("targets", self.targets, len(obs.spots))
-        clock["data"] = time.perf_counter()
-        held = held_axis(obs, scored.grid)
-        if held is None:  # collinear spots on a tilted line: no one axis to hold
-            warnings.warn(unfittable_line(obs.spots, obs.laser), stacklevel=3)
-            return Estimate(list(paper.targets), paper.cell_position, paper.score)
-        observable = held.axis != 2  # the height (ModelFit.height_observable)
-        free = held.free_mask()
-        fitted, warm_info = _warm_or_cold(self, scored, obs, paper, free, held, prior, clock)
-        problem, chosen, result, free, (cov_all, info), history = fitted
-        info = _reported(chosen, result, free, cov_all, info, warm_info)
-        notes = _notes(held, chosen.shape, result, cov_all, info)
-        for note in notes:
-            warnings.warn(note, stacklevel=3)
-        self.timings = _stages(clock, problem)
-        hidden = hidden_diagnostics(chosen, result, prior)
-        located = [self._target(result, cov_all, k, dict(info, **hidden[k]), notes,
-                                obs, history, observable, chosen.shape)
-                   for k in _order(result)]
-        if self.sanity:
-            located = checked(located, paper.targets[0].position, obs.spots, obs.laser)
-        return Estimate(located, paper.cell_position, paper.score)
+        with serial_blas():  # core.blas_threads: small products, threads only cost
+            prior = Prior(start) if prior is None and start is not None else prior
+            clock = {"start": time.perf_counter()}
+            paper = scored.paper  # the Locator's fused search, or (no map read yet) from scores
+            if paper is None:
+                paper = PaperArgmax().estimate(scored)  # also rejects frames with no signal
+            clock["argmax"] = time.perf_counter()
+            obs = self.observation(scored)
+            if isinstance(self.targets, int):  # before any fit: K the histograms can determine
+                require_targets("targets", self.targets, len(obs.spots))
+            clock["data"] = time.perf_counter()
+            held = held_axis(obs, scored.grid)
+            if held is None:  # collinear spots on a tilted line: no one axis to hold
+                warnings.warn(unfittable_line(obs.spots, obs.laser), stacklevel=3)
+                return Estimate(list(paper.targets), paper.cell_position, paper.score)
+            observable = held.axis != 2  # the height (ModelFit.height_observable)
+            free = held.free_mask()
+            fitted, warm_info = _warm_or_cold(self, scored, obs, paper, free, held, prior, clock)
+            problem, chosen, result, free, (cov_all, info), history = fitted
+            info = _reported(chosen, result, free, cov_all, info, warm_info)
+            notes = _notes(held, chosen.shape, result, cov_all, info)
+            for note in notes:
+                warnings.warn(note, stacklevel=3)
+            self.timings = _stages(clock, problem)
+            hidden = hidden_diagnostics(chosen, result, prior)
+            located = [self._target(result, cov_all, k, dict(info, **hidden[k]), notes,
+                                    obs, history, observable, chosen.shape)
+                       for k in _order(result)]
+            if self.sanity:
+                located = checked(located, paper.targets[0].position, obs.spots, obs.laser)
+            return Estimate(located, paper.cell_position, paper.score)
 
     def _cold(self, scored, obs, paper, free, held, clock):
         """The full fit: starts, short fits, final fit, covariance, plate or closed shape.
