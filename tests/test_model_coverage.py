@@ -17,7 +17,7 @@ from scipy.stats import chi2
 import nlos_cl as nl
 from nlos_cl.physics import layouts
 from nlos_cl.localization.model import data, height_observable
-from nlos_cl.localization.model.estimator import GAUSS_LATTICE
+from nlos_cl.localization.model.lattices import GAUSS_LATTICE
 from nlos_cl.localization.model.covariance import centre_covariance, covariance
 from nlos_cl.localization.model.fit import fit
 from nlos_cl.localization.model.likelihood import Problem

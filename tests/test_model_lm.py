@@ -12,7 +12,7 @@ from scipy.optimize import lsq_linear
 import nlos_cl as nl
 from nlos_cl.core.errors import InputError
 from nlos_cl.localization.model import data, plate
-from nlos_cl.localization.model.estimator import GAUSS_LATTICE
+from nlos_cl.localization.model.lattices import GAUSS_LATTICE
 from nlos_cl.localization.model.fit import _Objective, fit
 from nlos_cl.localization.model.likelihood import Problem
 from nlos_cl.localization.model.lm import least_squares

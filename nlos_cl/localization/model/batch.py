@@ -257,15 +257,17 @@ def _plate_points(rows, lattice, spots, laser, stats=None):
     centres, normal, area, eu, ev = _cells(rows, lattice)
     offsets = _gauss_offsets(eu, ev)[:, :, None, :]  # (B, 4, 1, 3)
     if stats is None:
-        stats = _cell_statistics(centres, offsets, normal, area, spots, laser)
+        stats = _cell_statistics(centres, offsets, normal, area, spots, laser,
+                                 plate.flat_share(lattice))
     points = centres[:, None] + stats[0][:, None, :, None] * offsets
     return points, normal, area, stats
 
 
-def _cell_statistics(centres, offsets, normal, area, spots, laser):
+def _cell_statistics(centres, offsets, normal, area, spots, laser, share=plate.BLUR_SHARE):
     """plate.cell_model's statistics of each cell's Gauss points: keep (B, C) (how far the
     points are pulled in), the blur^2 (B,) and the shift (B, S) at each of `spots` (the
-    STAT_SPOTS the problem measures them at: HostProblem._spread carries them to all)."""
+    STAT_SPOTS the problem measures them at: HostProblem._spread carries them to all);
+    share: the blur's share of the cells' mean variance (plate.flat_share)."""
     b, c = centres.shape[:2]
     full = (centres[:, None] + offsets).reshape(b, 4 * c, 3)  # the cells' Gauss points
     path, weight = _paths(full, normal, area / 4.0, spots, laser)
@@ -280,7 +282,7 @@ def _cell_statistics(centres, offsets, normal, area, spots, laser):
     centre = _distance(centres, laser)[None] + _distance(spots[:, None, None], centres[None])
     var_c = (var_sc * wsum).sum(axis=0) / np.maximum(wsum.sum(axis=0), 1e-300)  # (B, C)
     lit = wsum.sum(axis=0) > 0
-    blur2 = plate.BLUR_SHARE * np.where(lit, var_c, 0.0).sum(axis=1) / np.maximum(
+    blur2 = share * np.where(lit, var_c, 0.0).sum(axis=1) / np.maximum(
         lit.sum(axis=1), 1)  # the lit cells' mean variance (0 where none is lit)
     keep = np.sqrt(np.clip(1.0 - blur2[:, None] / np.maximum(var_c, 1e-300), 0.0, 1.0))
     lost = (1.0 - keep ** 2)[None] * (mean - centre) * wsum  # (S, B, C)

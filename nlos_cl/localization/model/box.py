@@ -91,7 +91,8 @@ def face_cells(p, lattice, spots=None, laser=None) -> list:
 def pieces(p, lattice):
     """Every face of box p, none culled, each a piece with its own pulse blur: (Facets,
     edges, blur share) per face (model.host_shapes culls them itself; see model_facets)."""
-    return [(cells, edges, plate.BLUR_SHARE) for cells, edges in face_cells(p, lattice)]
+    share = plate.flat_share(lattice)
+    return [(cells, edges, share) for cells, edges in face_cells(p, lattice)]
 
 
 def box_cells(p, lattice, spots=None, laser=None):
@@ -114,7 +115,7 @@ def model_facets(p, lattice, spots, laser) -> list:
     the cells' mean path variance, and a side face seen edge-on has cells of 10-100x the
     front's variance, so the front's pulse was widened by ~3 % of its width and the fit
     preferred a box of 0.29 m depth to the true 0.75 m (closed draw 8, noise-free)."""
-    return [plate.cell_model(cells, edges, spots, laser)
+    return [plate.cell_model(cells, edges, spots, laser, plate.flat_share(lattice))
             for cells, edges in face_cells(p, lattice, spots, laser)]
 
 

@@ -22,6 +22,8 @@ from ..region import unseen_axis
 from . import data, plate
 from .warm import checked_sizes, hidden_diagnostics
 from .covariance import centre_covariance, covariance
+from .filtered_search import searched, smooth_observation
+from .lattices import lattice_for
 from .likelihood import Problem
 from .depth import unseen_note
 from .sanity import checked, fit_checks, unfittable_line
@@ -37,10 +39,6 @@ X_WARNING = ("x is unobservable with wall spots on a vertical line (rotating the
              "about their line changes no path): x is held at {v:.3f} m; use spots off one "
              "line to measure it")
 HELD_WARNINGS = {2: HEIGHT_WARNING, 0: X_WARNING}
-# Plate lattices (cells across x up). 16 x 24 for filtered AWGN data: a noise-free fit of
-# 1 cm-facet data from the truth is then off by <= 0.25 sd (Mahalanobis) on the
-# 0.3 x 1.6 m plate, a 0.7 m and a 1 m square (10 x 20 left the 0.7 m square 1 sd off).
-GAUSS_LATTICE, POISSON_LATTICE = (16, 24), (16, 32)
 # Residual evaluations of a warm-started fit (model.warm; Jacobians not counted).
 WARM_NFEV = 10
 # model_on="auto": plate fits with up to this many detectors evaluate the model on the host
@@ -159,7 +157,9 @@ class ModelEstimator:
         """The full fit: starts, short fits, final fit, covariance, plate or closed shape.
         (problem, chosen problem, result, free, (cov_all, info), history)."""
         problem = self.problem(obs, self.backend or scored.backend)
-        result, history, choice = self._fit(problem, paper.targets[0].position, free, held)
+        smooth = smooth_observation(self, scored, obs)  # counts: the filtered frame too
+        result, history, choice = self._fit(problem, paper.targets[0].position, free, held,
+                                            smooth)
         clock["fit"] = time.perf_counter()
         if result is None:  # decided on a subset of many detectors (model.subset.cold_fit)
             return (problem, *choice[1], history)
@@ -188,21 +188,23 @@ class ModelEstimator:
         return problem
 
     def lattice_for(self, obs):
-        return self.lattice or (GAUSS_LATTICE if obs.mode == "gauss" else POISSON_LATTICE)
+        """The plates' lattice (model.lattices.lattice_for; lattice=: the estimator's own)."""
+        return lattice_for(obs, self.lattice)
 
-    def _fit(self, problem, argmax_position, free, held):
+    def _fit(self, problem, argmax_position, free, held, smooth=None):
         """(result, history, choice): fit_targets; with more than SEARCH_DETECTORS detectors
         on a spread subset, then the final fit on all of them (model.subset.cold_fit: result
         None where the choice made on the subset ends the fit; choice: that choice, or None).
         The final fit keeps its last Jacobian for the covariance (model.covariance's `reuse`,
         as the warm fits do): on the device's forward op, central differences cost 13 more
         columns (a 1,024-spot SPAD patch: 0.49 -> 0.035 s of a ~3.3 s locate, sds within
-        0.5 %); fewer detectors keep the exact analytic derivatives, which cost a host call."""
-        from .select import fit_targets
+        0.5 %); fewer detectors keep the exact analytic derivatives, which cost a host call.
+        smooth: None, or (counts) the frame's Gauss observation, searched too
+        (model.filtered_search)."""
         if len(problem.obs.spots) <= SEARCH_DETECTORS:
-            return (*fit_targets(problem, self, argmax_position, free, held), None)
+            return (*searched(self, problem, argmax_position, free, held, smooth), None)
         from .subset import cold_fit
-        return cold_fit(self, problem, argmax_position, free, held)
+        return cold_fit(self, problem, argmax_position, free, held, smooth)
 
     def _target(self, result, cov_all, k, info, notes, obs, history, observable, shape):
         p = result.params[k]

@@ -79,7 +79,9 @@ class Problem:
     closed_on_host = False
 
     def __init__(self, obs, backend, lattice=(16, 24), shape=plate, reflectance=None):
-        self.obs, self.backend, self.lattice = obs, backend, tuple(lattice)
+        # a plate.Lattice (its blur share with it) kept as it is; a plain pair as a tuple
+        self.obs, self.backend = obs, backend
+        self.lattice = lattice if isinstance(lattice, plate.Lattice) else tuple(lattice)
         self.shape, self.reflectance = shape, reflectance  # None: Lambertian
         self.calls = 0
         self.model_s = 0.0

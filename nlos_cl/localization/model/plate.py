@@ -55,7 +55,37 @@ def several_facets(params, lattice=(10, 20)) -> list[Facets]:
 
 
 GAUSS_2 = 0.5 / math.sqrt(3.0)  # 2-point Gauss-Legendre nodes on a unit edge, +-0.2887
-BLUR_SHARE = 0.5  # share of a cell's mean path variance carried by the shared pulse blur
+# The share of a cell's mean path variance carried by the shared pulse blur. 1/4 puts the
+# points of a cell of mean variance at +-1/4 of its edges (keep sqrt(3)/2): the midpoints of a
+# 2 x 2 sub-lattice, a comb whose first harmonic (period: one cell's range of paths) cancels.
+# At 1/2 they sit at +-0.20 and that harmonic survives where a cell spans a few pulse widths
+# (photon counts: unfiltered): a 0.95 m plate was modelled 9 % off and 2 % at 1/4, on the same
+# 16 cells across (tests/test_model_cell_comb.py).
+BLUR_SHARE = 0.5
+# Photon counts (unfiltered: the pulse alone) take COUNTS_BLUR_SHARE, carried by the
+# problem's `Lattice` (model.lattices.counts_lattice); filtered data keep BLUR_SHARE, which
+# their draws were judged with (1/4 there moved 6 of 120 Gaussian draws by > 5 mm, three
+# each way: no comb to remove where the filter is 5x wider than the cells' range of paths).
+COUNTS_BLUR_SHARE = 0.25
+
+
+class Lattice(tuple):
+    """A plate lattice (nu cells across, nv up) that also carries its flat cells' blur share:
+    `nu, nv = lattice` reads it as the plain pair; `flat_share(lattice)` the share."""
+
+    def __new__(cls, nu, nv, blur_share=BLUR_SHARE):
+        out = super().__new__(cls, (int(nu), int(nv)))
+        out.blur_share = float(blur_share)
+        return out
+
+    def __repr__(self):
+        return f"Lattice({self[0]}, {self[1]}, blur_share={self.blur_share})"
+
+
+def flat_share(lattice) -> float:
+    """The blur share of a lattice's flat cells (plates, box faces): its own, or BLUR_SHARE
+    for a plain (nu, nv) pair."""
+    return getattr(lattice, "blur_share", BLUR_SHARE)
 STAT_SPOTS = 32  # the cells' path statistics from at most this many spots (an affine fit over
 # the spots carries the shift to the others: it varies smoothly, by ~10 % of its ~0.1 mm
 # across a 0.9 m SPAD patch, so the fit's error is ~1e-3 mm; 1,024 spots cost 150 ms a call)
@@ -84,7 +114,8 @@ def model_facets(p, lattice, spots, laser):
     """What the forward call sees of plate p: point facets, the pulse blur (m of path) they
     share, and a path shift per detector (D,) to add to every facet's path (`cell_model`)."""
     cells = plate_facets(p, lattice)
-    return cell_model(cells, plate_edges(p, lattice, cells.count), spots, laser)
+    return cell_model(cells, plate_edges(p, lattice, cells.count), spots, laser,
+                      flat_share(lattice))
 
 
 def cell_model(cells, edges, spots, laser, blur_share=None):

@@ -25,14 +25,14 @@ def evaluate(problem, rows, like) -> np.ndarray:
         from ...ops.plate_model import Plan
         problem._plan = Plan(problem.backend, obs.spots, obs.laser, problem._some,
                              _affine(problem), obs.dpath, problem.os, problem.lattice,
-                             plate.BLUR_SHARE, plate.GAUSS_2)
+                             plate.flat_share(problem.lattice), plate.GAUSS_2)
     if problem._plan is not None:
         hist = problem._plan(rows, stat_rows, stat_of.reshape(-1), obs.edge0, sigma0sq, obs.n)
     else:
         hist = problem.backend.to_numpy(problem.backend.call(
             "plate_model", rows, stat_rows, stat_of.reshape(-1), obs.spots, obs.laser,
             problem._some, _affine(problem), obs.edge0, obs.dpath, sigma0sq, obs.n,
-            problem.os, problem.lattice, plate.BLUR_SHARE, plate.GAUSS_2))
+            problem.os, problem.lattice, plate.flat_share(problem.lattice), plate.GAUSS_2))
     problem.calls += len(rows)
     problem.model_s += time.perf_counter() - t
     return np.where(obs.valid[None], hist, 0.0)

@@ -24,6 +24,17 @@ SIZES = ((0.3, 0.8), (0.3, 1.6), (0.8, 0.8), (0.8, 1.6))
 START_LATTICE = (8, 12)
 
 
+def start_lattice(lattice):
+    """The candidates' lattice for a fit on `lattice`: START_LATTICE (or the fit's, if
+    coarser); for counts (a plate.Lattice: model.lattices.counts_lattice) half its cells each
+    way with its blur share, as (8, 12) is half the filtered (16, 24): at counts' pulse (8, 12)
+    combs (cells of ~12 cm of path against a pulse of ~1.3 cm) and ranks the candidates by a
+    model that is not the fit's."""
+    if isinstance(lattice, plate.Lattice):
+        return plate.Lattice(-(-lattice[0] // 2), -(-lattice[1] // 2), lattice.blur_share)
+    return tuple(min(a, b) for a, b in zip(START_LATTICE, lattice))
+
+
 def mean_paths(obs, data=None) -> np.ndarray:
     """(D,) signal-weighted mean hidden path per detector (background removed for counts);
     NaN for a detector without signal above it (a CC-SOCR scan point whose counts are all 0).
@@ -93,8 +104,8 @@ def best_starts(problem, rows, fixed=None, keep=3) -> list[np.ndarray]:
     """Score each candidate row (with the plates in `fixed` alongside) by its profiled cost;
     return the `keep` best, distinct in centre or yaw. (The rows go to column_batch
     SCORE_ROWS at a time: the host model evaluates each group in one call, in bounded memory.)"""
-    scorer, lattice = problem, tuple(min(a, b) for a, b in zip(START_LATTICE, problem.lattice))
-    if fixed is None and hasattr(problem, "coarser") and lattice != tuple(problem.lattice):
+    scorer, lattice = problem, start_lattice(problem.lattice)
+    if fixed is None and hasattr(problem, "coarser") and tuple(lattice) != tuple(problem.lattice):
         scorer = problem.coarser(lattice)  # see START_LATTICE
     calls, model_s = scorer.calls, scorer.model_s
     chosen = _best(scorer, rows, fixed, keep)

@@ -56,16 +56,19 @@ def _choice(est, problem, plate_result, free, tried=False):
     return few, answer
 
 
-def cold_fit(est, problem, argmax_position, free, held):
+def cold_fit(est, problem, argmax_position, free, held, smooth=None):
     """fit_targets on the spread subset, then, for one target whose plate misses the subset's
     data (closed='auto'), the plate-or-closed choice there; a `doomed` closed shape ends the
     fit (sanity on). Else the final fit on every detector, keeping its last Jacobian for the
     covariance (model.covariance's `reuse`).
     Returns (result on all detectors or None, history, choice): choice None (not made),
-    or (search problem, closed_or_plate's answer on it)."""
-    from .select import fit_targets
-    search = est.problem(problem.obs.detectors(spread_rows(problem.obs)), problem.backend)
-    rough, history = fit_targets(search, est, argmax_position, free, held)
+    or (search problem, closed_or_plate's answer on it). smooth: None, or (counts) the
+    frame's Gauss observation, searched on the same subset too (model.filtered_search)."""
+    from .filtered_search import searched
+    rows = spread_rows(problem.obs)
+    search = est.problem(problem.obs.detectors(rows), problem.backend)
+    rough, history = searched(est, search, argmax_position, free, held,
+                              None if smooth is None else smooth.detectors(rows))
     choice = None
     if len(rough.params) == 1 and est.closed == "auto":
         cov = covariance(search, rough, free)
