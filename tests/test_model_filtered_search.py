@@ -1,13 +1,13 @@
-"""model.filtered_search: photon counts are also searched on their Gauss-filtered frame and
-the counts' likelihood refits that answer; the lower Poisson cost wins.
+"""model.filtered_search: photon counts are searched on their Gauss-filtered frame and the
+counts' likelihood refits that answer.
 
-The rule (stubs: the fits' numbers are other tests'): the refit replaces the counts search's
-answer only where it costs less. The case (the random draw
-that showed it, counts draw 46: a 0.95 x 0.42 m plate seen by 30 SPAD spots at 18,886 photons
-a detector): the counts search alone ended 45 degrees off (cost 18,598 where the truth's basin
-has 3,777) and the answer was a box or cylinder 0.26-0.50 m off; with the filtered search, the
-plate within 2 cm. Only counts with one target take the second search: Gaussian frames are
-filtered already."""
+The flow (stubs: the fits' numbers are other tests'): with the filtered frame, the search runs
+on it and the final fit on the counts; without, the search runs on the counts. The case (the
+random draw that showed it, counts draw 46: a 0.95 x 0.42 m plate seen by 30 SPAD spots at
+18,886 photons a detector): the counts search ended 45 degrees off (cost 18,598 where the
+truth's basin has 3,777) and the answer was a box or cylinder 0.26-0.50 m off; searched on
+the filtered frame, the plate within 2 cm. Only counts with one target take it: Gaussian
+frames are filtered already."""
 from types import SimpleNamespace
 
 import numpy as np
@@ -17,7 +17,7 @@ from nlos_cl.localization.model import filtered_search
 
 
 def _result(cost):
-    return SimpleNamespace(params=np.zeros((1, 6)), cost=cost)
+    return SimpleNamespace(params=np.full((1, 6), cost), cost=cost)
 
 
 class _Est:
@@ -27,16 +27,30 @@ class _Est:
         return SimpleNamespace(calls=5, model_s=0.5, obs=obs)
 
 
-@pytest.mark.parametrize("refit_cost, kept", [(50.0, "refit"), (150.0, "rough")])
-def test_the_refit_wins_only_where_it_costs_less(monkeypatch, refit_cost, kept):
-    rough, refit = _result(100.0), _result(refit_cost)
-    monkeypatch.setattr(filtered_search.select, "fit_targets", lambda *a: (_result(1.0), []))
-    monkeypatch.setattr(filtered_search, "fit", lambda *a, **k: refit)
-    problem = SimpleNamespace(calls=1, model_s=0.1, backend=None)
-    got = filtered_search.better_from_filtered(_Est(), problem, rough, "smooth", (0, 1, 0),
-                                               np.ones(6, bool), None)
-    assert got is (refit if kept == "refit" else rough)
-    assert problem.calls == 6  # the filtered search's forward calls are counted too
+@pytest.mark.parametrize("smooth", [None, "filtered frame"])
+def test_the_search_runs_on_the_filtered_frame_and_the_final_fit_on_the_counts(monkeypatch,
+                                                                                smooth):
+    searched_on, refitted = [], []
+
+    def fit_targets(problem, *a):
+        searched_on.append(problem)
+        return _result(1.0), ["history"]
+
+    def fit(problem, params, *a, **k):
+        refitted.append((problem, params))
+        return _result(2.0)
+    monkeypatch.setattr(filtered_search.select, "fit_targets", fit_targets)
+    monkeypatch.setattr(filtered_search, "fit", fit)
+    counts = SimpleNamespace(calls=1, model_s=0.1, backend=None)
+    got, history = filtered_search.searched(_Est(), counts, (0, 1, 0), np.ones(6, bool), None,
+                                            smooth)
+    assert history == ["history"]
+    if smooth is None:
+        assert searched_on == [counts] and not refitted and got.cost == 1.0
+    else:
+        assert searched_on[0].obs == smooth
+        assert refitted[0][0] is counts and np.all(refitted[0][1] == 1.0) and got.cost == 2.0
+        assert counts.calls == 6  # the filtered search's forward calls are counted too
 
 
 def test_counts_draw_46_is_found_where_the_counts_search_alone_missed():

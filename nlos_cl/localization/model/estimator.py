@@ -157,7 +157,7 @@ class ModelEstimator:
         """The full fit: starts, short fits, final fit, covariance, plate or closed shape.
         (problem, chosen problem, result, free, (cov_all, info), history)."""
         problem = self.problem(obs, self.backend or scored.backend)
-        smooth = smooth_observation(self, scored, obs)  # counts: the filtered frame too
+        smooth = smooth_observation(self, scored, obs)  # counts: searched on it
         result, history, choice = self._fit(problem, paper.targets[0].position, free, held,
                                             smooth)
         clock["fit"] = time.perf_counter()
@@ -199,7 +199,7 @@ class ModelEstimator:
         as the warm fits do): on the device's forward op, central differences cost 13 more
         columns (a 1,024-spot SPAD patch: 0.49 -> 0.035 s of a ~3.3 s locate, sds within
         0.5 %); fewer detectors keep the exact analytic derivatives, which cost a host call.
-        smooth: None, or (counts) the frame's Gauss observation, searched too
+        smooth: None, or (counts) the frame's Gauss observation, searched instead
         (model.filtered_search)."""
         if len(problem.obs.spots) <= SEARCH_DETECTORS:
             return (*searched(self, problem, argmax_position, free, held, smooth), None)

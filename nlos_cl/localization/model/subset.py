@@ -63,7 +63,7 @@ def cold_fit(est, problem, argmax_position, free, held, smooth=None):
     covariance (model.covariance's `reuse`).
     Returns (result on all detectors or None, history, choice): choice None (not made),
     or (search problem, closed_or_plate's answer on it). smooth: None, or (counts) the
-    frame's Gauss observation, searched on the same subset too (model.filtered_search)."""
+    frame's Gauss observation, searched instead, on the same subset (model.filtered_search)."""
     from .filtered_search import searched
     rows = spread_rows(problem.obs)
     search = est.problem(problem.obs.detectors(rows), problem.backend)
