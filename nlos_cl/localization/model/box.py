@@ -47,8 +47,8 @@ def faces(p):
 
 def _lattices(lattice):
     nu, nv = lattice
-    return [(nu, nv), (nu, nv), (DEPTH_CELLS, nv), (DEPTH_CELLS, nv), (nu, DEPTH_CELLS),
-            (nu, DEPTH_CELLS)]
+    d = getattr(lattice, "depth_cells", None) or DEPTH_CELLS  # a plate.Lattice's, for counts
+    return [(nu, nv), (nu, nv), (d, nv), (d, nv), (nu, d), (nu, d)]
 
 
 def seen(centre, normal, spots, laser) -> bool:

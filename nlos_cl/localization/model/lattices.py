@@ -49,4 +49,13 @@ def lattice_for(obs, lattice=None):
     if obs.mode == "gauss":
         return lattice or GAUSS_LATTICE
     nu, nv = lattice or counts_lattice(obs)
-    return plate.Lattice(nu, nv, plate.COUNTS_BLUR_SHARE)
+    return plate.Lattice(nu, nv, plate.COUNTS_BLUR_SHARE, counts_depth_cells(nu))
+
+
+def counts_depth_cells(nu) -> int:
+    """A box's cells along its depth for counts on nu cells across: box.DEPTH_CELLS (8) at the
+    filtered lattice's 16 across, as many per cell across beyond it (16 at 32 across): on 8,
+    a 0.6 m-deep box seen side-on was modelled 2.6 % off at counts' pulse (16: 0.3 %;
+    tests/test_model_cell_comb.py)."""
+    from . import box
+    return max(box.DEPTH_CELLS, -(-box.DEPTH_CELLS * int(nu) // GAUSS_LATTICE[0]))

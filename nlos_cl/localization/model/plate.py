@@ -70,16 +70,19 @@ COUNTS_BLUR_SHARE = 0.25
 
 
 class Lattice(tuple):
-    """A plate lattice (nu cells across, nv up) that also carries its flat cells' blur share:
-    `nu, nv = lattice` reads it as the plain pair; `flat_share(lattice)` the share."""
+    """A plate lattice (nu cells across, nv up) that also carries its flat cells' blur share
+    and a box's cells along its depth (None: box.DEPTH_CELLS): `nu, nv = lattice` reads it as
+    the plain pair; `flat_share(lattice)` the share."""
 
-    def __new__(cls, nu, nv, blur_share=BLUR_SHARE):
+    def __new__(cls, nu, nv, blur_share=BLUR_SHARE, depth_cells=None):
         out = super().__new__(cls, (int(nu), int(nv)))
         out.blur_share = float(blur_share)
+        out.depth_cells = None if depth_cells is None else int(depth_cells)
         return out
 
     def __repr__(self):
-        return f"Lattice({self[0]}, {self[1]}, blur_share={self.blur_share})"
+        return (f"Lattice({self[0]}, {self[1]}, blur_share={self.blur_share}, "
+                f"depth_cells={self.depth_cells})")
 
 
 def flat_share(lattice) -> float:

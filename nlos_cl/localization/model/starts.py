@@ -31,7 +31,8 @@ def start_lattice(lattice):
     combs (cells of ~12 cm of path against a pulse of ~1.3 cm) and ranks the candidates by a
     model that is not the fit's."""
     if isinstance(lattice, plate.Lattice):
-        return plate.Lattice(-(-lattice[0] // 2), -(-lattice[1] // 2), lattice.blur_share)
+        return plate.Lattice(-(-lattice[0] // 2), -(-lattice[1] // 2), lattice.blur_share,
+                             lattice.depth_cells)
     return tuple(min(a, b) for a, b in zip(START_LATTICE, lattice))
 
 
