@@ -131,3 +131,13 @@ def test_a_deep_boxs_sides_take_cells_along_its_depth_too():
         return float(np.max(np.linalg.norm(col - ref, axis=1) / np.linalg.norm(ref, axis=1)))
     assert error(lattice) < BOUND
     assert error(plate.Lattice(*lattice, lattice.blur_share, box.DEPTH_CELLS)) > BOUND
+
+
+def test_a_lattice_survives_pickle_and_copy_whole():
+    """A problem pickled to a worker or copied keeps its cells' share and depth cells (a tuple
+    subclass rebuilds from its pair unless told: __getnewargs__)."""
+    import copy
+    import pickle
+    lattice = plate.Lattice(32, 30, 0.25, 16)
+    for again in (pickle.loads(pickle.dumps(lattice)), copy.deepcopy(lattice)):
+        assert again == (32, 30) and again.blur_share == 0.25 and again.depth_cells == 16

@@ -80,6 +80,9 @@ class Lattice(tuple):
         out.depth_cells = None if depth_cells is None else int(depth_cells)
         return out
 
+    def __getnewargs__(self):  # pickle and copy rebuild it whole (a tuple's args: the pair)
+        return self[0], self[1], self.blur_share, self.depth_cells
+
     def __repr__(self):
         return (f"Lattice({self[0]}, {self[1]}, blur_share={self.blur_share}, "
                 f"depth_cells={self.depth_cells})")
