@@ -34,7 +34,7 @@ def test_the_search_runs_on_the_filtered_frame_and_the_final_fit_on_the_counts(m
 
     def fit_targets(problem, *a):
         searched_on.append(problem)
-        return _result(1.0), ["history"]
+        return _result(1.0), [{"targets": 1, "cost": 1.0}]
 
     def fit(problem, params, *a, **k):
         refitted.append((problem, params))
@@ -44,10 +44,13 @@ def test_the_search_runs_on_the_filtered_frame_and_the_final_fit_on_the_counts(m
     counts = SimpleNamespace(calls=1, model_s=0.1, backend=None)
     got, history = filtered_search.searched(_Est(), counts, (0, 1, 0), np.ones(6, bool), None,
                                             smooth)
-    assert history == ["history"]
     if smooth is None:
+        assert history == [{"targets": 1, "cost": 1.0}]
         assert searched_on == [counts] and not refitted and got.cost == 1.0
     else:
+        # the reported costs are the counts' (the answer's), the filtered search's beside them
+        assert history == [{"targets": 1, "cost": 2.0, "filtered_cost": 1.0,
+                            "searched_on": "filtered frame"}]
         assert searched_on[0].obs == smooth
         assert refitted[0][0] is counts and np.all(refitted[0][1] == 1.0) and got.cost == 2.0
         assert counts.calls == 6  # the filtered search's forward calls are counted too

@@ -33,11 +33,17 @@ def smooth_observation(est, scored, obs):
 
 def searched(est, problem, argmax_position, free, held, smooth=None):
     """(result on `problem`, history): select.fit_targets on `problem`; with `smooth` (the same
-    detectors' filtered frame) fit_targets there and `problem`'s final fit from its answer."""
+    detectors' filtered frame) fit_targets there and `problem`'s final fit from its answer.
+    The history (ModelFit.targets_tried) then reports each entry's cost on the filtered frame
+    as `filtered_cost` and the counts' cost of the answer as its `cost`, so that the costs a
+    fit reports are all of its own likelihood."""
     if smooth is None:
         return select.fit_targets(problem, est, argmax_position, free, held)
     filtered = est.problem(smooth, problem.backend)
     found, history = select.fit_targets(filtered, est, argmax_position, free, held)
     problem.calls += filtered.calls  # the counts' problem counts every forward call made for it
     problem.model_s += filtered.model_s
-    return fit(problem, found.params, free, est.final_nfev, atol=select.FINAL_ATOL), history
+    result = fit(problem, found.params, free, est.final_nfev, atol=select.FINAL_ATOL)
+    k = len(result.params)
+    return result, [{**h, "searched_on": "filtered frame", "filtered_cost": h["cost"],
+                     "cost": result.cost if h["targets"] == k else None} for h in history]

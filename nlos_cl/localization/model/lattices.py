@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from . import plate
+from . import box, plate
 
 # Plate lattices (cells across x up). 16 x 24 for filtered AWGN data: a noise-free fit of
 # 1 cm-facet data from the truth is then off by <= 0.25 sd (Mahalanobis) on the
@@ -57,5 +57,4 @@ def counts_depth_cells(nu) -> int:
     filtered lattice's 16 across, as many per cell across beyond it (16 at 32 across): on 8,
     a 0.6 m-deep box seen side-on was modelled 2.6 % off at counts' pulse (16: 0.3 %;
     tests/test_model_cell_comb.py)."""
-    from . import box
     return max(box.DEPTH_CELLS, -(-box.DEPTH_CELLS * int(nu) // GAUSS_LATTICE[0]))

@@ -55,17 +55,16 @@ def several_facets(params, lattice=(10, 20)) -> list[Facets]:
 
 
 GAUSS_2 = 0.5 / math.sqrt(3.0)  # 2-point Gauss-Legendre nodes on a unit edge, +-0.2887
-# The share of a cell's mean path variance carried by the shared pulse blur. 1/4 puts the
-# points of a cell of mean variance at +-1/4 of its edges (keep sqrt(3)/2): the midpoints of a
-# 2 x 2 sub-lattice, a comb whose first harmonic (period: one cell's range of paths) cancels.
-# At 1/2 they sit at +-0.20 and that harmonic survives where a cell spans a few pulse widths
-# (photon counts: unfiltered): a 0.95 m plate was modelled 9 % off and 2 % at 1/4, on the same
-# 16 cells across (tests/test_model_cell_comb.py).
+# The share of a cell's mean path variance carried by the shared pulse blur, for filtered data:
+# the value their draws were judged with (1/4 there moved 6 of 120 Gaussian draws by > 5 mm,
+# three each way: no comb to remove where the filter is 5x wider than a cell's range of paths).
 BLUR_SHARE = 0.5
-# Photon counts (unfiltered: the pulse alone) take COUNTS_BLUR_SHARE, carried by the
-# problem's `Lattice` (model.lattices.counts_lattice); filtered data keep BLUR_SHARE, which
-# their draws were judged with (1/4 there moved 6 of 120 Gaussian draws by > 5 mm, three
-# each way: no comb to remove where the filter is 5x wider than the cells' range of paths).
+# Photon counts (unfiltered: the pulse alone) take COUNTS_BLUR_SHARE, carried by the problem's
+# `Lattice` (model.lattices.lattice_for). 1/4 puts the points of a cell of mean variance at
+# +-1/4 of its edges (keep sqrt(3)/2): the midpoints of a 2 x 2 sub-lattice, a comb whose first
+# harmonic (period: one cell's range of paths) cancels. At 1/2 they sit at +-0.20 and that
+# harmonic survives where a cell spans a few pulse widths: a 0.95 m plate was modelled 9 % off
+# and 2 % at 1/4, on the same 16 cells across (tests/test_model_cell_comb.py).
 COUNTS_BLUR_SHARE = 0.25
 
 
@@ -92,6 +91,8 @@ def flat_share(lattice) -> float:
     """The blur share of a lattice's flat cells (plates, box faces): its own, or BLUR_SHARE
     for a plain (nu, nv) pair."""
     return getattr(lattice, "blur_share", BLUR_SHARE)
+
+
 STAT_SPOTS = 32  # the cells' path statistics from at most this many spots (an affine fit over
 # the spots carries the shift to the others: it varies smoothly, by ~10 % of its ~0.1 mm
 # across a 0.9 m SPAD patch, so the fit's error is ~1e-3 mm; 1,024 spots cost 150 ms a call)
