@@ -210,8 +210,7 @@ def closed_or_plate(problem, plate_result, free, final_nfev, plate_cov, closed="
     fits = [fit_closed(problem, plate_result, free, final_nfev, shape) for shape in CLOSED]
     fits = rounded(cross_seeded(fits, final_nfev), final_nfev)
     for closed_problem, _, _ in fits:  # the plate's problem counts every forward call
-        problem.calls += closed_problem.calls
-        problem.model_s += closed_problem.model_s
+        problem.take_calls(closed_problem)
     shaped, result, free_shaped = min(fits, key=lambda f: f[1].cost)
     k = kappa(problem.obs)
     shaped_cov = covariance(shaped, result, free_shaped)

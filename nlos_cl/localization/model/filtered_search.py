@@ -41,8 +41,7 @@ def searched(est, problem, argmax_position, free, held, smooth=None):
         return select.fit_targets(problem, est, argmax_position, free, held)
     filtered = est.problem(smooth, problem.backend)
     found, history = select.fit_targets(filtered, est, argmax_position, free, held)
-    problem.calls += filtered.calls  # the counts' problem counts every forward call made for it
-    problem.model_s += filtered.model_s
+    problem.take_calls(filtered)
     result = fit(problem, found.params, free, est.final_nfev, atol=select.FINAL_ATOL)
     k = len(result.params)
     return result, [{**h, "searched_on": "filtered frame", "filtered_cost": h["cost"],

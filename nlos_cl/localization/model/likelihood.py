@@ -87,6 +87,13 @@ class Problem:
         self.model_s = 0.0
         self._weighted_y = None  # y / noise, flat: the amplitudes' right-hand side
 
+    def take_calls(self, other) -> None:
+        """Count `other`'s forward calls and their time as this problem's (the estimator's
+        timings report one problem's): added here, taken off `other`."""
+        self.calls += other.calls
+        self.model_s += other.model_s
+        other.calls, other.model_s = 0, 0.0
+
     def column(self, p) -> np.ndarray:
         """(D, n) histograms of one target, unit amplitude (forward op on the backend)."""
         import time

@@ -52,7 +52,7 @@ def _choice(est, problem, plate_result, free, tried=False):
     plate_there = fit(few, plate_result.params, free, est.final_nfev)
     answer = closed_or_plate(few, plate_there, free, est.final_nfev,
                              covariance(few, plate_there, free), est.closed, tried=tried)
-    _count(problem, few)
+    problem.take_calls(few)
     return few, answer
 
 
@@ -74,7 +74,7 @@ def cold_fit(est, problem, argmax_position, free, held, smooth=None):
         cov = covariance(search, rough, free)
         if misfit(search, rough, free, cov[1])[0]:
             choice = _choice(est, problem, rough, free)
-    _count(problem, search)
+    problem.take_calls(search)
     if choice is not None and _ended(est, choice) is not None:
         return None, history, choice
     result = fit(problem, rough.params, free, est.final_nfev, keep_jacobian=True)
@@ -131,10 +131,3 @@ def plate_or_closed(est, problem, result, free, cov, choice=None):
     cov_full = covariance(full, refit, free_there)
     cov_full[1].update({k: v for k, v in why.items() if k not in cov_full[1]})
     return full, refit, free_there, cov_full
-
-
-def _count(problem, search):
-    """The plate's problem counts every forward call made for it (the estimator's timings)."""
-    problem.calls += search.calls
-    problem.model_s += search.model_s
-    search.calls, search.model_s = 0, 0.0
