@@ -231,9 +231,10 @@ def _cells(rows, lattice):
     plate.plate_facets' order."""
     nu, nv = lattice
     x, w, h, yaw = rows[:, :3], rows[:, plate.WIDTH], rows[:, plate.HEIGHT], rows[:, plate.YAW]
-    zero = np.zeros_like(yaw)
-    normal = np.stack([np.cos(yaw), np.sin(yaw), zero], axis=1)
-    across = np.stack([-np.sin(yaw), np.cos(yaw), zero], axis=1)
+    cos, sin = np.cos(yaw), np.sin(yaw)
+    normal, across = np.zeros((len(rows), 3)), np.zeros((len(rows), 3))
+    normal[:, 0], normal[:, 1] = cos, sin
+    across[:, 0], across[:, 1] = -sin, cos
     u = ((np.arange(nu) + 0.5) / nu - 0.5)[None, :] * w[:, None]  # (B, nu)
     v = ((np.arange(nv) + 0.5) / nv - 0.5)[None, :] * h[:, None]  # (B, nv)
     centres = (x[:, None, None] + u[:, :, None, None] * across[:, None, None]
@@ -246,8 +247,12 @@ def _gauss_offsets(eu, ev):
     """(B, 4, 3): the 2 x 2 Gauss points' offsets from a cell's centre (plate._gauss_points'
     order)."""
     g = plate.GAUSS_2
-    return np.stack([su * g * eu + sv * g * ev for su in (-1.0, 1.0) for sv in (-1.0, 1.0)],
-                    axis=1)
+    return (_SIGNS_U * g) * eu[:, None] + (_SIGNS_V * g) * ev[:, None]
+
+
+# the Gauss points' signs along the cell's edges, in plate._gauss_points' order (4, 1)
+_SIGNS_U = np.array([-1.0, -1.0, 1.0, 1.0])[:, None]
+_SIGNS_V = np.array([-1.0, 1.0, -1.0, 1.0])[:, None]
 
 
 def _plate_points(rows, lattice, spots, laser, stats=None):
@@ -279,7 +284,8 @@ def _cell_statistics(centres, offsets, normal, area, spots, laser, share=plate.B
     path *= path
     path *= weight
     var_sc = path.sum(axis=2) / safe
-    centre = _distance(centres, laser)[None] + _distance(spots[:, None, None], centres[None])
+    centre = _distance(centres, laser[None, None])[None] + _distance(centres[None],
+                                                                   spots[:, None, None])
     var_c = (var_sc * wsum).sum(axis=0) / np.maximum(wsum.sum(axis=0), 1e-300)  # (B, C)
     lit = wsum.sum(axis=0) > 0
     blur2 = share * np.where(lit, var_c, 0.0).sum(axis=1) / np.maximum(
@@ -291,10 +297,15 @@ def _cell_statistics(centres, offsets, normal, area, spots, laser, share=plate.B
 
 
 def _distance(a, b):
-    """|a - b| over the last axis (np.linalg.norm's numbers without its checks)."""
-    d = a - b
-    d *= d
-    return np.sqrt(d.sum(axis=-1))
+    """|a - b| over the last axis (3), component by component: np.linalg.norm's numbers
+    without its checks, and without a reduction over an axis of 3 (half the time)."""
+    dx, dy, dz = a[..., 0] - b[..., 0], a[..., 1] - b[..., 1], a[..., 2] - b[..., 2]
+    dx *= dx
+    dy *= dy
+    dz *= dz
+    dx += dy
+    dx += dz
+    return np.sqrt(dx, out=dx)
 
 
 def _paths(points, normal, area, spots, laser, factor=None):
@@ -305,7 +316,7 @@ def _paths(points, normal, area, spots, laser, factor=None):
     in its plane; normal (B, 3), area (B,). factor: None, or the reflectance's direction
     factor as a function of l.v = -(v1 . v2) / (r1 r2) (model.estimator passes
     Retroreflective.factor_of_cosine)."""
-    px, py, pz = np.moveaxis(points, -1, 0)
+    px, py, pz = points[..., 0], points[..., 1], points[..., 2]  # (np.moveaxis: 11 us more)
     nx, ny = normal[:, 0], normal[:, 1]  # upright: no z component
     # The points lie in their plate's plane, so n . (P - O) = -r1 cos_b1 and n . (S - P) =
     # r2 cos_a2 are one number per plate (and spot): taken at the plate's first point. A plate

@@ -11,6 +11,7 @@ import numpy as np
 from . import box, cylinder, depth, ellipsoid, plate, starts
 from .covariance import covariance
 from .fit import fit
+from .likelihood import take_calls
 from .select import FINAL_ATOL, best_of, kappa, misfit
 from .shape import name_of
 
@@ -210,7 +211,7 @@ def closed_or_plate(problem, plate_result, free, final_nfev, plate_cov, closed="
     fits = [fit_closed(problem, plate_result, free, final_nfev, shape) for shape in CLOSED]
     fits = rounded(cross_seeded(fits, final_nfev), final_nfev)
     for closed_problem, _, _ in fits:  # the plate's problem counts every forward call
-        problem.take_calls(closed_problem)
+        take_calls(problem, closed_problem)
     shaped, result, free_shaped = min(fits, key=lambda f: f[1].cost)
     k = kappa(problem.obs)
     shaped_cov = covariance(shaped, result, free_shaped)

@@ -56,7 +56,7 @@ def deposit(plan: Split, values) -> np.ndarray:
     """(E, D, B, n + 2 pad, os): each of E rows of values (E, N) over the points `plan.ok`
     keeps, split between its sub-bin (1 - t) and the next (t), in one pair of bincounts."""
     values = np.asarray(values, np.float64)
-    size = int(np.prod(plan.shape))
+    size = math.prod(plan.shape)
     rows = (plan.row[None] + (np.arange(len(values)) * size)[:, None]).reshape(-1)
     upper = values * plan.t[None]
     dep = np.bincount(rows, (values - upper).reshape(-1), minlength=len(values) * size)
@@ -68,8 +68,17 @@ def deposit(plan: Split, values) -> np.ndarray:
 def correlate(dep, taps, n_bins) -> np.ndarray:
     """(..., B, D, n) from a deposit (..., D, B, n + 2 pad, os) and per-phase taps (D, B, os,
     2 pad + 1): hist[k] = sum over i, p of dep[k + i, p] taps[p, i] (sub-bin (k + i) os + p)."""
-    windows = np.lib.stride_tricks.sliding_window_view(dep, taps.shape[-1], axis=-2)
-    return np.einsum("...dbkpi,dbpi->...bdk", windows[..., :n_bins, :, :], taps)
+    # the windows as a strided view (sliding_window_view's checks were a tenth of a plate's
+    # call: model.batch's per-call overhead)
+    *lead, _, os_ = dep.shape
+    st = dep.strides
+    windows = np.lib.stride_tricks.as_strided(
+        dep, (*lead, n_bins, os_, taps.shape[-1]), (*st[:-2], st[-2], st[-1], st[-2]),
+        writeable=False)
+    return np.einsum("...dbkpi,dbpi->...bdk", windows, taps)
+
+
+WHOLE_TABLES = 8
 
 
 def taps_of(dsub, sigma, pad, os_, cache):
@@ -80,10 +89,21 @@ def taps_of(dsub, sigma, pad, os_, cache):
     `cache` ((pad, s) -> taps) has them from the residual call before."""
     from ...core.erf import erf  # not SciPy's: its import is a seventh of a one-shot locate
     scale = dsub[:, None] / (math.sqrt(2.0) * sigma[None, :])  # (D, B)
-    values, which = np.unique(scale, return_inverse=True)
     if len(cache) > 256:  # before the look-up: clearing after it lost taps this call reads
-        cache.clear()
-    new = [float(v) for v in values if (pad, float(v)) not in cache]
+        cache.clear()  # (the tables too: bounded memory)
+    # A Jacobian's plates share one width, and its rows the residual call's: the last
+    # WHOLE_TABLES tables are remembered by their scales too (np.unique and the stack were
+    # ~50 us of a ~0.5 ms call: model.batch's per-call overhead)
+    tables = cache.setdefault("tables", {})
+    whole = (pad, scale.shape, scale.tobytes())
+    if whole in tables:
+        return tables[whole]
+    # the distinct scales and each one's index, in first-seen order (np.unique sorts: a
+    # third of this function's time on a warm fit's few dozen scales)
+    index = {}
+    which = np.array([index.setdefault(v, len(index)) for v in scale.ravel().tolist()])
+    values = list(index)
+    new = [v for v in values if (pad, v) not in cache]
     if new:
         m = (pad - np.arange(2 * pad + 1))[None, :] * os_ - np.arange(os_)[:, None]  # (os, span)
         lowest = int(m.min())
@@ -91,5 +111,10 @@ def taps_of(dsub, sigma, pad, os_, cache):
         e = erf(np.array(new)[:, None] * grid)
         cache.update(((pad, v), taps) for v, taps in zip(new, e[:, m - lowest + os_]
                                                           - e[:, m - lowest]))
-    table = np.stack([cache[(pad, float(v))] for v in values])
-    return table[which.reshape(scale.shape)]
+    table = np.stack([cache[(pad, v)] for v in values])
+    out = table[which.reshape(scale.shape)]
+    out.flags.writeable = False
+    if len(tables) >= WHOLE_TABLES:
+        tables.clear()
+    tables[whole] = out
+    return out

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from . import data, select
 from .fit import fit
+from .likelihood import take_calls
 
 
 def smooth_observation(est, scored, obs):
@@ -41,7 +42,7 @@ def searched(est, problem, argmax_position, free, held, smooth=None):
         return select.fit_targets(problem, est, argmax_position, free, held)
     filtered = est.problem(smooth, problem.backend)
     found, history = select.fit_targets(filtered, est, argmax_position, free, held)
-    problem.take_calls(filtered)
+    take_calls(problem, filtered)
     result = fit(problem, found.params, free, est.final_nfev, atol=select.FINAL_ATOL)
     k = len(result.params)
     return result, [{**h, "searched_on": "filtered frame", "filtered_cost": h["cost"],

@@ -60,6 +60,14 @@ def nonnegative_lstsq(gram, rhs, free=None) -> np.ndarray:
     return a / scale
 
 
+def take_calls(problem, other) -> None:
+    """Count `other`'s forward calls and their time as `problem`'s (the estimator's timings
+    report one problem's): added there, taken off `other`."""
+    problem.calls += other.calls
+    problem.model_s += other.model_s
+    other.calls, other.model_s = 0, 0.0
+
+
 class Problem:
     """Evaluates the forward model for parameter rows (K, shape.N_PARAMS) on `backend`.
     `shape`: the target model's module (model.plate or .box): its model_facets, and
@@ -86,13 +94,6 @@ class Problem:
         self.calls = 0
         self.model_s = 0.0
         self._weighted_y = None  # y / noise, flat: the amplitudes' right-hand side
-
-    def take_calls(self, other) -> None:
-        """Count `other`'s forward calls and their time as this problem's (the estimator's
-        timings report one problem's): added here, taken off `other`."""
-        self.calls += other.calls
-        self.model_s += other.model_s
-        other.calls, other.model_s = 0, 0.0
 
     def column(self, p) -> np.ndarray:
         """(D, n) histograms of one target, unit amplitude (forward op on the backend)."""

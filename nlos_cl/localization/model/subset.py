@@ -31,6 +31,7 @@ from ...core.tuning import CHOICE_DETECTORS, SEARCH_DETECTORS
 from .closed import box_behind, closed_or_plate
 from .covariance import covariance
 from .fit import fit, shape_of
+from .likelihood import take_calls
 from .sanity import closed_centre_guessed, fit_checks
 from .select import misfit
 from .shape import name_of
@@ -52,7 +53,7 @@ def _choice(est, problem, plate_result, free, tried=False):
     plate_there = fit(few, plate_result.params, free, est.final_nfev)
     answer = closed_or_plate(few, plate_there, free, est.final_nfev,
                              covariance(few, plate_there, free), est.closed, tried=tried)
-    problem.take_calls(few)
+    take_calls(problem, few)
     return few, answer
 
 
@@ -74,7 +75,7 @@ def cold_fit(est, problem, argmax_position, free, held, smooth=None):
         cov = covariance(search, rough, free)
         if misfit(search, rough, free, cov[1])[0]:
             choice = _choice(est, problem, rough, free)
-    problem.take_calls(search)
+    take_calls(problem, search)
     if choice is not None and _ended(est, choice) is not None:
         return None, history, choice
     result = fit(problem, rough.params, free, est.final_nfev, keep_jacobian=True)
