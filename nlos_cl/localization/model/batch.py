@@ -29,6 +29,7 @@ import time
 import numpy as np
 
 from ...core.allocator import keep_freed_memory
+from ...core.geometry import distance, spot_legs
 from ...core.stats import unique_sorted
 from ...ops.forward import SUB_BINS_PER_SIGMA
 # plate_model's cap (a plate's points in the 32 KiB of local memory every device has)
@@ -284,7 +285,7 @@ def _cell_statistics(centres, offsets, normal, area, spots, laser, share=plate.B
     path *= path
     path *= weight
     var_sc = path.sum(axis=2) / safe
-    centre = _distance(centres, laser[None, None])[None] + _distance(centres[None],
+    centre = distance(centres, laser[None, None])[None] + distance(centres[None],
                                                                    spots[:, None, None])
     var_c = (var_sc * wsum).sum(axis=0) / np.maximum(wsum.sum(axis=0), 1e-300)  # (B, C)
     lit = wsum.sum(axis=0) > 0
@@ -294,18 +295,6 @@ def _cell_statistics(centres, offsets, normal, area, spots, laser, share=plate.B
     lost = (1.0 - keep ** 2)[None] * (mean - centre) * wsum  # (S, B, C)
     shift = (lost.sum(axis=2) / np.maximum(wsum.sum(axis=2), 1e-300)).T  # (B, S)
     return keep, blur2, shift
-
-
-def _distance(a, b):
-    """|a - b| over the last axis (3), component by component: np.linalg.norm's numbers
-    without its checks, and without a reduction over an axis of 3 (half the time)."""
-    dx, dy, dz = a[..., 0] - b[..., 0], a[..., 1] - b[..., 1], a[..., 2] - b[..., 2]
-    dx *= dx
-    dy *= dy
-    dz *= dz
-    dx += dy
-    dx += dz
-    return np.sqrt(dx, out=dx)
 
 
 def _paths(points, normal, area, spots, laser, factor=None):
@@ -346,15 +335,3 @@ def _paths(points, normal, area, spots, laser, factor=None):
     path = np.sqrt(r2sq, out=r2sq)
     path += np.sqrt(r1sq)
     return path, weight
-
-
-def spot_legs(px, py, pz, spots):
-    """The legs from points to every wall spot, component by component (spots (D, 3); the
-    points' coordinates broadcast against (D, 1, 1)): v2 = S - P as (v2x, v2y, v2z) and
-    |v2|^2, each (D, ...)."""
-    sx, sy, sz = (spots[:, k, None, None] for k in range(3))
-    v2x, v2y, v2z = sx - px, sy - py, sz - pz
-    r2sq = v2x * v2x
-    r2sq += v2y * v2y
-    r2sq += v2z * v2z
-    return v2x, v2y, v2z, r2sq

@@ -78,7 +78,7 @@ def correlate(dep, taps, n_bins) -> np.ndarray:
     return np.einsum("...dbkpi,dbpi->...bdk", windows, taps)
 
 
-WHOLE_TABLES = 8
+WHOLE_TABLES = 8  # whole taps tables taps_of remembers by their scales (bounded memory)
 
 
 def taps_of(dsub, sigma, pad, os_, cache):
@@ -86,7 +86,8 @@ def taps_of(dsub, sigma, pad, os_, cache):
     bins after bin k's window start puts into bin k: erf((m + os - 1/2) s) - erf((m - 1/2) s),
     m = (pad - i) os - p, s = dsub / (sqrt 2 sigma); erf evaluated once per distinct m, and
     once per distinct s: a Jacobian's plates share their unmoved plate's pulse width, so
-    `cache` ((pad, s) -> taps) has them from the residual call before."""
+    `cache` ((pad, s) -> taps; "tables": the last WHOLE_TABLES results by their scales) has
+    them from the residual call before. The result is read-only (it may be remembered)."""
     from ...core.erf import erf  # not SciPy's: its import is a seventh of a one-shot locate
     scale = dsub[:, None] / (math.sqrt(2.0) * sigma[None, :])  # (D, B)
     if len(cache) > 256:  # before the look-up: clearing after it lost taps this call reads

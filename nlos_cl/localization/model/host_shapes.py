@@ -27,9 +27,9 @@ import time
 import numpy as np
 
 from ...core.allocator import keep_freed_memory
+from ...core.geometry import spot_legs
 from ...ops.forward import SUB_BINS_PER_SIGMA
 from . import plate
-from .batch import spot_legs
 from .deposit import deposit_bins
 from .ellipsoid import culled, lit_mask
 from .likelihood import Problem
