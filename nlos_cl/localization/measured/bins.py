@@ -25,6 +25,12 @@ def are_counts(data: np.ndarray) -> bool:
     return bool(np.all(data >= 0) and np.all(data == np.round(data)))
 
 
+# Histograms a pass of hot_bins reads: a bin is hot only if it is in every histogram, so the
+# bins still in question after a pass are the only ones the next pass reads (CC-SOCR's
+# 4,096 x 1,024 counts: 0.65 s -> one pass of 256 rows, ~6 ms; the same bins).
+ROWS_A_PASS = 256
+
+
 def dead_bins(data: np.ndarray, counts: bool) -> np.ndarray:
     """Bins zero in every histogram where both neighbours are not (see DEAD_MIN_COUNTS; for
     floats: both neighbours nonzero in at least half the histograms)."""
@@ -33,31 +39,40 @@ def dead_bins(data: np.ndarray, counts: bool) -> np.ndarray:
     k = np.flatnonzero(zero)
     if not k.size:
         return k
+    if counts:  # each column's counts once (a gated CC-SOCR record has 825 empty bins of
+        # 1,024: gathering both neighbours' columns of 4,096 histograms took ~0.1 s)
+        total = np.abs(data).sum(axis=0)
+        return k[(total[k - 1] >= DEAD_MIN_COUNTS) & (total[k + 1] >= DEAD_MIN_COUNTS)]
     left, right = np.abs(data[:, k - 1]), np.abs(data[:, k + 1])
-    if counts:
-        ok = (left.sum(axis=0) >= DEAD_MIN_COUNTS) & (right.sum(axis=0) >= DEAD_MIN_COUNTS)
-    else:
-        ok = ((left > 0) & (right > 0)).mean(axis=0) >= 0.5
-    return k[ok]
+    return k[((left > 0) & (right > 0)).mean(axis=0) >= 0.5]
 
 
 def hot_bins(data: np.ndarray, counts: bool) -> np.ndarray:
     """Bins above both neighbours by HOT_SIGMA sigma in every histogram."""
     if data.shape[1] < 3 or data.shape[0] < HOT_MIN_HISTOGRAMS:
         return np.zeros(0, dtype=int)
-    centre = data[:, 1:-1]
-    near = np.maximum(data[:, :-2], data[:, 2:])
+    k = np.arange(1, data.shape[1] - 1)
+    for at in range(0, len(data), ROWS_A_PASS):
+        if not k.size:
+            break
+        rows = data[at:at + ROWS_A_PASS]
+        centre = rows[:, k]
+        near = np.maximum(rows[:, k - 1], rows[:, k + 1])
+        k = k[np.all(centre - near > HOT_SIGMA * _sigma(rows, near, counts), axis=0)]
+    return k
+
+
+def _sigma(rows, near, counts):
+    """A bin's noise: Poisson's of its larger neighbour (counts), else its row's robust step
+    noise (the median absolute step where the row has data: robust to peaks)."""
     if counts:
-        sigma = np.sqrt(np.maximum(near, 1.0))
-    else:  # a row's noise: the median absolute step where it has data (robust to peaks)
-        steps = np.abs(np.diff(data, axis=1))
-        steps = np.where(steps > 0, steps, np.nan)
-        with warnings.catch_warnings():  # an all-zero row (a gated histogram) has no steps
-            warnings.simplefilter("ignore", RuntimeWarning)
-            step = np.nan_to_num(np.nanmedian(steps, axis=1, keepdims=True)) * 1.4826
-        sigma = np.maximum(step, 1e-9 * np.abs(data).max(axis=1, keepdims=True) + 1e-300)
-    hot = np.all(centre - near > HOT_SIGMA * sigma, axis=0)
-    return np.flatnonzero(hot) + 1
+        return np.sqrt(np.maximum(near, 1.0))
+    steps = np.abs(np.diff(rows, axis=1))
+    steps = np.where(steps > 0, steps, np.nan)
+    with warnings.catch_warnings():  # an all-zero row (a gated histogram) has no steps
+        warnings.simplefilter("ignore", RuntimeWarning)
+        step = np.nan_to_num(np.nanmedian(steps, axis=1, keepdims=True)) * 1.4826
+    return np.maximum(step, 1e-9 * np.abs(rows).max(axis=1, keepdims=True) + 1e-300)
 
 
 def mask_bins(data: np.ndarray, bins) -> np.ndarray:
