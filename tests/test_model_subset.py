@@ -51,7 +51,7 @@ def stubs(monkeypatch):
     def fit_targets(search, est, argmax, free, held):
         return plate_fit, ["search"]
 
-    def closed_or_plate(search, rough, free, nfev, cov, closed, tried=False):
+    def closed_or_plate(search, rough, free, nfev, cov, closed, tried=False, smooth=None):
         calls["choices"] += 1
         calls["tried"] = tried
         result = _result(box.N_PARAMS, 400.0 * 992)

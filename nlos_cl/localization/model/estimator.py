@@ -169,7 +169,7 @@ class ModelEstimator:
         if len(result.params) == 1:  # one target: a plate, or a box where the data ask for it
             from .subset import plate_or_closed
             chosen, result, free, cov = plate_or_closed(self, problem, result, free, cov,
-                                                        choice)
+                                                        choice, smooth)
             clock["box"] = time.perf_counter()
         return problem, chosen, result, free, cov, history
 

@@ -44,15 +44,17 @@ def spread_rows(obs, count=SEARCH_DETECTORS) -> np.ndarray:
                            count)
 
 
-def _choice(est, problem, plate_result, free, tried=False):
+def _choice(est, problem, plate_result, free, tried=False, smooth=None):
     """(the subset's problem, closed_or_plate on it): the plate refitted on CHOICE_DETECTORS
     spread detectors from `plate_result`, and the choice made there (tried: the closed shapes
-    fitted there whatever the subset's plate does: every detector's probe asked for them)."""
-    few = est.problem(problem.obs.detectors(spread_rows(problem.obs, CHOICE_DETECTORS)),
-                      problem.backend)
+    fitted there whatever the subset's plate does: every detector's probe asked for them;
+    smooth: None, or (counts) the frame's Gauss observation: closed.closed_fits)."""
+    rows = spread_rows(problem.obs, CHOICE_DETECTORS)
+    few = est.problem(problem.obs.detectors(rows), problem.backend)
     plate_there = fit(few, plate_result.params, free, est.final_nfev)
     answer = closed_or_plate(few, plate_there, free, est.final_nfev,
-                             covariance(few, plate_there, free), est.closed, tried=tried)
+                             covariance(few, plate_there, free), est.closed, tried=tried,
+                             smooth=smoothed(est, smooth, problem.backend, rows))
     take_calls(problem, few)
     return few, answer
 
@@ -74,7 +76,7 @@ def cold_fit(est, problem, argmax_position, free, held, smooth=None):
     if len(rough.params) == 1 and est.closed == "auto":
         cov = covariance(search, rough, free)
         if misfit(search, rough, free, cov[1])[0]:
-            choice = _choice(est, problem, rough, free)
+            choice = _choice(est, problem, rough, free, smooth=smooth)
     take_calls(problem, search)
     if choice is not None and _ended(est, choice) is not None:
         return None, history, choice
@@ -98,16 +100,25 @@ def _ended(est, choice):
     return answer
 
 
-def plate_or_closed(est, problem, result, free, cov, choice=None):
+def smoothed(est, smooth, backend, rows=None):
+    """The problem of the Gauss observation `smooth` (on its detectors `rows`), or None."""
+    if smooth is None:
+        return None
+    return est.problem(smooth if rows is None else smooth.detectors(rows), backend)
+
+
+def plate_or_closed(est, problem, result, free, cov, choice=None, smooth=None):
     """closed_or_plate on the fitted plate of estimator `est` (model.estimator's _cold). With
     more than CHOICE_DETECTORS detectors and closed shapes to fit (a plate that misses the
     data, or one a box behind would beat: closed.box_behind on every detector), the choice
     is made on a spread subset (`choice`, where `cold_fit` made it already) and only the
     chosen closed shape is refitted on all of them, unless it is `doomed` (sanity on): then
-    the subset's fit is the answer the check replaces."""
+    the subset's fit is the answer the check replaces. smooth: None, or (counts) the frame's
+    Gauss observation, where closed shapes are also sought (closed.closed_fits)."""
     obs = problem.obs
     if len(obs.spots) <= CHOICE_DETECTORS or est.closed != "auto":  # few spots, or no choice
-        return closed_or_plate(problem, result, free, est.final_nfev, cov, est.closed)
+        return closed_or_plate(problem, result, free, est.final_nfev, cov, est.closed,
+                               smooth=smoothed(est, smooth, problem.backend))
     if choice is None:
         inadequate, birge = misfit(problem, result, free, cov[1])
         if not inadequate:
@@ -118,7 +129,7 @@ def plate_or_closed(est, problem, result, free, cov, choice=None):
             cov[1].update(plate_birge_ratio=birge, closed_tried=False)
             if not box_behind(problem, result, cov):
                 return problem, result, free, cov
-        choice = _choice(est, problem, result, free, tried=not inadequate)
+        choice = _choice(est, problem, result, free, tried=not inadequate, smooth=smooth)
     search, (chosen, there, free_there, (_, why)) = choice
     if chosen is search:  # the plate: its fit on every detector stands, with the choice's notes
         cov[1].update({k: v for k, v in why.items() if k not in cov[1]})
