@@ -82,8 +82,9 @@ def test_counts_draw_165s_box_is_found_by_racing_the_filtered_frames_closed_fits
     off. Without the race (worth_racing False) the cylinder comes back."""
     from nlos_cl.localization.model import closed
     d, target = _counts_draw(165)
-    assert target.fit.shape == "box"
+    assert target.fit.shape == "box" and target.details["closed_raced"] is True
     assert np.linalg.norm(target.position - d["targets"][0]["centre"]) < 0.03
     monkeypatch.setattr(closed, "worth_racing", lambda *a: False)
     d, target = _counts_draw(165)
+    assert target.details["closed_raced"] is False
     assert np.linalg.norm(target.position - d["targets"][0]["centre"]) > 0.2

@@ -180,30 +180,30 @@ def reseat_plate(problem, plate_result, free, final_nfev):
     return result if result.cost < plate_result.cost else plate_result
 
 
-def closed_fits(problem, plate_result, free, final_nfev, smooth=None) -> list:
+def closed_fits(problem, plate_result, free, final_nfev, smooth=None) -> tuple[list, bool]:
     """Each closed family (CLOSED) fitted from the plate's starts and the centroid's,
-    cross-seeded and rounded: [(problem, result, free)]. With `smooth` (photon counts: the
+    cross-seeded and rounded: ([(problem, result, free)], raced). With `smooth` (counts: the
     same detectors' Gauss-filtered frame), where the best of them misses the counts but not
     by so much that no closed shape is their model (`worth_racing`), each family is sought on
     the filtered frame too, as counts' search is (model.filtered_search), and refitted on
-    `problem` from that answer; the lower counts cost of the two stands. The plate's problem
-    counts every forward call made for it."""
+    `problem` from that answer; the lower counts cost of the two stands (raced: whether it
+    was). The plate's problem counts every forward call made for it."""
     fits = [fit_closed(problem, plate_result, free, final_nfev, shape) for shape in CLOSED]
     fits = rounded(cross_seeded(fits, final_nfev), final_nfev)
-    if smooth is not None and worth_racing(*min(fits, key=lambda f: f[1].cost)):
+    raced = smooth is not None and worth_racing(*min(fits, key=lambda f: f[1].cost))
+    if raced:
         plate_there = fit(smooth, plate_result.params, free, final_nfev)
-        found = closed_fits(smooth, plate_there, free, final_nfev)  # in CLOSED's order too
+        found, _ = closed_fits(smooth, plate_there, free, final_nfev)  # in CLOSED's order
         take_calls(problem, smooth)
-        raced = []
+        both = []
         for (closed_problem, own, free_closed), (_, there, _) in zip(fits, found):
             again = fit(closed_problem, there.params, free_closed, CLOSED_NFEV * final_nfev,
                         atol=FINAL_ATOL)
-            raced.append((closed_problem, again if again.cost < own.cost else own,
-                          free_closed))
-        fits = raced
+            both.append((closed_problem, again if again.cost < own.cost else own, free_closed))
+        fits = both
     for closed_problem, _, _ in fits:
         take_calls(problem, closed_problem)
-    return fits
+    return fits, raced
 
 
 def worth_racing(closed_problem, result, free_closed) -> bool:
@@ -252,7 +252,7 @@ def closed_or_plate(problem, plate_result, free, final_nfev, plate_cov, closed="
         inadequate = box_behind(problem, plate_result, plate_cov)
     if closed is False or (closed == "auto" and not inadequate and not tried):
         return problem, plate_result, free, plate_cov
-    fits = closed_fits(problem, plate_result, free, final_nfev, smooth)
+    fits, raced = closed_fits(problem, plate_result, free, final_nfev, smooth)
     shaped, result, free_shaped = min(fits, key=lambda f: f[1].cost)
     k = kappa(problem.obs)
     shaped_cov = covariance(shaped, result, free_shaped)
@@ -260,7 +260,8 @@ def closed_or_plate(problem, plate_result, free, final_nfev, plate_cov, closed="
     scale = max(1.0, misfit(shaped, result, free_shaped, shaped_cov[1])[1])
     shaped_cov[1].update(depth_profile(shaped, result, free_shaped, final_nfev, k * scale))
     gain = (plate_result.cost - result.cost) / (k * scale)
-    why = {"plate_birge_ratio": birge, "closed_tried": True, "closed_bic_gain": gain - log_n,
+    why = {"plate_birge_ratio": birge, "closed_tried": True, "closed_raced": raced,
+           "closed_bic_gain": gain - log_n,
            "closed_costs": {name_of(f[0].shape): f[1].cost for f in fits}}
     if closed is True or gain > log_n:
         shaped_cov[1].update(why)
