@@ -141,3 +141,18 @@ def test_a_lattice_survives_pickle_and_copy_whole():
     lattice = plate.Lattice(32, 30, 0.25, 16)
     for again in (pickle.loads(pickle.dumps(lattice)), copy.deepcopy(lattice)):
         assert again == (32, 30) and again.blur_share == 0.25 and again.depth_cells == 16
+        assert repr(again) == repr(lattice)
+
+
+def test_coarser_problems_are_told_apart_by_their_share_not_only_their_cells():
+    """HostProblem.coarser keeps one problem per lattice: a plain (8, 12) and a counts
+    Lattice of the same cells are different models (their points sit apart), so they must
+    not share a problem, whichever is asked for first."""
+    row, spots = CASES["1.2 m seen obliquely"]
+    problem = HostProblem(_observation(row, spots), plate.Lattice(16, 24, 0.25, 8))
+    plain = problem.coarser((8, 12))
+    counts = problem.coarser(plate.Lattice(8, 12, 0.25, 8))
+    assert plain is not counts and plain is problem.coarser((8, 12))
+    assert plate.flat_share(plain.lattice) == plate.BLUR_SHARE
+    assert plate.flat_share(counts.lattice) == 0.25
+    assert not np.allclose(plain.column(row), counts.column(row), rtol=1e-3, atol=0)

@@ -101,11 +101,13 @@ class HostProblem(Problem):
         return self.column_batch(np.asarray(p, float)[None])[0]
 
     def coarser(self, lattice) -> "HostProblem":
-        """This observation's model on another lattice (kept: one per lattice)."""
-        got = self._coarser.get(tuple(lattice))
+        """This observation's model on another lattice (kept: one per lattice, told apart by
+        its cells, its blur share and a box's depth cells, as plate.Lattice carries them)."""
+        key = (tuple(lattice), plate.flat_share(lattice), getattr(lattice, "depth_cells", None))
+        got = self._coarser.get(key)
         if got is None:
-            got = self._coarser[tuple(lattice)] = HostProblem(
-                self.obs, lattice, self.backend, self.reflectance, self.kernel)
+            got = self._coarser[key] = HostProblem(self.obs, lattice, self.backend,
+                                                   self.reflectance, self.kernel)
         return got
 
     def column_batch(self, rows, like=None, occluders=None) -> np.ndarray:
