@@ -101,14 +101,12 @@ class HostProblem(Problem):
         return self.column_batch(np.asarray(p, float)[None])[0]
 
     def coarser(self, lattice) -> "HostProblem":
-        """This observation's model on another lattice (kept: one per lattice, told apart by
-        its cells, its blur share and a box's depth cells, as plate.Lattice carries them)."""
+        """This observation's model on another lattice (one kept per cells, share, depth)."""
         key = (tuple(lattice), plate.flat_share(lattice), getattr(lattice, "depth_cells", None))
-        got = self._coarser.get(key)
-        if got is None:
-            got = self._coarser[key] = HostProblem(self.obs, lattice, self.backend,
-                                                   self.reflectance, self.kernel)
-        return got
+        if key not in self._coarser:
+            self._coarser[key] = HostProblem(self.obs, lattice, self.backend, self.reflectance,
+                                             self.kernel)
+        return self._coarser[key]
 
     def column_batch(self, rows, like=None, occluders=None) -> np.ndarray:
         """(B, D, n) unit-amplitude histograms of B plates (rows (B, 6)). like: None, or
