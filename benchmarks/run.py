@@ -1,4 +1,5 @@
-"""Run the benchmark: python benchmarks/run.py [--smoke] [--out docs] (same as `nlos-cl bench`)."""
+"""Run the benchmark: python benchmarks/run.py [--smoke] [--out docs/results/performance] (same
+as `nlos-cl bench`)."""
 import sys
 
 from nlos_cl.apps.cli import main

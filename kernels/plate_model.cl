@@ -1,5 +1,5 @@
 // The model fit's plates evaluated on the device (nlos_cl/ops/plate_model.py): the host model of
-// nlos_cl/localization/model/batch.py (its float64 NumPy twin) in two launches, so that an LM
+// nlos_cl/localization/model/forward/batch.py (its float64 NumPy twin) in two launches, so that an LM
 // residual or a whole Jacobian's plates cost one launch pair and one read instead of ~100 NumPy
 // passes.
 //

@@ -34,6 +34,7 @@ _EXPORTS = {
     ".localization.filter": ("GaussFilter",),
     ".localization.locator": ("Locator",),
     ".localization.paper": ("PaperArgmax",),
+    ".tracking.sequences": ("track_sequence",),
     ".sweep": ("sweep",),
 }
 # Modules that lived at the top level before the layer folders (nl.runtime, `from nlos_cl

@@ -6,7 +6,7 @@ point, as the forward model needs), a plate facing the wall (0.3-0.6 m wide, 0.4
 walking a straight line at 0.3-1.0 m/s from x in [-1.5, 1.5], y in [1.0, 2.5], z in
 [-0.2, 0.2] m, 30 frames at 10 frames/s of 250 ps bins (a consumer sensor's), each histogram
 simulated by the forward model with its own laser spot, AWGN at 0-20 dB. The frames are
-written as a sequence file and tracked through apps.track.make_tracker with `--estimator E`
+written as a sequence file and tracked through nl.track_sequence with `estimator=E`
 (every other default: region, sigma, motion), the error being the longest-lived confirmed
 track's distance to the plate's centre.
 
@@ -28,8 +28,6 @@ from pathlib import Path
 import numpy as np
 
 import nlos_cl as nl
-from nlos_cl.apps.cli import parser as cli_parser
-from nlos_cl.apps.track import make_tracker
 from nlos_cl.tracking import read_sequence, write_sequence
 
 FRAMES, FPS = 30, 10.0
@@ -75,8 +73,7 @@ def frames_of(d: dict) -> list:
 
 def track(path: Path, estimator: str, truth: np.ndarray) -> dict:
     seq = read_sequence(path)
-    tracker = make_tracker(cli_parser().parse_args(["track", str(path), "--estimator",
-                                                    estimator]), seq, None)
+    tracker = nl.track_sequence(seq, estimator=estimator).tracker
     ours, ids = np.full((len(seq), 3), np.nan), set()
     for k, frame in enumerate(seq.frames()):
         confirmed = [t for t in tracker.update(frame.histograms, frame.t_s)

@@ -232,7 +232,8 @@ def locate(out: Path, indices, jobs: int = 1):
 
 
 def page(rows, table: str, out: Path, seconds: float) -> str:
-    """docs/draws-rendered.md: how the renders were made, the table, the renders' own check."""
+    """docs/results/rendered/draws-rendered.md: how the renders were made, the table, the renders'
+    own check."""
     renders = [json.loads(p.read_text()) for p in sorted(out.glob("draw*_render.json"))]
     spp = sorted({r["spp"] for r in renders})
     render_s = sum(r["seconds"] for r in renders)
@@ -249,7 +250,8 @@ def page(rows, table: str, out: Path, seconds: float) -> str:
         f"{render_s / 60:.0f} min of rendering, {seconds / 60:.0f} min of locating on 2 cores). "
         "Do not edit by hand; every row is in draws-rendered.csv beside this page.",
         "",
-        "Each draw is `reproduce draws`' draw of the same family and index (docs/draws.md: the "
+        "Each draw is `reproduce draws`' draw of the same family and index "
+        "(docs/results/draws/draws.md: the "
         "same scene, SNR and noise seed), rendered by mitransient 1.3.1 (Mitsuba 3.9.1, "
         "transient_nlos_path, point spots, hidden-geometry sampling; scripts/mitransient_draws.py "
         "says how a spot is rendered), convolved with the pulse, scaled to nlos_cl's total "
@@ -257,7 +259,7 @@ def page(rows, table: str, out: Path, seconds: float) -> str:
         "the draw's SNR), the draw's noise added, and located as `reproduce draws` locates: the "
         "paper's argmax and the default (`nl.locate_capture`, no option). The error is the 3-D "
         "distance to the truth's centre; a failure is above 0.15 m; unwarned failures as "
-        "docs/draws.md counts them.",
+        "docs/results/draws/draws.md counts them.",
         "",
         table,
         "The renders against nlos_cl's own clean histograms of the same draws (both at nlos_cl's "
@@ -269,13 +271,13 @@ def page(rows, table: str, out: Path, seconds: float) -> str:
         "", *paired(rows), ""])
 
 
-SIMULATED = Path(__file__).resolve().parents[1] / "docs" / "draws.csv"
+SIMULATED = Path(__file__).resolve().parents[1] / "docs" / "results" / "draws" / "draws.csv"
 
 
 def paired(rows, sims: Path = SIMULATED) -> list[str]:
-    """The same draws as nlos_cl simulated them (docs/draws.csv, the default estimator): both
-    distributions over the draws rendered here, and every draw whose error moved by more than
-    2 cm between the two."""
+    """The same draws as nlos_cl simulated them (docs/results/draws/draws.csv, the default
+    estimator): both distributions over the draws rendered here, and every draw whose error moved by
+    more than 2 cm between the two."""
     if not sims.exists():
         return []
     with open(sims, newline="") as f:
@@ -285,7 +287,8 @@ def paired(rows, sims: Path = SIMULATED) -> list[str]:
              if r["estimator"] == "default" and (r["family"], r["index"]) in sim]
     if not pairs:
         return []
-    out = ["## The same draws, simulated by nlos_cl (docs/draws.csv, default estimator)", "",
+    out = ["## The same draws, simulated by nlos_cl (docs/results/draws/draws.csv, default "
+           "estimator)", "",
            "| family | layouts | n | rendered: median / p90 (m) | simulated: median / p90 (m) |",
            "|---|---|---|---|---|"]
     for family in sorted({r["family"] for r, _ in pairs}):

@@ -11,9 +11,9 @@ same targets, noise level and noise seed:
               x every spot (its laser = sensor pairs are confocal, as y-tal's are).
 
 The targets are `reproduce draws`' one-target draws (draws_gen, family "one", the same index,
-SNR and noise seed as docs/draws.md), every index in --start .. --start + --count whose layout
-has at most MAX_SPOTS spots and no instrument mismatch (SPAD patches of 25-64 spots would
-cost 3-7x the renders; the mismatch kinds change the instrument, not the layout). Three steps,
+SNR and noise seed as docs/results/draws/draws.md), every index in --start .. --start + --count
+whose layout has at most MAX_SPOTS spots and no instrument mismatch (SPAD patches of 25-64 spots
+would cost 3-7x the renders; the mismatch kinds change the instrument, not the layout). Three steps,
 two venvs (as scripts/mitransient_draws.py, whose render_pair renders one laser/spot pair):
 
   export  (.venv)              each target as PLY, its pairs and time axis as JSON
@@ -26,7 +26,7 @@ two venvs (as scripts/mitransient_draws.py, whose render_pair renders one laser/
                                added, located by paper, mean, model and the default
 
 Run through scripts/mitransient_layouts.sh; results in --out (default out/mitransient-layouts),
-the page with --doc (docs/layouts-rendered.md).
+the page with --doc (docs/results/rendered/layouts-rendered.md).
 """
 from __future__ import annotations
 

@@ -49,7 +49,7 @@ STAGES = ("observation", "start centres", "start candidates", "short fits", "fin
 
 def load_tree(rev: str, folder: Path, name: str, overlay=()):
     """REV's nlos_cl as the package `name`, its kernels/ beside it (as in a checkout), with the
-    files `overlay` (paths in this checkout, e.g. nlos_cl/localization/model/data.py) copied
+    files `overlay` (paths in this checkout, e.g. nlos_cl/localization/model/forward/data.py) copied
     over it from the working tree."""
     folder.mkdir()
     archive = subprocess.run(["git", "-C", str(ROOT), "archive", rev, "nlos_cl", "kernels"],

@@ -12,7 +12,8 @@ its venv .venv-pf, torch on the CPU).
    progress bar), the ratios, and each estimate's median top-view distance
    to the particle means that ship with the dataset (the authors' own run: accuracy is compared
    against those; this run of their filter is random and is for timing) and its jitter.
-   The timings go to docs/performance-pf-peer.json, which `nlos-cl bench` reports.
+   The timings go to docs/results/performance/performance-pf-peer.json, which `nlos-cl bench`
+   reports.
 Usage: pf_peer.sh [--out DIR] [--frames N] [--json PATH]
 """
 from __future__ import annotations
@@ -37,7 +38,7 @@ PEERS = Path(os.environ.get("NLOS_CL_PEERS", ROOT.parent / "shared" / "peers"))
 WALK = DATA / "consumer-nlos" / "st_spad_person_tracking"
 LOOP_BAR = re.compile(r"Particle Filtering: 100%[^\[]*\[(\d+):(\d+)<")
 OUR_BAR = re.compile(r"track: 100%[^\[]*\[(\d+):(\d+)<")  # nlos-cl track's own progress bar
-PEER_JSON = ROOT / "docs" / "performance-pf-peer.json"  # read by `nlos-cl bench`
+PEER_JSON = ROOT / "docs" / "results" / "performance" / "performance-pf-peer.json"  # bench reads it
 TOP = [0, 2]  # the authors' (X, Z): the floor plane (Y is the weakly seen vertical)
 
 

@@ -14,22 +14,42 @@ ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = ROOT / "nlos_cl"
 ARCHITECTURE = ROOT / "docs" / "architecture.md"
 LIMITS = {"module lines": 350, "function lines": 60, "class lines": 150}
+MODEL = "nlos_cl.localization.model"  # the one layer whose rooms have an order of their own
+
+
+def _numbered_paths(heading: str, doc: Path = ARCHITECTURE) -> list[tuple[str, str]]:
+    """(row, second cell's `path`) of the numbered rows of the table under `heading`."""
+    section = doc.read_text(encoding="utf-8").split(heading, 1)[1].split("\n## ", 1)[0]
+    rows = []
+    for row in section.splitlines():
+        cells = [c.strip() for c in row.strip().strip("|").split("|")]
+        if len(cells) >= 2 and cells[0].isdigit():
+            rows.append((row, cells[1]))
+    return rows
 
 
 def layer_table(doc: Path = ARCHITECTURE) -> list[str]:
     """The layers, bottom first, as dotted prefixes ('nlos_cl.core', ..., 'nlos_cl' for the
     facade): the rows of the table under '## Layers' whose second cell is a `path`."""
-    text = doc.read_text(encoding="utf-8")
-    section = text.split("## Layers", 1)[1].split("\n## ", 1)[0]
     layers = []
-    for row in section.splitlines():
-        cells = [c.strip() for c in row.strip().strip("|").split("|")]
-        if len(cells) >= 2 and cells[0].isdigit():
-            path = re.fullmatch(r"`nlos_cl/([\w/]*?)/?(__init__\.py)?`", cells[1])
-            assert path, f"layer table row {row!r}: the second cell must be `nlos_cl/<folder>/`"
-            folder = path.group(1)
-            layers.append("nlos_cl" + ("." + folder.replace("/", ".") if folder else ""))
+    for row, cell in _numbered_paths("## Layers", doc):
+        path = re.fullmatch(r"`nlos_cl/([\w/]*?)/?(__init__\.py)?`", cell)
+        assert path, f"layer table row {row!r}: the second cell must be `nlos_cl/<folder>/`"
+        folder = path.group(1)
+        layers.append("nlos_cl" + ("." + folder.replace("/", ".") if folder else ""))
     return layers
+
+
+def room_table(doc: Path = ARCHITECTURE, layer: str = MODEL) -> list[str]:
+    """The rooms of one layer, first first, as dotted names: the rows of the table under
+    '## Rooms inside `<layer folder>/`' whose second cell is a `path` (a folder or a module)."""
+    folder = layer.removeprefix("nlos_cl.").replace(".", "/")
+    rooms = []
+    for row, cell in _numbered_paths(f"## Rooms inside `{folder}/`", doc):
+        path = re.fullmatch(r"`(nlos_cl/[\w/]+?)(/|\.py)`", cell)
+        assert path, f"room table row {row!r}: the second cell must be a `nlos_cl/...` path"
+        rooms.append(path.group(1).replace("/", ".").removesuffix(".__init__"))
+    return rooms
 
 
 def module_name(path: Path, package: Path) -> str:
@@ -81,12 +101,13 @@ def _absolute(name: str, package_arg, module: str) -> str:
     return module.rpartition(".")[0] if name == "." else module.split(".")[0] + name
 
 
-def layer_of(module: str, layers: list[str]) -> int:
-    """The index of the deepest layer prefix the module falls under; the facade is exact."""
+def layer_of(module: str, layers: list[str], exact: tuple[str, ...] = ("nlos_cl",)) -> int:
+    """The index of the deepest layer prefix the module falls under; a package face named in
+    `exact` (the facade, a room table's face) holds only itself."""
     best = None
     for i, prefix in enumerate(layers):
-        if prefix == "nlos_cl":
-            if module == "nlos_cl":
+        if prefix in exact:
+            if module == prefix:
                 best = i
         elif module == prefix or module.startswith(prefix + "."):
             best = i
@@ -108,6 +129,22 @@ def upward_imports(found: dict[str, set[str]], layers: list[str]) -> list[str]:
             theirs = layer_of(target, layers)
             if theirs > mine:
                 bad.append(f"{module} ({layers[mine]}) imports {target} ({layers[theirs]})")
+    return bad
+
+
+def upward_room_imports(found: dict[str, set[str]], rooms: list[str],
+                        layer: str = MODEL) -> list[str]:
+    """Imports between modules of one layer against its room order (the layer's face, last in
+    the table, holds only itself; a room's face belongs to its room)."""
+    inside = {m: {t for t in ts if t == layer or t.startswith(layer + ".")}
+              for m, ts in found.items() if m.startswith(layer + ".")}
+    bad = []
+    for module, targets in sorted(inside.items()):
+        mine = layer_of(module, rooms, exact=(layer,))
+        for target in sorted(targets):
+            theirs = layer_of(target, rooms, exact=(layer,))
+            if theirs > mine:
+                bad.append(f"{module} ({rooms[mine]}) imports {target} ({rooms[theirs]})")
     return bad
 
 
@@ -164,6 +201,35 @@ def test_the_layer_table_names_every_folder():
 def test_every_import_goes_down_or_across_the_layer_table():
     bad = upward_imports(imports(), layer_table())
     assert not bad, "imports against the layer order:\n" + "\n".join(bad)
+
+
+def test_every_model_module_sits_in_a_room():
+    rooms = room_table()
+    assert rooms[-1] == MODEL, "the model's face comes last in its room table"
+    layer_dir = PACKAGE.parent / MODEL.replace(".", "/")
+    listed = {r for r in rooms if (PACKAGE.parent / (r.replace(".", "/") + ".py")).exists()
+              or (PACKAGE.parent / r.replace(".", "/")).is_dir()}
+    assert listed == set(rooms), f"rooms in the table that are not in the code: {set(rooms) - listed}"
+    loose = sorted(p.name for p in layer_dir.glob("*.py")
+                   if module_name(p, PACKAGE) not in rooms)
+    assert not loose, f"modules of localization/model/ in no room: {loose}"
+    folders = {module_name(p, PACKAGE) for p in layer_dir.glob("*/__init__.py")}
+    assert folders <= set(rooms), f"folders of localization/model/ in no room: {folders - set(rooms)}"
+
+
+def test_every_import_in_the_model_goes_down_or_across_its_rooms():
+    bad = upward_room_imports(imports(), room_table())
+    assert not bad, "imports against the model's room order:\n" + "\n".join(bad)
+
+
+def test_the_room_check_catches_a_forward_model_reaching_into_policy():
+    """The checker itself, on a copy of today's imports with one edge turned upward."""
+    found = {m: set(ts) for m, ts in imports().items()}
+    found[f"{MODEL}.forward.batch"].add(f"{MODEL}.policy.select")
+    found[f"{MODEL}.shapes.plate"].add(f"{MODEL}.estimator")
+    assert upward_room_imports(found, room_table()) == [
+        f"{MODEL}.forward.batch ({MODEL}.forward) imports {MODEL}.policy.select ({MODEL}.policy)",
+        f"{MODEL}.shapes.plate ({MODEL}.shapes) imports {MODEL}.estimator ({MODEL}.estimator)"]
 
 
 def test_no_import_circles():

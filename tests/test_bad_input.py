@@ -1,5 +1,5 @@
-"""Every bad input of the catalogue (tests/error_catalogue.py, docs/errors.md) gets an error
-naming the field and the fix; inputs stay unmodified."""
+"""Every bad input of the catalogue (tests/error_catalogue.py, docs/results/errors/errors.md) gets
+an error naming the field and the fix; inputs stay unmodified."""
 import numpy as np
 import pytest
 

@@ -15,7 +15,7 @@ CHECK = """
 import warnings
 import nlos_cl as nl
 from threadpoolctl import threadpool_info
-from nlos_cl.localization.model import likelihood
+from nlos_cl.localization.model.forward import likelihood
 
 def blas_threads():
     return max([i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"] or [0])

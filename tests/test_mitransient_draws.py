@@ -1,7 +1,7 @@
 """scripts/mitransient_draws.py's own steps that need no renderer: the exported hidden-path axis
 puts a point target's return in the bin nlos_cl's simulation puts it, and the pulse it convolves
 renders with keeps their energy and their centre. (The renders themselves run in
-.venv-mitransient: docs/draws-rendered.md.)"""
+.venv-mitransient: docs/results/rendered/draws-rendered.md.)"""
 import importlib.util
 import json
 import math

@@ -21,11 +21,11 @@ import math
 import numpy as np
 import pytest
 
-from nlos_cl.localization.model import plate
-from nlos_cl.localization.model.batch import HostProblem
-from nlos_cl.localization.model.data import Observation
+from nlos_cl.localization.model.shapes import plate
+from nlos_cl.localization.model.forward.batch import HostProblem
+from nlos_cl.localization.model.forward.data import Observation
 from nlos_cl.localization.model.estimator import ModelEstimator
-from nlos_cl.localization.model.lattices import POISSON_LATTICE, counts_lattice
+from nlos_cl.localization.model.shapes.lattices import POISSON_LATTICE, counts_lattice
 
 SIGMA0_M = 0.0127  # the counts' model pulse: 70 ps FWHM and 30 ps jitter, in metres of path
 TDC_PATH_M = 0.0165  # a 55 ps TDC bin
@@ -116,8 +116,8 @@ def test_a_deep_boxs_sides_take_cells_along_its_depth_too():
     counts' pulse a 0.6 m-deep box seen side-on was 2.6 % off on 8; the counts lattice's 16
     (lattices.counts_depth_cells) hold the bound."""
     from dataclasses import replace
-    from nlos_cl.localization.model import box
-    from nlos_cl.localization.model.host_shapes import HostShapeProblem
+    from nlos_cl.localization.model.shapes import box
+    from nlos_cl.localization.model.forward.host_shapes import HostShapeProblem
     row = np.array([1.5, 2.5, 0.0, 0.5, 0.6, 0.6, -math.pi / 2 + 0.7])
     obs = _observation(np.r_[row[:5], row[6]], SPREAD)  # the front face's window, widened
     n = obs.y.shape[1] + 60

@@ -7,9 +7,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from nlos_cl.localization.model import covariance as cov_module, fit, plate
-from nlos_cl.localization.model.batch import HostProblem
-from nlos_cl.localization.model.covariance import covariance
+from nlos_cl.localization.model.solve import covariance as cov_module, fit
+
+from nlos_cl.localization.model.shapes import plate
+from nlos_cl.localization.model.forward.batch import HostProblem
+from nlos_cl.localization.model.solve.covariance import covariance
 
 from test_model_derivatives import ROW, scene_observation  # every parameter observable
 

@@ -7,8 +7,8 @@ at the paper's 10 dB; the fit uses its own coarse plate (16 x 24 cells) on the f
 exactly as `ModelEstimator` does. Two cases, 100 seeds each: the paper's 0.3 x 1.6 m plate on
 its collinear spots (region: an ellipse in x, y) and a 0.7 m square seen from 8 spots on a
 circle (an ellipsoid in x, y, z). Each fit starts at the truth, so the test measures the local
-fit and its covariance, not the search for a start (that is docs/beyond-the-paper.md's
-coverage table, with the whole estimator)."""
+fit and its covariance, not the search for a start (that is
+docs/results/beyond/beyond-the-paper.md's coverage table, with the whole estimator)."""
 import math
 
 import numpy as np
@@ -16,11 +16,12 @@ from scipy.stats import chi2
 
 import nlos_cl as nl
 from nlos_cl.physics import layouts
-from nlos_cl.localization.model import data, height_observable
-from nlos_cl.localization.model.lattices import GAUSS_LATTICE
-from nlos_cl.localization.model.covariance import centre_covariance, covariance
-from nlos_cl.localization.model.fit import fit
-from nlos_cl.localization.model.likelihood import Problem
+from nlos_cl.localization.model.forward import data
+from nlos_cl.localization.model import height_observable
+from nlos_cl.localization.model.shapes.lattices import GAUSS_LATTICE
+from nlos_cl.localization.model.solve.covariance import centre_covariance, covariance
+from nlos_cl.localization.model.solve.fit import fit
+from nlos_cl.localization.model.forward.likelihood import Problem
 
 PAPER_SPOTS = [[-0.5, 0, 0], [-1.0, 0, 0], [-1.5, 0, 0]]
 CIRCLE8 = layouts.circle(centre=[-1.0, 0, 0], radius_m=0.5, count=8)

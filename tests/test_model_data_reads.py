@@ -10,7 +10,8 @@ import pytest
 
 import nlos_cl as nl
 from nlos_cl.localization.estimate import Scored
-from nlos_cl.localization.model import ModelEstimator, data
+from nlos_cl.localization.model import ModelEstimator
+from nlos_cl.localization.model.forward import data
 from nlos_cl.ops.backend import NumpyBackend, read_values
 from nlos_cl.ops.signals import Signals
 

@@ -3,7 +3,7 @@ view and the taps are remembered (by value, and whole tables by their scales), s
 warm cache returns must be what a cold one computes, and the memory must stay bounded."""
 import numpy as np
 
-from nlos_cl.localization.model import deposit
+from nlos_cl.localization.model.forward import deposit
 
 
 def test_correlate_is_the_sum_over_window_and_phase():

@@ -1,5 +1,5 @@
 """A closed target's depth: the box model against a finely cut box, and the answer's notice where
-the spots cannot see how deep a target is (nlos_cl/localization/model/depth.py)."""
+the spots cannot see how deep a target is (nlos_cl/localization/model/policy/depth.py)."""
 import math
 import warnings
 
@@ -7,14 +7,16 @@ import numpy as np
 
 import nlos_cl as nl
 from nlos_cl.core.geometry import Facets
-from nlos_cl.localization.model import box, depth, plate
-from nlos_cl.localization.model.depth import DEPTH_WARNING
+from nlos_cl.localization.model.shapes import box, plate
+from nlos_cl.localization.model.policy import depth
+from nlos_cl.localization.model.policy.depth import DEPTH_WARNING
 from nlos_cl.ops import forward
 from nlos_cl.physics import layouts
 
 from conftest import model_observation
 
-# closed draw 8 of docs/draws.md: a 0.75 m box turned 12 degrees, 3.3 m away, 3 spots below it
+# closed draw 8 of docs/results/draws/draws.md: a 0.75 m box turned 12 degrees, 3.3 m away, 3 spots
+# below it
 BOX = np.array([1.661, 3.269, 0.11, 0.746, 0.672, 0.753, -1.901])
 SPOTS = np.array([[0.5, 0, -0.6], [-1.4, 0, -0.6], [-0.38, 0, -0.67]])
 
@@ -86,8 +88,9 @@ def test_the_probes_host_boxes_are_the_box_model():
     """depth._face_plates (a box's visible upright faces as host plates, summed) against the
     box model on the forward op: the same histograms but for the lattice across the depth
     (16 host cells against the box's 8), within 0.5 % (L2, per detector)."""
-    from nlos_cl.localization.model import batch, depth
-    from nlos_cl.localization.model.likelihood import Problem
+    from nlos_cl.localization.model.forward import batch
+    from nlos_cl.localization.model.policy import depth
+    from nlos_cl.localization.model.forward.likelihood import Problem
     centre = tuple(BOX[:3])
     setup = nl.paper_setup(detector_spots=SPOTS)
     raw = nl.add_noise(nl.simulate(nl.Scene(setup, nl.Target(nl.box((0.75, 0.75, 0.67),
@@ -155,7 +158,7 @@ def test_the_curved_models_match_finely_cut_surfaces():
     variance (the plates' plate.BLUR_SHARE) and 32 cells around, both were 5-7 % off, and
     fitted from the truth the centre moved 1-5 cm (ellipsoid.CURVED_BLUR_SHARE). 0.5 % keeps
     them beside the box's model (0.06-0.28 %)."""
-    from nlos_cl.localization.model import cylinder, ellipsoid
+    from nlos_cl.localization.model.shapes import cylinder, ellipsoid
     ball = [1.2, 3.0, 0.1, 0.7, 0.7, 0.7, -1.9]
     rel = _model_error(ellipsoid, ball, nl.Target(
         nl.sphere(0.35, centre=tuple(ball[:3]), facet_size_m=0.01)).facets(0.01))
@@ -170,8 +173,8 @@ def test_a_plate_kept_after_the_closed_fits_says_the_depth_was_not_found():
     a box behind it cheaper, or the plate missed the data) and none fitted better: the answer
     says its depth was not found (a box's centre lies behind the found surface). Seen depth,
     closed not tried: quiet; an unseen depth keeps its own notice."""
-    from nlos_cl.localization.model import plate
-    from nlos_cl.localization.model.depth import NOT_FOUND_WARNING, unseen_note
+    from nlos_cl.localization.model.shapes import plate
+    from nlos_cl.localization.model.policy.depth import NOT_FOUND_WARNING, unseen_note
     prefix = NOT_FOUND_WARNING.split("{")[0]
     probe = unseen_note(plate, None, None, {"depth_sd_m": 0.01, "box_probe_better": True,
                                             "closed_tried": True})

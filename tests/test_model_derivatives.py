@@ -6,9 +6,11 @@ import numpy as np
 import pytest
 
 import nlos_cl as nl
-from nlos_cl.localization.model import deposit, derivatives, fit, plate
-from nlos_cl.localization.model.covariance import covariance
-from nlos_cl.localization.model.batch import HostProblem
+from nlos_cl.localization.model.forward import deposit, derivatives
+from nlos_cl.localization.model.solve import fit
+from nlos_cl.localization.model.shapes import plate
+from nlos_cl.localization.model.solve.covariance import covariance
+from nlos_cl.localization.model.forward.batch import HostProblem
 
 from conftest import model_observation
 

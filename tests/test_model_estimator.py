@@ -115,7 +115,7 @@ def test_the_default_estimator_is_the_model_fit_loaded_on_first_use():
 
 
 def test_box_model_is_the_plate_at_depth_zero():
-    from nlos_cl.localization.model import box, plate
+    from nlos_cl.localization.model.shapes import box, plate
     spots, laser = np.array(TRIANGLE), np.zeros(3)
     p = np.array([3.0, 2.0, 0.3, 0.7, 1.1, 2.8])
     a = plate.model_facets(p, (16, 24), spots, laser)
@@ -129,7 +129,7 @@ def test_box_model_is_the_plate_at_depth_zero():
 
 
 def test_curved_shapes_cover_their_surface_and_cull_what_no_spot_sees():
-    from nlos_cl.localization.model import cylinder, ellipsoid
+    from nlos_cl.localization.model.shapes import cylinder, ellipsoid
     # The cell areas sum to the surface's: a sphere's 4 pi r^2 within the midpoint rule's
     # error (measured 0.16 % on 32 x 16 cells); a cylinder's side and caps exactly (flat in
     # height, the caps' rings summed exactly by the midpoint rule in radius).
@@ -167,7 +167,7 @@ def test_an_ambient_offset_under_the_signal_does_not_move_the_fit():
 
 
 def test_row_floors_measure_the_level_outside_the_signal_only():
-    from nlos_cl.localization.model.data import MIN_FLOOR_BINS, row_floors
+    from nlos_cl.localization.model.forward.data import MIN_FLOOR_BINS, row_floors
     rng = np.random.default_rng(0)
     rows = 0.5 + 0.01 * rng.standard_normal((2, 4000))
     rows[:, 1000:3500] += 10.0  # a signal over most of the record: a plain median says 10.5

@@ -13,7 +13,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from nlos_cl.localization.model import filtered_search
+from nlos_cl.localization.model.policy import filtered_search
 
 
 def _result(cost):
@@ -80,7 +80,7 @@ def test_counts_draw_165s_box_is_found_by_racing_the_filtered_frames_closed_fits
     0.39 m off (deviance per degree of freedom 4.1: a misfit, closed.worth_racing); the same
     families sought on the filtered frame and refitted on the counts reach the box, 0.018 m
     off. Without the race (worth_racing False) the cylinder comes back."""
-    from nlos_cl.localization.model import closed
+    from nlos_cl.localization.model.policy import closed
     d, target = _counts_draw(165)
     assert target.fit.shape == "box" and target.details["closed_raced"] is True
     assert np.linalg.norm(target.position - d["targets"][0]["centre"]) < 0.03

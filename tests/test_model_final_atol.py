@@ -5,9 +5,9 @@ parameter's sd, in fewer model calls; a search for several targets keeps the pla
 import numpy as np
 import pytest
 
-from nlos_cl.localization.model import select, starts
-from nlos_cl.localization.model.batch import HostProblem
-from nlos_cl.localization.model.covariance import covariance
+from nlos_cl.localization.model.policy import select, starts
+from nlos_cl.localization.model.forward.batch import HostProblem
+from nlos_cl.localization.model.solve.covariance import covariance
 
 from test_model_derivatives import TRUTH, scene_observation
 

@@ -1,4 +1,4 @@
-"""The closed shapes' host model (nlos_cl/localization/model/host_shapes.py) against the
+"""The closed shapes' host model (nlos_cl/localization/model/forward/host_shapes.py) against the
 device's: `Problem(shape=...).column` (one forward launch per lit face, float32 on PoCL) and
 `HostShapeProblem.column_batch` (float64 NumPy, every piece of every row at once) evaluate one
 model. Tolerance 1e-3 of the peak, the forward op's own (docs: float32 paths of ~10 m, the
@@ -8,9 +8,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from nlos_cl.localization.model import batch, box, cylinder, ellipsoid, host_shapes
-from nlos_cl.localization.model.host_shapes import HostShapeProblem
-from nlos_cl.localization.model.likelihood import Problem
+from nlos_cl.localization.model.forward import batch, host_shapes
+
+from nlos_cl.localization.model.shapes import box, cylinder, ellipsoid
+from nlos_cl.localization.model.forward.host_shapes import HostShapeProblem
+from nlos_cl.localization.model.forward.likelihood import Problem
 from nlos_cl.physics.reflectance import Retroreflective
 
 from conftest import model_observation, paper_frame

@@ -14,10 +14,10 @@ import pytest
 
 import nlos_cl as nl
 from nlos_cl.localization.model import ModelEstimator
-from nlos_cl.localization.model.data import TARGETS_FRAC, signal_windows
-from nlos_cl.localization.model.likelihood import nonnegative_lstsq
-from nlos_cl.localization.model.select import separate
-from nlos_cl.localization.model.starts import MAX_AMPLITUDE_RATIO, plausible
+from nlos_cl.localization.model.forward.data import TARGETS_FRAC, signal_windows
+from nlos_cl.localization.model.forward.likelihood import nonnegative_lstsq
+from nlos_cl.localization.model.policy.select import separate
+from nlos_cl.localization.model.policy.starts import MAX_AMPLITUDE_RATIO, plausible
 
 SPOTS = [[-0.880, 0.0, -0.932], [-0.343, 0.0, -0.711], [-0.266, 0.0, -0.135],
          [-0.726, 0.0, 0.219], [-1.263, 0.0, -0.002], [-1.340, 0.0, -0.577]]
@@ -129,8 +129,8 @@ def test_a_plate_the_joint_fit_left_dead_or_misplaced_is_reseated_from_the_resid
 
 
 def test_dead_plates_are_those_at_zero_amplitude_or_a_negligible_share_of_the_energy():
-    from nlos_cl.localization.model.fit import FitResult
-    from nlos_cl.localization.model.select import DEAD_SHARE, dead_plates
+    from nlos_cl.localization.model.solve.fit import FitResult
+    from nlos_cl.localization.model.policy.select import DEAD_SHARE, dead_plates
 
     class Columns:  # three plates' columns: unit energy each
         def columns(self, params):

@@ -7,7 +7,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from nlos_cl.localization.model.likelihood import (BOUND_SHARE, NEWTON_ITERS, Problem,
+from nlos_cl.localization.model.forward.likelihood import (BOUND_SHARE, NEWTON_ITERS, Problem,
                                                    _arrow_solve, _poisson_newton)
 
 
@@ -123,7 +123,7 @@ def test_poisson_information_is_the_full_matrix_with_backgrounds_profiled(n_det,
     column per background, as the covariance had built it: the target block of the inverse
     to 1e-9 relative (both float64; observed ~1e-13), with invalid bins and a detector without
     any valid bin."""
-    from nlos_cl.localization.model.covariance import _poisson_information
+    from nlos_cl.localization.model.solve.covariance import _poisson_information
     rng = np.random.default_rng(n_det + p)
     n = 150
     valid = rng.random((n_det, n)) > 0.1

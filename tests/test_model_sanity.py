@@ -1,4 +1,4 @@
-"""The model fit's self-checks (nlos_cl/localization/model/sanity.py): a fit that claims a
+"""The model fit's self-checks (nlos_cl/localization/model/policy/sanity.py): a fit that claims a
 target too large, or whose paths contradict the paper's argmax, is replaced by the argmax with
 a warning (one target) or warned about (several); collinear spots off the x axis, which the
 fit cannot hold, get the argmax and a warning."""
@@ -11,7 +11,7 @@ import nlos_cl as nl
 from nlos_cl.core.tuning import MAX_EXTENT_M
 from nlos_cl.localization.estimate import LocatedTarget
 from nlos_cl.localization.fit_result import ModelFit, Parameter
-from nlos_cl.localization.model.sanity import checked, doubt, unfittable_line
+from nlos_cl.localization.model.policy.sanity import checked, doubt, unfittable_line
 
 SPOTS = np.array([[-0.5, 0.0, 0.0], [-1.0, 0.0, 0.0], [-1.5, 0.0, 0.0]])
 LASER = np.zeros(3)
@@ -109,7 +109,7 @@ def test_the_null_cost_is_the_backgrounds_alone():
     each detector's mean count (the likelihood-best constant) summed by hand; Gaussian, the
     data's own chi^2 about zero. A fit with the true model removes all but the noise's share."""
     from types import SimpleNamespace
-    from nlos_cl.localization.model.likelihood import Problem
+    from nlos_cl.localization.model.forward.likelihood import Problem
     rng = np.random.default_rng(3)
     t = np.arange(200)
     pulse = np.exp(-((t - 90) / 5.0) ** 2)[None].repeat(4, 0)

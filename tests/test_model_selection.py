@@ -2,8 +2,8 @@
 frame, in this process and in another one (other hash seed), give bit-identical positions.
 
 The frame: two 0.3 m squares at (2.5, 2, 0) and (3.5, 3, 0) seen from 8 spots on a 0.5 m
-circle (docs/beyond-the-paper.md). The far square returns ~1/16 of the near one's signal
-energy, and the near one shadows about half of it (nl.simulate's occlusion): the model, which
+circle (docs/results/beyond/beyond-the-paper.md). The far square returns ~1/16 of the near one's
+signal energy, and the near one shadows about half of it (nl.simulate's occlusion): the model, which
 has no occlusion, locates the lit half (~0.08 m from the full square's centre), so positions are
 checked against the lit part here."""
 import json

@@ -1,4 +1,4 @@
-"""Mutual shadowing in the K >= 2 plate model (nlos_cl.localization.model.shadow): the analytic
+"""Mutual shadowing in the K >= 2 plate model (nlos_cl.localization.model.forward.shadow): the analytic
 ray-rectangle test against the simulator's ray caster, its smoothness for finite-difference
 Jacobians, the Jacobian's shadowed columns, and one target (or targets apart) unchanged."""
 import warnings
@@ -8,10 +8,12 @@ import pytest
 
 import nlos_cl as nl
 from nlos_cl.localization.estimate import Scored
-from nlos_cl.localization.model import ModelEstimator, plate, shadow
-from nlos_cl.localization.model.covariance import covariance
-from nlos_cl.localization.model.fit import fit, shadowed_by, stepped_columns
-from nlos_cl.localization.model.likelihood import Problem
+from nlos_cl.localization.model import ModelEstimator
+from nlos_cl.localization.model.shapes import plate
+from nlos_cl.localization.model.forward import shadow
+from nlos_cl.localization.model.solve.covariance import covariance
+from nlos_cl.localization.model.solve.fit import fit, shadowed_by, stepped_columns
+from nlos_cl.localization.model.forward.likelihood import Problem
 from nlos_cl.physics import layouts
 from nlos_cl.physics.visibility import any_hit_brute, visibility
 
@@ -203,8 +205,8 @@ def test_a_half_hidden_plate_fits_narrower_than_it_is_without_a_size_prior(host)
     (model.warm.size_prior, sd 15 mm) it comes back within 2 cm at its size.
     One frame (noise seed 0, simulated on PoCL), and a marginal one: the narrow row costs 2 less
     than the truth out of ~1,290 here; on an NVIDIA H200's simulation of the same scene it cost
-    2 more (docs/nvidia/README.md)."""
-    from nlos_cl.localization.model.warm import size_prior
+    2 more (docs/results/nvidia/README.md)."""
+    from nlos_cl.localization.model.policy.warm import size_prior
     truth = np.stack([NEAR, FAR])
     assert fit(host, np.stack([NEAR, NARROW]), FREE, 30).cost < fit(host, truth, FREE, 30).cost
     start = truth.copy()
@@ -229,7 +231,7 @@ def test_a_half_hidden_plate_fits_narrower_than_it_is_without_a_size_prior(host)
 
 
 def test_no_size_prior_where_nothing_hides_a_plate_or_no_size_is_known(host):
-    from nlos_cl.localization.model.warm import size_prior
+    from nlos_cl.localization.model.policy.warm import size_prior
     truth = np.stack([NEAR, FAR])
     assert size_prior(host, truth, None) is None
     assert size_prior(host, truth, (truth[:, 3:5], np.full((2, 2), np.inf))) is None
@@ -279,7 +281,7 @@ def test_a_misfit_plate_another_can_shadow_is_refitted_from_facing_yaws(host):
     """select.reseat_shadowed: FAR started turned 65 degrees off (yaw 2.0 rad, where the fit
     cannot leave: Birge ~600, a misfit) comes back within 2 cm from the yaws about facing the
     spots; an adequate fit is returned as it is (the same object: no work, no change)."""
-    from nlos_cl.localization.model import select
+    from nlos_cl.localization.model.policy import select
     truth = np.stack([NEAR, FAR])
     start = truth.copy()
     start[1, plate.YAW] = 2.0
@@ -304,7 +306,8 @@ def test_the_estimator_holds_a_hidden_plate_and_says_so(pair_scored):
     With them: 0.012-0.055 m, median 0.032 (0.042 before), every fit warm, each within
     1.01x its hidden_sd_m (seed 0: 0.046 m, 0.81x; widths 0.21-0.28 m, mean 0.25, was 0.21)."""
     from nlos_cl.localization.estimate import Prior
-    from nlos_cl.localization.model.warm import HIDDEN_SD_KEY, HIDDEN_SHARE, HIDDEN_SHARE_KEY
+    from nlos_cl.core.tuning import HIDDEN_SHARE
+    from nlos_cl.localization.fit_result import HIDDEN_SD_KEY, HIDDEN_SHARE_KEY
     start = np.stack([NEAR, FAR])
     start[1, plate.Y] += 0.06
     start[1, plate.WIDTH] = 0.2
@@ -347,7 +350,8 @@ def test_a_cold_fit_in_its_own_order_is_judged_at_the_tracked_sizes(host):
     from types import SimpleNamespace
 
     from nlos_cl.localization.estimate import Prior
-    from nlos_cl.localization.model.warm import HIDDEN_SD_KEY, HIDDEN_SHARE_KEY, \
+    from nlos_cl.localization.fit_result import HIDDEN_SD_KEY, HIDDEN_SHARE_KEY
+    from nlos_cl.localization.model.policy.warm import \
         hidden_diagnostics
     narrow = np.stack([NEAR, FAR])
     narrow[1, plate.WIDTH] = 0.05

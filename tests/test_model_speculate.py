@@ -6,9 +6,9 @@ Jacobian is the one a separate call gives."""
 import numpy as np
 import pytest
 
-from nlos_cl.localization.model.batch import HostProblem
-from nlos_cl.localization.model.fit import _Objective, fit
-from nlos_cl.localization.model.likelihood import Problem
+from nlos_cl.localization.model.forward.batch import HostProblem
+from nlos_cl.localization.model.solve.fit import _Objective, fit
+from nlos_cl.localization.model.forward.likelihood import Problem
 
 from test_model_derivatives import ROW, scene_observation
 

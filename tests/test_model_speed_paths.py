@@ -6,8 +6,11 @@ import numpy as np
 import pytest
 
 import nlos_cl as nl
-from nlos_cl.localization.model import batch, lm, plate, starts
-from nlos_cl.localization.model.data import row_median
+from nlos_cl.localization.model.forward import batch
+from nlos_cl.localization.model.solve import lm
+from nlos_cl.localization.model.shapes import plate
+from nlos_cl.localization.model.policy import starts
+from nlos_cl.localization.model.forward.data import row_median
 from nlos_cl.ops.forward import facet_paths
 
 from conftest import model_observation, paper_frame

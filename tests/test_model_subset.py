@@ -11,8 +11,10 @@ import numpy as np
 import pytest
 
 from nlos_cl.core.tuning import CHOICE_DETECTORS, MISFIT_BIRGE, SEARCH_DETECTORS
-from nlos_cl.localization.model import box, plate, subset
-from nlos_cl.localization.model.data import Observation
+from nlos_cl.localization.model.shapes import box, plate
+from nlos_cl.localization.model.policy import subset
+from nlos_cl.localization.model.forward.data import Observation
+from nlos_cl.localization.model.solve.records import Chosen, Covariance
 
 
 def _obs(n_det):
@@ -57,17 +59,19 @@ def stubs(monkeypatch):
         result = _result(box.N_PARAMS, 400.0 * 992)
         cov_box = np.zeros((box.N_PARAMS, box.N_PARAMS))
         cov_box[box.DEPTH, box.DEPTH] = calls["depth_sd"] ** 2
-        return _Problem(search.obs, box), result, np.ones(box.N_PARAMS, bool), (cov_box, {})
+        return Chosen(_Problem(search.obs, box), result, np.ones(box.N_PARAMS, bool),
+                      Covariance(cov_box, {}))
 
     def fit(problem, params, free, nfev, **kw):
         calls["fit_on"].append(len(problem.obs.spots))
         return _result(np.shape(params)[-1], 1.0 * 993)
 
-    monkeypatch.setattr("nlos_cl.localization.model.select.fit_targets", fit_targets)
+    monkeypatch.setattr("nlos_cl.localization.model.policy.select.fit_targets", fit_targets)
     monkeypatch.setattr(subset, "closed_or_plate", closed_or_plate)
     monkeypatch.setattr(subset, "fit", fit)
-    monkeypatch.setattr(subset, "covariance", lambda problem, result, free: (None, {}))
-    monkeypatch.setattr("nlos_cl.localization.model.host_shapes.shape_problem",
+    monkeypatch.setattr(subset, "covariance",
+                        lambda problem, result, free: Covariance(None, {}))
+    monkeypatch.setattr("nlos_cl.localization.model.forward.host_shapes.shape_problem",
                         lambda problem, shape: _Problem(problem.obs, shape))
     return calls
 
@@ -99,7 +103,7 @@ def test_a_closed_shape_whose_depth_is_seen_is_refitted_on_every_detector(stubs)
     assert result is not None and stubs["fit_on"] == [CHOICE_DETECTORS, n_det]
     misfit_plate = _result(plate.N_PARAMS, 400.0 * 993)  # the final plate misses them too
     chosen, refit, _, _ = subset.plate_or_closed(_est(), problem, misfit_plate, free,
-                                                 (None, {}), choice)
+                                                 Covariance(None, {}), choice)
     assert chosen.shape is box and stubs["choices"] == 1
     assert stubs["fit_on"] == [CHOICE_DETECTORS, n_det, n_det]
 
@@ -122,10 +126,10 @@ def test_doomed_reads_the_sanity_checks_conditions():
         result = _result(box.N_PARAMS, ratio * (1000 - box.N_PARAMS - 1))
         free = np.ones(box.N_PARAMS, bool)
         problem = _Problem(obs, box, null=result.cost / unexplained)
-        assert subset.doomed(problem, result, free, (cov, {})) is want
+        assert subset.doomed(problem, result, free, Covariance(cov, {})) is want
         assert ratio > MISFIT_BIRGE or not want
     assert not subset.doomed(_Problem(obs, plate), _result(plate.N_PARAMS, 4e5),
-                             np.ones(plate.N_PARAMS, bool), (cov, {}))
+                             np.ones(plate.N_PARAMS, bool), Covariance(cov, {}))
 
 
 
@@ -137,7 +141,8 @@ def test_the_choice_is_made_on_a_subset_above_choice_detectors(stubs, n_det, on_
     problem = _Problem(_obs(n_det))
     misfit_plate = _result(plate.N_PARAMS, 400.0 * 993)
     chosen, _, _, (_, info) = subset.plate_or_closed(_est(), problem, misfit_plate,
-                                                     np.ones(plate.N_PARAMS, bool), (None, {}))
+                                                     np.ones(plate.N_PARAMS, bool),
+                                                     Covariance(None, {}))
     assert chosen.shape is box and stubs["choices"] == 1
     assert len(chosen.obs.spots) == (CHOICE_DETECTORS if on_subset else n_det)
     assert stubs["fit_on"] == ([CHOICE_DETECTORS] if on_subset else [])
@@ -162,7 +167,8 @@ def test_an_adequate_plate_on_many_detectors_tries_closed_shapes_only_on_the_sub
     problem = _Problem(_obs(n_det))
     adequate = _result(plate.N_PARAMS, 1.0 * 993)
     chosen, _, _, (_, info) = subset.plate_or_closed(_est(), problem, adequate,
-                                                     np.ones(plate.N_PARAMS, bool), (None, {}))
+                                                     np.ones(plate.N_PARAMS, bool),
+                                                     Covariance(None, {}))
     assert probed == [n_det]
     if box_better:
         assert stubs["choices"] == 1 and stubs["tried"] is True

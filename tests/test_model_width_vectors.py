@@ -7,9 +7,10 @@ import numpy as np
 import pytest
 
 import nlos_cl as nl
-from nlos_cl.localization.model import ModelEstimator, plate
-from nlos_cl.localization.model.fit import _Objective, fit
-from nlos_cl.localization.model.width_vectors import WidthVectors
+from nlos_cl.localization.model import ModelEstimator
+from nlos_cl.localization.model.shapes import plate
+from nlos_cl.localization.model.solve.fit import _Objective, fit
+from nlos_cl.localization.model.solve.width_vectors import WidthVectors
 
 ROWS = np.array([[4.0, 2.0, 0.0, 0.31, 1.55, -3.12], [2.5, 3.0, 0.2, 0.5, 0.8, 0.7]])
 
@@ -76,7 +77,7 @@ def valley():
 def test_a_fit_in_width_vectors_goes_down_the_valley_in_fewer_calls(valley):
     problem, start = valley
     free = np.array([True, True, False, True, True, True])
-    from nlos_cl.localization.model.warm import WARM_ATOL, WARM_TAU
+    from nlos_cl.localization.model.policy.warm import WARM_ATOL, WARM_TAU
     runs = {}
     for vectors in (False, True):
         calls = problem.calls

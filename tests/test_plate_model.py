@@ -12,8 +12,10 @@ import numpy as np
 import pytest
 
 import nlos_cl as nl
-from nlos_cl.localization.model import ModelEstimator, batch, plate
-from nlos_cl.localization.model.fit import fit
+from nlos_cl.localization.model import ModelEstimator
+from nlos_cl.localization.model.forward import batch
+from nlos_cl.localization.model.shapes import plate
+from nlos_cl.localization.model.solve.fit import fit
 
 from conftest import model_observation, paper_frame
 
@@ -92,7 +94,7 @@ def test_a_fit_on_the_kernel_lands_where_the_hosts_does(obs, runtime):
 
 def _counting(monkeypatch):
     """How many times the plates went to the kernel (plates_on_device.evaluate)."""
-    from nlos_cl.localization.model import plates_on_device
+    from nlos_cl.localization.model.forward import plates_on_device
     seen, evaluate = [], plates_on_device.evaluate
     monkeypatch.setattr(plates_on_device, "evaluate",
                         lambda *a: seen.append(1) or evaluate(*a))
@@ -131,7 +133,7 @@ def test_a_confocal_scans_plates_are_the_forward_ops(runtime):
     tessellates them on the host and deposits them with the forward operation (an
     independent implementation of the same model, paired). Measured 1.8e-6 of the peak;
     1e-4 as the host model's comparison above."""
-    from nlos_cl.localization.model import likelihood
+    from nlos_cl.localization.model.forward import likelihood
     obs = _confocal_observation(runtime)
     assert obs.laser.ndim == 2
     kern = batch.HostProblem(obs, backend=runtime, kernel=True)
@@ -159,7 +161,7 @@ def test_a_wide_confocal_scans_shift_is_spread_as_the_forward_ops(runtime):
     least squares) on the same observation's geometry. The columns do not depend on the
     data, so the observation's spots are replaced; 1e-4 as above."""
     from dataclasses import replace
-    from nlos_cl.localization.model import likelihood
+    from nlos_cl.localization.model.forward import likelihood
     conf = _confocal_observation(runtime)
     spots = np.array([(x, 0.0, z) for x in np.linspace(-0.7, 0.7, 8)
                       for z in np.linspace(-0.4, 0.4, 6)])

@@ -129,13 +129,10 @@ def test_on_measured_frames_the_two_passes_give_the_whole_maps_moments(tmp_path)
     1 cm of the whole map's at full resolution (measured 0.04-5.9 mm; the box pass, where it
     runs, leaves out the mass beyond 5 sds)."""
     from test_datasets_sequences import converted
-    from nlos_cl.apps.cli import parser
-    from nlos_cl.apps.track import make_tracker
     seq = converted(tmp_path)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        grid = make_tracker(parser().parse_args(["track", str(tmp_path / "walk.h5")]), seq,
-                            None).grid
+        grid = nl.track_sequence(seq).tracker.grid
     for frame in seq:
         sig = nl.gauss_filter(frame.histograms)
         mean = nl.locate(sig, grid, estimator="mean", log_mode=True)

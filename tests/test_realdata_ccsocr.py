@@ -80,7 +80,7 @@ def test_the_full_scan_as_one_laser_is_decided_on_a_spread_subset(full, monkeypa
     every detector (stop 48: over 7 minutes; now ~10 s on the 2-core machine, not asserted)."""
     from nlos_cl.apps.reproduce.real_runs import reciprocal
     from nlos_cl.core.tuning import CHOICE_DETECTORS
-    from nlos_cl.localization.model import subset
+    from nlos_cl.localization.model.policy import subset
     fitted_on = []
     cold_fit = subset.cold_fit
 

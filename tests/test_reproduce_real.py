@@ -1,6 +1,6 @@
-"""`nlos-cl reproduce real` (docs/real-data.md): a --quick run through the CLI on the measured
-datasets (../shared/realdata; skipped where absent), its tables and page; real.yaml's quick
-merge; the data folder's one-line error. The numbers' own checks are the realdata tests'
+"""`nlos-cl reproduce real` (docs/results/real-data/real-data.md): a --quick run through the CLI on
+the measured datasets (../shared/realdata; skipped where absent), its tables and page; real.yaml's
+quick merge; the data folder's one-line error. The numbers' own checks are the realdata tests'
 (test_realdata_*.py); here: the run reports what it measured, in the page and the CSVs."""
 import csv
 import os

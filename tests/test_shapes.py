@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import nlos_cl as nl
-from nlos_cl.localization.model import plate
-from nlos_cl.localization.model.shape import MEMBERS, MODELS, SHAPES, name_of
+from nlos_cl.localization.model.shapes import plate
+from nlos_cl.localization.model.shapes.shape import MEMBERS, MODELS, SHAPES, name_of
 
 
 @pytest.mark.parametrize("name", sorted(SHAPES))

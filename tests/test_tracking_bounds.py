@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from nlos_cl.core.errors import InputError
-from nlos_cl.localization.model.lm import least_squares
+from nlos_cl.localization.model.solve.lm import least_squares
 from nlos_cl.tracking.bounds import causal_bound, circle, line
 
 T = np.arange(50) * 0.1

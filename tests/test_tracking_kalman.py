@@ -126,13 +126,13 @@ def test_bad_options():
 def _hidden(p, sd_m, hidden_sd_m):
     """A model fit's target: covariance sd_m, and a hidden part worth hidden_sd_m."""
     from types import SimpleNamespace
-    fit = SimpleNamespace(diagnostics={"hidden_sd_m": hidden_sd_m}, birge_ratio=1.0, shape="box")
+    fit = SimpleNamespace(hidden_sd_m=hidden_sd_m, birge_ratio=1.0, shape="box")
     return LocatedTarget(np.asarray(p, float), np.diag([sd_m ** 2] * 3), details={"fit": 1},
                          fit=fit)
 
 
 def test_a_partly_hidden_plate_weighs_what_its_hidden_part_leaves():
-    """R gains the fit's hidden_sd_m^2 (model.warm.hidden_diagnostics): a plate fitted over its
+    """R gains the fit's hidden_sd_m^2 (ModelFit.hidden_sd_m): a plate fitted over its
     lit part, with a fitted sd of 3 mm but a centre that drifts along its hidden part, does not
     drag the track; the same drift with no hidden part is followed (the filter believes it)."""
     m = measurement(_hidden([3, 2, 0], 0.003, 0.1), 3, fallback_sigma_m=0.05, min_sigma_m=0.002)

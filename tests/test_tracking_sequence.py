@@ -174,7 +174,7 @@ def test_track_command_prints_fixed_lag_lines(walk_file, capsys):
     assert [e["lag_frames"] for e in lagged] == [3] * 9 + [2, 1, 0]
     # the API: the same tracker settings as the command's defaults
     seq = read_sequence(walk_file)
-    tracker = track.make_tracker(args, seq, nl.resolve_backend(None))
+    tracker = nl.track_sequence(seq).tracker
     expected = {}
     for fr in seq:
         tracker.update(fr.histograms, fr.t_s)

@@ -1,4 +1,4 @@
-"""Warm-started model fits (nlos_cl.localization.model.warm, nlos_cl.tracking.warm): the host model that
+"""Warm-started model fits (nlos_cl.localization.model.policy.warm, nlos_cl.tracking.warm): the host model that
 runs them against the forward operation, a warm estimate against the cold one on the same
 frame, and both fallbacks (the estimator's misfit test, the tracker's gate). No timings."""
 import warnings
@@ -10,8 +10,8 @@ import nlos_cl as nl
 from nlos_cl.localization.estimate import Prior, Scored
 from nlos_cl.localization.fit_result import ModelFit, Parameter, WarmStart
 from nlos_cl.localization.model import ModelEstimator
-from nlos_cl.localization.model.batch import CHUNK_ROWS, HostProblem
-from nlos_cl.localization.model.likelihood import Problem
+from nlos_cl.localization.model.forward.batch import CHUNK_ROWS, HostProblem
+from nlos_cl.localization.model.forward.likelihood import Problem
 from nlos_cl.tracking import Tracker, kalman, warm
 
 from conftest import paper_frame
@@ -76,8 +76,8 @@ def test_jacobian_plates_borrow_the_base_plate_statistics(scored, cold, monkeypa
     statistics by that much, what the exact derivative adds). Finite differences throughout
     (the covariance's analytic derivatives freeze the statistics too:
     tests/test_model_derivatives.py)."""
-    from nlos_cl.localization.model import fit as model_fit
-    from nlos_cl.localization.model.covariance import covariance
+    from nlos_cl.localization.model.solve import fit as model_fit
+    from nlos_cl.localization.model.solve.covariance import covariance
     monkeypatch.setattr(model_fit, "ANALYTIC", False)
     est = ModelEstimator()
     obs = est.observation(scored)
@@ -190,8 +190,8 @@ def test_gate_fallback_sees_a_warm_fit_outside_every_gate():
 def test_a_plate_the_data_want_none_of_has_no_information(scored, cold):
     """A second plate held at amplitude 0 (the non-negative bound) has zero derivatives; its
     parameters are unknown, so their variance is infinite, not the 0 a pseudo-inverse gives."""
-    from nlos_cl.localization.model.covariance import covariance
-    from nlos_cl.localization.model.fit import FitResult
+    from nlos_cl.localization.model.solve.covariance import covariance
+    from nlos_cl.localization.model.solve.fit import FitResult
     est = ModelEstimator()
     obs = est.observation(scored)
     host = HostProblem(obs, est.lattice_for(obs))
@@ -211,12 +211,14 @@ def test_a_misfit_warm_fit_is_kept_where_the_cold_fit_costs_more(monkeypatch):
     """estimator._warm_or_cold: the warm fit misses the data, the cold fit runs, and the one of
     lower cost is the answer (with the cold fit's work counted and the reason said)."""
     from types import SimpleNamespace as NS
-    from nlos_cl.localization.model import estimator, warm
+    from nlos_cl.localization.model import estimator
+    from nlos_cl.localization.model.policy import warm
+    from nlos_cl.localization.model.solve.records import Chosen, Fitted
     est = ModelEstimator()
     row = np.array([4.0, 2.0, 0.0, 0.3, 1.6, np.pi])
 
     def fitted(cost, calls):
-        return (NS(calls=calls, model_s=0.1), None, NS(cost=cost), None, None, [])
+        return Fitted(NS(calls=calls, model_s=0.1), Chosen(None, NS(cost=cost), None, None), [])
     info = {"used": False, "birge_ratio": 9.0, "nfev": 5, "forward_calls": 7, "moved_m": 0.01,
             "reason": "the warm fit misses the data"}
     for cold_cost, keep_warm in ((50.0, True), (5.0, False)):
@@ -228,9 +230,9 @@ def test_a_misfit_warm_fit_is_kept_where_the_cold_fit_costs_more(monkeypatch):
         assert (got is missed) == keep_warm
         if keep_warm:
             assert got_info["used"] and "the cold fit cost more" in got_info["reason"]
-            assert got[0].calls == 107  # the cold fit's 100 evaluations counted
+            assert got.problem.calls == 107  # the cold fit's 100 evaluations counted
         else:
-            assert not got_info["used"] and got[2].cost == 5.0
+            assert not got_info["used"] and got.result.cost == 5.0
     seen = []  # the Prior's sizes reach the warm fit (model.warm.size_prior), checked
     monkeypatch.setattr(warm, "warm_fit", lambda *a, **k: seen.append(a) or
                         (None, dict(info), fitted(10.0, 7)))
@@ -241,7 +243,7 @@ def test_a_misfit_warm_fit_is_kept_where_the_cold_fit_costs_more(monkeypatch):
 
 
 def test_a_track_learns_its_size_only_where_the_fit_saw_the_plate_whole():
-    """warm.remember: a fit with hidden_share <= model.warm.HIDDEN_SHARE adds its size, a
+    """warm.remember: a fit with hidden_share <= tuning.HIDDEN_SHARE adds its size, a
     partly hidden one (which fits small) does not, but a track's first plate seeds the memory
     (a target never seen whole keeps the size it was found with); warm.prior carries the mean
     size and its sd (5 % of it beside the sizes' own scatter), inf where no size is known."""

@@ -162,8 +162,11 @@ def _targets(text):
                    maximum=MAX_TARGETS)(text)
 
 
+ESTIMATOR_CHOICES = _LazyChoices([], "..localization.estimators", "ESTIMATORS")  # the registry
+
+
 def _estimator_args(p):
-    p.add_argument("--estimator", choices=["model", "paper", "mean"], default=None,
+    p.add_argument("--estimator", choices=ESTIMATOR_CHOICES, metavar="NAME", default=None,
                    help="model: fit a plate's centre, size and yaw with the forward model, with "
                    "a covariance (docs/model-estimator.md); paper: the paper's argmax; mean: "
                    "the mean and covariance of the paper's likelihood "
@@ -184,7 +187,7 @@ def _reflectance_arg(p):
 def _track_args(p):
     p.add_argument("file", help="a sequence (or capture) .h5 file: docs/tracking.md")
     p.add_argument("--video", default=None, help="write an animation (.gif, or .mp4 with ffmpeg)")
-    p.add_argument("--estimator", choices=["paper", "mean", "model"], default=None,
+    p.add_argument("--estimator", choices=ESTIMATOR_CHOICES, metavar="NAME", default=None,
                    help="per-frame estimator (model: centre and covariance, warm-started from "
                    "the tracks; paper: the argmax, faster; mean: the mean and covariance of "
                    "the paper's likelihood; default: model, paper for paired "

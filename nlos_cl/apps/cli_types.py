@@ -88,3 +88,9 @@ def reflectance(text: str):
             f"reflectance: {text!r}: {problem}. Fix: pass e.g. "
             "retroreflective:retro=0.7,width_rad=0.005,diffuse=0.2 or "
             "ggx:specular=0.5,roughness=0.3") from None
+
+
+# How the library's errors name its options on the command line (its `names=` arguments).
+OPTION_FLAGS = {"region": "--region", "step_m": "--step", "estimator": "--estimator",
+                "targets": "--targets", "reflectance": "--reflectance", "accel": "--accel",
+                "steady_accel": "--steady-accel", "motion": "--motion"}

@@ -63,7 +63,8 @@ def arguments(p):
                    "sequences)")
     p.add_argument("--out", required=True, help="the y-tal .h5 capture (or sequence) to write "
                    "(atomically)")
-    p.add_argument("--format", choices=["ccsocr", "consumer-nlos", "fk", "fk-interactive", "keyhole", "lct"], default=None,
+    from ..io.datasets import FORMATS  # the readers' registry (a dict: no reader imported)
+    p.add_argument("--format", choices=sorted(FORMATS), default=None,
                    help="the dataset's format (default: detected)")
     p.add_argument("--force", action="store_true", help="replace a file that is not a capture")
     p.add_argument("--dt-ps", type=_number("dt_ps", "pass picoseconds, e.g. 16", positive=True),

@@ -165,15 +165,14 @@ NO_TARGET_STATUS = 3  # `nlos-cl locate`: no laser point held target signal
 
 
 def _estimator(args):
-    """--estimator, or with --reflectance the model fit that knows it."""
+    """--estimator, or with --reflectance the model fit that knows it (estimators'
+    choose_estimator; without one, locate_capture applies the same policy per laser point)."""
     if args.reflectance is None:
         return args.estimator
-    from ..core.errors import require
-    from ..localization.model import ModelEstimator
-    require(args.estimator in (None, "model"), "--reflectance", "is for the model fit; the "
-            "paper's likelihood has no reflectance", f"leave out --estimator {args.estimator}, "
-            "or --reflectance")
-    return ModelEstimator(targets=args.targets, reflectance=args.reflectance)
+    from ..localization.estimators import choose_estimator
+    from .cli_types import OPTION_FLAGS
+    return choose_estimator(args.estimator, targets=args.targets, reflectance=args.reflectance,
+                            names=OPTION_FLAGS)[0]
 
 
 def locate(args) -> int:

@@ -9,6 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.constants import TINY
+
 DETECTOR_NAMES = "ABCDEFGHIJKLMNOPQRSTUVWXYZ"
 
 
@@ -78,7 +80,7 @@ def demo_figure(raw, filtered, location, path_png):
     for d in range(n_det):
         _demo_signal_panel(fig.add_subplot(grid_spec[0, d]), raw, filtered, path, d)
     x, y, _ = location.grid.axes()
-    score = location.score_map[0] / max(location.score_map.max(), 1e-300)
+    score = location.score_map[0] / max(location.score_map.max(), TINY)
     centre = location.truth if location.truth is not None else location.position
     views = ((grid_spec[1, :-1], (x[0], x[-1], y[0], y[-1]), "joint probability, plane z = 0"),
              (grid_spec[1, -1], (centre[0] - 0.3, centre[0] + 0.3, centre[1] - 0.3,

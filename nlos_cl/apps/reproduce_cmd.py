@@ -1,7 +1,8 @@
 """`nlos-cl reproduce` on the command line. `reproduce all` (the paper's experiments) writes
 paper-results.md; `reproduce beyond` writes beyond-the-paper.md (OUT/ unless --doc);
 `reproduce tracking --doc docs/tracking.md` fills that page's tables; `reproduce real --doc
-docs/real-data.md` writes that page (figures in docs/real/; OUT/real-data.md always)."""
+docs/results/real-data/real-data.md` writes that page (figures in docs/results/real-data/real/;
+OUT/real-data.md always)."""
 from __future__ import annotations
 
 import json

@@ -1,5 +1,6 @@
 """`nlos-cl track SEQUENCE.h5 [--json] [--video out.gif|mp4]`: follow hidden targets through a
-sequence file (nlos_cl/tracking/sequence.py; a plain y-tal capture is one frame).
+sequence file (a plain y-tal capture is one frame), with the library's track_sequence
+(nlos_cl/tracking/sequences.py).
 
 Frames are read one at a time; each goes through (background removal) -> Gauss filter ->
 locate -> Kalman tracker (nlos_cl.tracking.Tracker). Positions, velocities and covariances are
@@ -22,96 +23,29 @@ options that place targets refused with a one-line reason.
 """
 from __future__ import annotations
 
-import copy
 import json
 import sys
 
-import numpy as np
 
-from ..core.stats import unique_sorted
-
-
-PAIRED_TRACK_DEFAULT = {
-    "mean": "paired and confocal captures are tracked with the mean and covariance of the "
-            "paper's likelihood by default (the model fit is checked on simulations only); "
-            "pass --estimator model to fit",
-    "paper": "paired and confocal captures are tracked with the paper's argmax by default "
-             "with several targets (the model fit is checked on simulations only); pass "
-             "--estimator model to fit"}
-
-
-def make_tracker(args, seq, backend):
-    """A Tracker on the search region `nlos-cl locate` would use for the first frame."""
-    from ..io.ytal.capture import read_capture
-    from ..localization.capture import search_region
-    from ..tracking import BackgroundRemover, Tracker
-    h_s = args.h_ns * 1e-9
+def tracker_options(args, backend) -> dict:
+    """The command's options as nlos_cl.tracking.sequences.tracker_for takes them (errors
+    name the flags)."""
+    from .cli_types import OPTION_FLAGS
     region = None if args.region is None else list(zip(args.region[::2], args.region[1::2]))
-    grid, _ = search_region(seq[0].histograms, seq.frame, region, args.step, h_s,
-                            names=("--region", "--step"), reach_from=_sampled(seq))
-    background = None
-    if args.background:
-        background = BackgroundRemover(read_capture(args.background)[0], backend=backend)
-    elif args.running_mean is not None:
-        background = BackgroundRemover(alpha=args.running_mean, backend=backend)
-    estimator = _estimator(args, seq[0].histograms)
-    interval = 1.0 / seq.fps if seq.fps else 0.1
-    sigma = 0.05  # the Tracker's default; the paper's argmax: measured on the first frames
-    if estimator == "paper" and background is None:
-        from ..tracking.scatter import sequence_scatter
-        sigma = sequence_scatter(seq, grid, h_s=h_s, backend=backend)
-    return Tracker(seq, grid, estimator=estimator, h_s=h_s, background=background,
-                   motion=motion_model(args), max_tracks=args.targets,
-                   frame_interval_s=interval, backend=backend, fallback_sigma_m=sigma,
-                   gated_search=not args.full_search)
+    return dict(estimator=args.estimator, targets=args.targets, reflectance=args.reflectance,
+                region=region, step_m=args.step, h_s=args.h_ns * 1e-9,
+                background=args.background or None, running_mean=args.running_mean,
+                motion=motion_model(args), full_search=args.full_search, backend=backend,
+                names=OPTION_FLAGS)
 
 
 def motion_model(args):
     """--motion: the IMM of a steady (--steady-accel) and a manoeuvring (--accel) mode, or one
     constant-velocity model (--accel)."""
-    from ..core.errors import require
-    from ..tracking import ConstantVelocity, Interacting
-    if args.motion == "cv":
-        return ConstantVelocity(accel_sigma=args.accel)
-    require(args.steady_accel < args.accel, "--steady-accel", f"must be below --accel "
-            f"({args.accel}), got {args.steady_accel}", "pass e.g. --steady-accel 0.05 "
-            "--accel 0.5, or --motion cv")
-    return Interacting(accel_sigmas=(args.steady_accel, args.accel))
-
-
-REACH_FRAMES = 32  # frames spread over the sequence whose signal bounds the search region
-
-
-def _sampled(seq) -> list:
-    """Up to REACH_FRAMES frames spread over the sequence: the region reaches as far as their
-    signal does (a target walking away later than frame 0 stays inside)."""
-    n = len(seq)
-    return [seq[int(i)].histograms for i in unique_sorted(np.linspace(0, n - 1, min(n, REACH_FRAMES)
-                                                                  ).astype(int))]
-
-
-def _estimator(args, first):
-    """--estimator, or by default the model fit (warm-started from the tracks: 0.010 m RMS on a
-    straight walk where the paper's argmax has 0.072 m of bias, issue 22), except for paired
-    and confocal captures, which locate_capture locates with the paper's argmax: tracking one
-    target, the mean of the paper's likelihood and its covariance (localization.posterior: on
-    the consumer sensor's walk the track's median step 0.0254 -> 0.0182 m, the particle
-    filter's 0.0196, at the same median distance from it), several, the argmax."""
-    choice = args.estimator
-    if choice is None and first.paired and args.reflectance is None:
-        choice = "mean" if args.targets == 1 else "paper"
-        print(f"nlos-cl: warning: {PAIRED_TRACK_DEFAULT[choice]}", file=sys.stderr)
-    if choice in ("paper", "mean"):
-        from ..core.errors import require
-        require(choice != "mean" or args.targets == 1, "--estimator", "mean gives one position "
-                "a frame, the likelihood's mean over the region, which lies between two "
-                "targets", "pass --estimator paper or model with --targets above 1")
-        require(args.reflectance is None, "--reflectance", "is for the model fit; the paper's "
-                "likelihood has no reflectance", f"leave out --estimator {choice}, or "
-                "--reflectance")
-        return choice
-    from ..localization.model import ModelEstimator
-    return ModelEstimator(targets=args.targets, reflectance=args.reflectance)
+    from ..tracking.sequences import motion_for
+    from .cli_types import OPTION_FLAGS
+    return motion_for(args.motion, accel=args.accel, steady_accel=args.steady_accel,
+                      names=OPTION_FLAGS)
 
 
 def _entry(frame, tracks, measurements, cframe, smoothed=None, mark=None) -> dict:
@@ -149,19 +83,20 @@ def main(args) -> int:
     if args.video:
         from .track_video import check_video_path
         check_video_path(args)
-    tracker = make_tracker(args, seq, backend)
-    stop = len(seq) if args.max_frames is None else min(args.max_frames, len(seq))
-    kept = []
+    from ..tracking.sequences import track_sequence
+    run = track_sequence(seq, max_frames=args.max_frames, progress=not args.no_progress,
+                         **tracker_options(args, backend))
+    tracker, kept = run.tracker, []
     if args.video:
         from .track_video import Video
 
         def write(tmp):  # the whole run writes the temporary: moved in only when complete
             with Video(args.video, tmp, tracker) as video:
-                kept.extend(_loop(args, seq, tracker, stop, video))
+                kept.extend(_loop(args, run, video))
         # the same rule as check_video_path, applied again now that the video is complete
         atomic_write(args.video, write, force=args.force, what="--video", kind="a video")
     else:
-        kept = _loop(args, seq, tracker, stop, None)
+        kept = _loop(args, run, None)
     if kept:
         smoothed = {(tid, s.frame): s for tid, points in tracker.smooth().items()
                     for s in points}
@@ -214,41 +149,29 @@ def _range_main(args, seq, backend) -> int:
     return 0
 
 
-def _loop(args, seq, tracker, stop, video) -> list:
-    """Track frames 0..stop-1: JSON lines as they come (with --lag L, each frame's line L frames
+def _loop(args, run, video) -> list:
+    """Track the run's frames: JSON lines as they come (with --lag L, each frame's line L frames
     later; with --smooth, each frame's header, tracks and measurements kept for after the last:
     returned), a video frame each."""
     from collections import deque
-    from dataclasses import replace
-
-    from tqdm import tqdm
-    kept, lag = [], args.lag or 0
+    kept, lag, cframe = [], args.lag or 0, run.sequence.frame
     recent = deque(maxlen=lag + 1)  # --lag: the frames whose lines wait for later frames
-    bar = tqdm(total=stop, unit="frame", desc="track", file=sys.stderr,
-               disable=args.no_progress)
-    try:
-        for frame in seq.frames(0, stop):
-            tracks = tracker.update(frame.histograms, frame.t_s)
-            # small: the frame's header (no histograms), tracks and measurements
-            header = (replace(frame, histograms=None), [copy.copy(t) for t in tracks],
-                      tracker.last_measurements) if args.json else None
-            if args.json and args.smooth:
-                kept.append(header)
-            elif args.json and lag:
-                recent.append(header)
-                if len(recent) > lag:
-                    _print_lagged(recent[0], tracker.lagged(lag), lag, seq.frame)
-            elif args.json:
-                print(json.dumps(_entry(*header, seq.frame)), flush=True)
-            if video is not None:
-                video.add(frame, tracks, tracker.last_measurements)
-            bar.update(1)
-    finally:
-        bar.close()
+    for step in run:
+        header = (step.frame, step.tracks, step.measurements)
+        if args.json and args.smooth:
+            kept.append(header)
+        elif args.json and lag:
+            recent.append(header)
+            if len(recent) > lag:
+                _print_lagged(recent[0], run.tracker.lagged(lag), lag, cframe)
+        elif args.json:
+            print(json.dumps(_entry(*header, cframe)), flush=True)
+        if video is not None:
+            video.add(*header)
     waiting = list(recent)[1:] if len(recent) > lag else list(recent)
     for i, header in enumerate(waiting):  # the last frames: as many later frames as there are
         after = len(waiting) - 1 - i
-        _print_lagged(header, tracker.lagged(after), after, seq.frame)
+        _print_lagged(header, run.tracker.lagged(after), after, cframe)
     return kept
 
 

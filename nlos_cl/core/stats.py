@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 
+from .constants import TINY
 from .errors import require
 
 
@@ -121,9 +122,9 @@ def _lower_gamma_p(a: float, x: float) -> float:
         an = -i * (i - a)
         b += 2.0
         d = an * d + b
-        d = 1e-300 if abs(d) < 1e-300 else d
+        d = TINY if abs(d) < TINY else d
         c = b + an / c
-        c = 1e-300 if abs(c) < 1e-300 else c
+        c = TINY if abs(c) < TINY else c
         d = 1.0 / d
         delta = d * c
         h *= delta

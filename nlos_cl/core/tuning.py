@@ -46,7 +46,7 @@ CONSTANT_CACHE = 64
 # search and backend): a stream of frames through nl.locate builds its plan once.
 PLAN_CACHE = 8
 
-# A model fit is checked before it is reported (localization/model/sanity.py) and replaced by
+# A model fit is checked before it is reported (localization/model/policy/sanity.py) and replaced by
 # the paper's argmax, with a warning, where it claims a target larger than MAX_EXTENT_M in any
 # dimension (the people, boxes, plates and vehicles' sides nlos_cl is for; held-out draws
 # fitted a 0.7 m square as a 2.1 x 3.0 m box, 0.56 m off), or where a detector's ellipse path
@@ -70,3 +70,8 @@ ARGMAX_MARGIN_M = 0.15
 def auto_log_mode(n_detectors: int) -> bool:
     """The default scoring mode for this many detectors (LOG_MODE_ABOVE_DETECTORS)."""
     return int(n_detectors) > LOG_MODE_ABOVE_DETECTORS
+
+# A plate counts as partly hidden where the other plates block more than this share of its
+# paths (localization.model.forward.shadow.hidden_shares): its size is then held by the warm
+# fit's prior, and a tracker does not learn its size from that frame (tracking.warm.remember).
+HIDDEN_SHARE = 0.05

@@ -4,7 +4,8 @@ a program instead of asking the compiler for it.
 Why: pyopencl leaves caching to the OpenCL implementation where it has its own cache (PoCL,
 NVIDIA), but PoCL's cache still runs clang's preprocessor on every build to find its entry:
 ~20 ms a program even for a one-line kernel, ~90 ms of a one-shot `nlos-cl locate` for its
-four programs. Loading the binary PoCL gave us costs 2-10 ms (docs/performance.md, one-shot).
+four programs. Loading the binary PoCL gave us costs 2-10 ms
+(docs/results/performance/performance.md, one-shot).
 
 A binary is keyed by everything that shapes it: the source text (includes already inlined),
 the build options and the device, platform and driver versions. A binary the implementation

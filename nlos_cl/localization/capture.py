@@ -26,6 +26,7 @@ from ..core.tuning import SEARCH_DETECTORS, auto_log_mode
 from ..io.ytal.frames import INTERNAL, CaptureFrame
 from .api import gauss_filter, locate
 from .estimate import Location, capabilities_of
+from .estimators import choose_estimator
 from .paper import PaperArgmax
 from .region import default_region, on_region_edge, region_step, zoom_region
 
@@ -237,23 +238,6 @@ def _calibrated(sets, calibration):
 # The model fit locates paired and confocal layouts on nlos_cl's simulations (0.8 mm, tests/
 # test_paired.py) but misses the measured ones it has met (CC-SOCR: plate Birge ratio 370-500,
 # depth 1.34 m on 6 points, 7-37 s): by default such captures get the paper's argmax.
-PAIRED_DEFAULT = ("paired and confocal captures are located with the paper's argmax by default "
-                  "(the model fit is checked on simulations only); pass estimator='model' to fit")
-
-
-def _estimator(estimator, targets):
-    """'model' with `targets` plates (the CLI's --targets), 'paper', an estimator object, or
-    None (the default: 'model'; the paper's argmax for paired captures, _locate_point): one
-    object for every laser point, checked before any work."""
-    if estimator is None:
-        estimator = "model"
-    if not (isinstance(estimator, str) and estimator == "model"):
-        from .estimators import as_estimator
-        return as_estimator(estimator)
-    from .model import ModelEstimator
-    return ModelEstimator(targets=targets)
-
-
 def _locate_point(i, hist, frame, region, derived, *, h_s, estimator, log_mode, return_map,
                   backend, names, notes=(), processing=None) -> PointLocation:
     """The paper's argmax on the region (refined on a fine zoom where the derived region had to
@@ -312,7 +296,7 @@ def locate_capture(capture, *, region=None, step_m: float | None = None,
     in, default ours). region: None (derived from the capture), three (low, high) ranges along
     the file's axes at step_m, or a Grid of ours. estimator: 'model' (with `targets` plates, or
     'auto'), 'paper', an estimator object, or None: 'model', and the paper's argmax for paired
-    and confocal captures (PAIRED_DEFAULT says why, in the point's warnings). log_mode: None = auto_log_mode(detectors).
+    and confocal captures (estimators.PAIRED_LOCATE_NOTE says why, in the point's warnings). log_mode: None = auto_log_mode(detectors).
     background: a target-free capture (path or sets) subtracted first, bins below 0 handled by
     `negatives`; calibration: a CSV of (path m, peak time s) pairs (Eq. 26), a PathCalibration
     or a CalibrationFit. return_map: keep each final grid's score map (location.score_map).
@@ -328,8 +312,7 @@ def locate_capture(capture, *, region=None, step_m: float | None = None,
             f"the filter window must be a positive time in seconds, got {h_s!r}",
             "pass e.g. 0.65e-9 (the paper's h)")
     from ..ops.backend import resolve_backend
-    est = _estimator(estimator, targets)
-    by_default = estimator is None
+    est, _ = choose_estimator(estimator, targets=targets)  # checked before any work
     sets, frame, source = _sets(capture, frame)
     sets, reports, h_s = measured_processing(
         sets, background, negatives=negatives, pulses=pulses, h_s=h_s,
@@ -339,12 +322,11 @@ def locate_capture(capture, *, region=None, step_m: float | None = None,
     points = []
     for i, hist in enumerate(sets):
         grid, derived = search_region(hist, frame, region, step_m, h_s, names=names)
-        paired_default = by_default and hist.paired
+        point_est, note = (choose_estimator(None, targets=targets, paired=True)
+                           if estimator is None and hist.paired else (est, None))
         points.append(_locate_point(i, hist, frame, grid, derived, h_s=h_s,
-                                    estimator=PaperArgmax() if paired_default else est,
-                                    log_mode=log_mode, return_map=bool(return_map),
-                                    backend=backend, names=names,
-                                    notes=[PAIRED_DEFAULT] if paired_default else [],
-                                    processing=reports[i]))
+                                    estimator=point_est, log_mode=log_mode,
+                                    return_map=bool(return_map), backend=backend, names=names,
+                                    notes=[note] if note else [], processing=reports[i]))
     return CaptureLocation(tuple(points), frame, source, getattr(backend, "name", str(backend)),
                            h_s, cal)

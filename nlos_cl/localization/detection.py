@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..core.constants import TINY
 from ..core.grid import Grid
 from ..core.stats import chi2_quantile, median
 
@@ -109,7 +110,7 @@ def detect(rows: np.ndarray, window: np.ndarray | None = None,
     union = n_window * 0.5 * _erfc(z / math.sqrt(2.0))
     rice = n_window / (2.0 * math.pi) * ratio * np.exp(-0.5 * np.minimum(z, 40.0) ** 2)
     p = np.where(exact, 0.0, np.minimum(union, rice + union / n_window))
-    p = np.clip(p, 1e-300, 1.0)[live]
+    p = np.clip(p, TINY, 1.0)[live]
     z = np.where(exact, np.inf, z)
     statistic = float(-2.0 * np.sum(np.log(p)))
     threshold = _threshold(false_alarm, 2 * max(int(p.size), 1))

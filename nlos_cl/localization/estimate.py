@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -55,7 +55,7 @@ class Location:
     targets: list = field(default_factory=list)  # every LocatedTarget, best first
     # localization.detection.Detection, where the Locator tested the frame for any target
     # signal; with `detected` False, `targets` is empty and `position` the argmax of noise
-    detection: object = None
+    detection: Any = None
 
     @classmethod
     def of(cls, estimate: Estimate, grid: Grid, truth, score_map, estimator: str,
@@ -112,13 +112,15 @@ class Capabilities:
     search gives it in one read); is_paper: its answer *is* the paper's estimate (the Locator
     returns the fused search's estimate without calling it); needs_raw: it fits the unfiltered
     histograms (`Scored.raw`); paired: it locates layouts whose histograms each have their own
-    laser spot (confocal and paired captures)."""
+    laser spot (confocal and paired captures); warm_start: it starts from a `Prior` (the
+    tracks' predicted targets, `estimate(scored, prior)`), so a Tracker warm-starts it."""
 
     local: bool = False
     from_paper: bool = False
     is_paper: bool = False
     needs_raw: bool = False
     paired: bool = False
+    warm_start: bool = False
 
 
 NO_CAPABILITIES = Capabilities()  # an estimator that declares none: it gets the whole map
@@ -136,7 +138,7 @@ class Prior:
     width and height as known from elsewhere (e.g. the frames where nothing hid it) and their
     sd (inf: not known): the model estimator's warm fit starts a plate the others partly hide
     at that size and holds it there within size_sd, since there the data cannot tell a partly
-    hidden plate from a smaller one (nlos_cl.localization.model.warm.size_prior); its cold
+    hidden plate from a smaller one (nlos_cl.localization.model.policy.warm.size_prior); its cold
     fallback ignores them."""
 
     rows: np.ndarray
@@ -146,7 +148,9 @@ class Prior:
 
 class Estimator(Protocol):
     name: str
-    capabilities: Capabilities
+
+    @property
+    def capabilities(self) -> Capabilities: ...
 
     def estimate(self, scored: Scored, prior: Prior | None = None) -> Estimate: ...
 

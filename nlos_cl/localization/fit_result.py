@@ -7,8 +7,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
+
+# The per-target diagnostics other layers read, through ModelFit.hidden_share / hidden_sd_m.
+HIDDEN_SHARE_KEY = "hidden_share"  # the share of its paths the other targets block
+HIDDEN_SD_KEY = "hidden_sd_m"  # how far the hidden part could move the centre (m)
 
 
 @dataclass(frozen=True)
@@ -61,6 +66,19 @@ class ModelFit:
     warm_start: WarmStart | None = None
     diagnostics: dict = field(default_factory=dict)
 
+    @property
+    def hidden_share(self) -> float | None:
+        """The share of this target's paths the other targets block (0.0 alone; None where
+        unknown: several plates fitted without shadows); the tracker learns sizes only below
+        tuning.HIDDEN_SHARE."""
+        return self.diagnostics.get(HIDDEN_SHARE_KEY)
+
+    @property
+    def hidden_sd_m(self) -> float | None:
+        """How far the hidden part could move the centre (m): the share x half the larger side;
+        the tracker adds it to the measurement's noise. Not in the covariance (the data's)."""
+        return self.diagnostics.get(HIDDEN_SD_KEY)
+
     def values(self) -> np.ndarray:
         """The parameters' values in the shape's order (a warm start's row)."""
         return np.array([p.value for p in self.parameters], dtype=np.float64)
@@ -74,7 +92,7 @@ class ModelFit:
 
     def as_dict(self) -> dict:
         """The JSON view (the keys `LocatedTarget.details` has always had)."""
-        out = {"model": self.model, "params": {p.name: p.value for p in self.parameters},
+        out: dict[str, Any] = {"model": self.model, "params": {p.name: p.value for p in self.parameters},
                "normal": self.normal, "amplitude": self.amplitude,
                "likelihood": self.likelihood, "cost": self.cost,
                "n_residuals": self.n_residuals, "targets_tried": list(self.targets_tried),

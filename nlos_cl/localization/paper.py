@@ -4,10 +4,18 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..core.constants import TINY
 from ..core.grid import Grid
 from ..ops.argmax_patch import neighbourhood
-from .estimate import (Capabilities, Estimate, LocatedTarget, Prior, Scored, check_signal,
-                       parabolic_offsets)
+from .estimate import (
+    Capabilities,
+    Estimate,
+    LocatedTarget,
+    Prior,
+    Scored,
+    check_signal,
+    parabolic_offsets,
+)
 
 
 class PaperArgmax:
@@ -38,6 +46,6 @@ class PaperArgmax:
         searches return them (nlos_cl/ops/fused_search.py, argmax_patch.py): no launch."""
         check_signal(index is not None, best, log_mode, n_detectors)
         cell = np.array([o + s * i for o, s, i in zip(grid.origin, grid.step, index)])
-        logp = patch if log_mode else np.log(np.maximum(patch, 1e-300))
+        logp = patch if log_mode else np.log(np.maximum(patch, TINY))
         position = cell + parabolic_offsets(logp) * np.asarray(grid.step)
         return Estimate([LocatedTarget(position)], cell, best)

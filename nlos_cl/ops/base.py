@@ -9,13 +9,15 @@ from typing import Callable
 
 import numpy as np
 
+from ..core.constants import TINY
+
 SIZES = ("tiny", "check", "bench")  # oclgrind (every branch, tiny) | tests and self-check | bench
 
 
 def relative_error(a, b) -> float:
     """max |a - b| / max |b|: the error of a float32 kernel against its float64 twin."""
     a, b = np.asarray(a, np.float64), np.asarray(b, np.float64)
-    return float(np.abs(a - b).max() / max(np.abs(b).max(), 1e-300))
+    return float(np.abs(a - b).max() / max(np.abs(b).max(), TINY))
 
 
 @dataclass(frozen=True)
@@ -45,7 +47,7 @@ class Operation:
     numpy: Callable  # (*args) -> float64 result, the twin
     examples: Callable  # (size in SIZES) -> list[Example]
     tolerance_note: str  # why the examples' tolerances are what they are
-    bound: str = ""  # bench: what limits the kernel (see docs/performance.md)
+    bound: str = ""  # bench: what limits the kernel (see docs/results/performance/performance.md)
 
 
 def to_host(backend, result):

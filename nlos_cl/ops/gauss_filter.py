@@ -9,7 +9,8 @@ SciPy's oaconvolve on the host: only for CPU devices, whose buffers are host mem
 round trip is two memory copies), or None: "fft" on a CPU device from FFT_MIN_TAPS taps,
 "direct" otherwise. The crossover was measured on the 2-core CPU (PoCL 3.1): 131 taps direct
 1.1 ms vs FFT round trip 1.4 ms, 1,301 taps 13.7 ms vs 6.1 ms (3 x 60,000 bins). VkFFT
-(pyvkfft) would keep the FFT on the device: see docs/performance.md for why it is not used.
+(pyvkfft) would keep the FFT on the device: see docs/results/performance/performance.md for why it
+is not used.
 """
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """plate_model (kernels/plate_model.cl): the model fit's plates evaluated on the device, many per
-call: the host model of nlos_cl/localization/model/batch.py (HostProblem(kernel=True) calls
+call: the host model of nlos_cl/localization/model/forward/batch.py (HostProblem(kernel=True) calls
 this; tests/test_plate_model.py holds the two together), its float64 twin here written out
 plate by plate.
 
@@ -29,12 +29,13 @@ import math
 
 import numpy as np
 
+from ..core.constants import TINY
 from .base import Example, Operation
 from .pulse import REACH_SIGMAS
 
 WORK_GROUP = 64  # work items per plate (stats) and per (plate, detector) (histograms)
 SIGMA0 = 0.0655  # the examples' pulse (m of path): the paper's 70 ps pulse after its Gauss filter
-WIDTH, HEIGHT, YAW = 3, 4, 5  # a row's (x, y, z, width, height, yaw): localization.model.plate
+WIDTH, HEIGHT, YAW = 3, 4, 5  # a row's (x, y, z, width, height, yaw): localization.model.shapes.plate
 
 
 def local_bytes(cells: int) -> int:
@@ -51,7 +52,7 @@ def pad_bound(rows, lattice, sigma0sq, dpath, blur_share, gauss_2) -> int:
     nu, nv = lattice
     rows = np.atleast_2d(rows)
     offset2 = gauss_2 ** 2 * ((rows[:, WIDTH] / nu) ** 2 + (rows[:, HEIGHT] / nv) ** 2)
-    sigma = math.sqrt(max(sigma0sq + blur_share * 4.0 * float(np.max(offset2)), 1e-300))
+    sigma = math.sqrt(max(sigma0sq + blur_share * 4.0 * float(np.max(offset2)), TINY))
     return int(math.ceil(REACH_SIGMAS * sigma / float(np.min(dpath)))) + 1
 
 
@@ -93,16 +94,16 @@ def _statistics(row, lattice, stat_spots, stat_lasers, blur_share, gauss_2):
         centre_path = np.linalg.norm(centres - laser, axis=1) + \
             np.linalg.norm(spot - centres, axis=1)
         total = weight.sum(axis=0)
-        m = (weight * path).sum(axis=0) / np.maximum(total, 1e-300)
-        var.append((weight * (path - m) ** 2).sum(axis=0) / np.maximum(total, 1e-300))
+        m = (weight * path).sum(axis=0) / np.maximum(total, TINY)
+        var.append((weight * (path - m) ** 2).sum(axis=0) / np.maximum(total, TINY))
         mean.append(m - centre_path)
         wsum.append(total)
     mean, var, wsum = np.array(mean), np.array(var), np.array(wsum)  # (S, C)
-    var_c = (var * wsum).sum(axis=0) / np.maximum(wsum.sum(axis=0), 1e-300)
+    var_c = (var * wsum).sum(axis=0) / np.maximum(wsum.sum(axis=0), TINY)
     lit = wsum.sum(axis=0) > 0
     blur2 = blur_share * float(var_c[lit].mean()) if lit.any() else 0.0
-    keep = np.sqrt(np.clip(1.0 - blur2 / np.maximum(var_c, 1e-300), 0.0, 1.0))
-    shift = ((1.0 - keep ** 2) * mean * wsum).sum(axis=1) / np.maximum(wsum.sum(axis=1), 1e-300)
+    keep = np.sqrt(np.clip(1.0 - blur2 / np.maximum(var_c, TINY), 0.0, 1.0))
+    shift = ((1.0 - keep ** 2) * mean * wsum).sum(axis=1) / np.maximum(wsum.sum(axis=1), TINY)
     return keep, blur2, shift
 
 
@@ -116,7 +117,7 @@ def numpy(rows, stat_rows, stat_of, spots, laser, some, affine, edge0, dpath, si
           os_, lattice, blur_share, gauss_2):
     """The twin, written plate by plate and detector by detector: each point's pulse integrated
     over each bin exactly (erf differences), where the kernel (and the host model,
-    localization/model/batch.py) split it between two sub-bins first (the tolerance below)."""
+    localization/model/forward/batch.py) split it between two sub-bins first (the tolerance below)."""
     from ..core.erf import erf
     rows, stat_rows = (np.atleast_2d(np.asarray(r, np.float64)) for r in (rows, stat_rows))
     spots = np.asarray(spots, np.float64)
@@ -148,6 +149,7 @@ class Plan:
 
     def __init__(self, rt, spots, laser, some, affine, dpath, os_, lattice, blur_share, gauss_2):
         import pyopencl as cl
+
         from ..device.runtime import float4_rows
         self.rt, self.cl = rt, cl
         self.spots = np.asarray(spots, np.float64)

@@ -17,7 +17,7 @@ from typing import Protocol
 
 import numpy as np
 
-from ..core.constants import SPEED_OF_LIGHT
+from ..core.constants import DEFAULT_JITTER_S, SPEED_OF_LIGHT
 from ..core.errors import require
 from ..core.histograms import HistogramSet, TimeAxis
 
@@ -27,7 +27,7 @@ class NoiseModel(Protocol):
 
 
 def check_seed(seed) -> int:
-    require(isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) and seed >= 0,
+    require(bool(isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) and seed >= 0),
             "seed", f"must be a non-negative integer, got {seed!r}", "pass e.g. 0")
     return int(seed)
 
@@ -113,7 +113,7 @@ class PhotonCounter:
     efficiency: float = 0.8
     dark_count_rate_hz: float = 100.0
     ambient_rate_hz: float = 1e4
-    jitter_s: float = 30e-12
+    jitter_s: float = DEFAULT_JITTER_S
     tdc_bin_s: float = 50e-12
     wavelength_m: float = 1530e-9
 

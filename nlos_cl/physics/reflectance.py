@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
@@ -55,8 +56,29 @@ def _albedo(what: str, total: float, fix: str) -> None:
             "light than it receives", fix)
 
 
+class _LobeOverDiffuse:
+    """A lobe over a diffuse base (GGX, Retroreflective): the dataclass's field LOBE is the
+    lobe's albedo, KNOB = (field, upper bound) its shape (>= 1e-3); both albedos in [0, 1],
+    their sum an albedo. scale = (lobe + diffuse) / pi."""
+    LOBE: ClassVar[str]
+    KNOB: ClassVar[tuple[str, float]]
+    EXAMPLE: ClassVar[str]
+    diffuse: float
+
+    def __post_init__(self):
+        fix, lobe, (knob, high) = f"pass e.g. {self.EXAMPLE}", getattr(self, self.LOBE), self.KNOB
+        _number(f"reflectance.{self.LOBE}", lobe, 0.0, 1.0, fix)
+        _number("reflectance.diffuse", self.diffuse, 0.0, 1.0, fix)
+        _number(f"reflectance.{knob}", getattr(self, knob), 1e-3, high, fix)
+        _albedo(f"{self.LOBE} + diffuse", lobe + self.diffuse, fix)
+
+    @property
+    def scale(self) -> float:
+        return (getattr(self, self.LOBE) + self.diffuse) / math.pi
+
+
 @dataclass(frozen=True)
-class GGX:
+class GGX(_LobeOverDiffuse):
     """A glossy surface: a GGX (Trowbridge-Reitz) microfacet lobe over an optional diffuse
     base, f = diffuse / pi + specular D(h) G(l, v) / (4 cos_l cos_v), with
     D(h) = a^2 / (pi ((n.h)^2 (a^2 - 1) + 1)^2) and Smith's separable masking-shadowing
@@ -66,20 +88,11 @@ class GGX:
     roughconductor (distribution ggx, material none, specular_reflectance = `specular`)
     blended with a diffuse BSDF is the same function. scale = (diffuse + specular) / pi."""
 
+    LOBE, KNOB = "specular", ("roughness", 1.0)
+    EXAMPLE = "GGX(specular=0.5, roughness=0.3, diffuse=0.1)"
     specular: float = 0.5
     roughness: float = 0.3
     diffuse: float = 0.0
-
-    def __post_init__(self):
-        fix = "pass e.g. GGX(specular=0.5, roughness=0.3, diffuse=0.1)"
-        _number("reflectance.specular", self.specular, 0.0, 1.0, fix)
-        _number("reflectance.diffuse", self.diffuse, 0.0, 1.0, fix)
-        _number("reflectance.roughness", self.roughness, 1e-3, 1.0, fix)
-        _albedo("specular + diffuse", self.specular + self.diffuse, fix)
-
-    @property
-    def scale(self) -> float:
-        return (self.specular + self.diffuse) / math.pi
 
     def _weights(self):
         total = self.specular + self.diffuse
@@ -107,7 +120,7 @@ class GGX:
 
 
 @dataclass(frozen=True)
-class Retroreflective:
+class Retroreflective(_LobeOverDiffuse):
     """Retroreflective sheeting or tape (glass beads, prisms): a diffuse base plus a lobe
     around the retro direction, f = diffuse / pi + retro exp(-|l - v|^2 / (2 w^2)) / A(w),
     A(w) = 2 pi (lam - 1 + e^-lam) / lam^2, lam = 1 / w^2. l, v: unit directions from the
@@ -123,20 +136,11 @@ class Retroreflective:
     Default width 0.005 rad (0.3 deg): Greg Ward's glass-bead fit (Radiance lib/retrorefl.cal)
     falls to 1/4 of its peak at a 0.5 deg observation angle. scale = (diffuse + retro) / pi."""
 
+    LOBE, KNOB = "retro", ("width_rad", 1e3)
+    EXAMPLE = "Retroreflective(retro=0.7, width_rad=0.005, diffuse=0.2)"
     retro: float = 0.7
     width_rad: float = 0.005
     diffuse: float = 0.2
-
-    def __post_init__(self):
-        fix = "pass e.g. Retroreflective(retro=0.7, width_rad=0.005, diffuse=0.2)"
-        _number("reflectance.retro", self.retro, 0.0, 1.0, fix)
-        _number("reflectance.diffuse", self.diffuse, 0.0, 1.0, fix)
-        _number("reflectance.width_rad", self.width_rad, 1e-3, 1e3, fix)
-        _albedo("retro + diffuse", self.retro + self.diffuse, fix)
-
-    @property
-    def scale(self) -> float:
-        return (self.retro + self.diffuse) / math.pi
 
     def _weights(self):
         """(lam / 2, diffuse part, lobe peak), the last two over `scale`."""
@@ -158,7 +162,7 @@ class Retroreflective:
     def factor_of_cosine(self, cos_lv) -> np.ndarray:
         """f / scale from l.v alone, where both directions are above the surface (the model
         depends on nothing else): for float64 hosts that have l.v without (D, F, 3)
-        temporaries (localization/model/batch.py). 1 - l.v keeps ~1e-16 / (1 - l.v) relative
+        temporaries (localization/model/forward/batch.py). 1 - l.v keeps ~1e-16 / (1 - l.v) relative
         precision in float64, ample for lobes of width >= 1e-3 rad."""
         half_lam, kd, kl = self._weights()
         return kd + kl * np.exp(-2.0 * half_lam * (1.0 - np.asarray(cos_lv, np.float64)))

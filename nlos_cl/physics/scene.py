@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import trimesh
 
-from ..core.constants import FWHM_PER_SIGMA
+from ..core.constants import FWHM_PER_SIGMA, PAPER_PULSE_FWHM_S
 from ..core.errors import require
 from ..core.limits import MAX_SCENE_TARGETS, require_count
 from ..core.geometry import (Facets, as_point, coincident_pair,  # noqa: F401  (Facets: re-exported)
@@ -26,7 +26,7 @@ class Pulse:
     """A Gaussian laser pulse P0(t) = energy * N(t; peak_delay, sigma) (paper Eq. 9, 22, 23)."""
 
     energy_j: float = 0.75 / 80e6  # 750 mW at 80 MHz = 9.375e-9 J per pulse
-    fwhm_s: float = 70e-12
+    fwhm_s: float = PAPER_PULSE_FWHM_S
 
     def __post_init__(self):
         require(math.isfinite(self.energy_j) and self.energy_j > 0, "pulse.energy_j",
@@ -38,7 +38,7 @@ class Pulse:
 
     @classmethod
     def from_laser(cls, power_w: float = 0.75, rep_rate_hz: float = 80e6,
-                   fwhm_s: float = 70e-12) -> "Pulse":
+                   fwhm_s: float = PAPER_PULSE_FWHM_S) -> "Pulse":
         return cls(energy_j=power_w / rep_rate_hz, fwhm_s=fwhm_s)
 
     @property

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..core.constants import TINY
 from ..core.geometry import morton_order
 
 CLUSTER = 32  # triangles per bounding box in the NumPy caster
@@ -37,7 +38,7 @@ def moller_trumbore(origins, dirs, tri) -> np.ndarray:
     e1, e2 = tri[..., 1, :] - v0, tri[..., 2, :] - v0
     p = np.cross(dirs, e2)
     det = np.einsum("...k,...k->...", e1, p)
-    ok = np.abs(det) > 1e-300
+    ok = np.abs(det) > TINY
     inv = 1.0 / np.where(ok, det, 1.0)
     s = origins - v0
     u = np.einsum("...k,...k->...", s, p) * inv

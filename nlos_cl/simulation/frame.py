@@ -15,7 +15,7 @@ from ..core.histograms import Layout
 from ..core.paths import PathAxis, PathCalibration, TimeAxis, default_time_axis
 from ..ops.backend import resolve_backend
 from ..ops.signals import Signals, as_signals
-from ..physics.noise import AWGN
+from ..physics.noise import AWGN, NoiseModel
 
 
 def simulate(scene, time_axis: TimeAxis | None = None, *, backend=None) -> Signals:
@@ -46,7 +46,7 @@ def simulate(scene, time_axis: TimeAxis | None = None, *, backend=None) -> Signa
     paths = layout.path_axis()  # bin edges in hidden-path metres, through the exact calibration
     sigma_path = SPEED_OF_LIGHT * setup.pulse.sigma_s
     watts = 0.5 * setup.pulse.energy_j / axis.dt_s  # W per unit of kernel value and power scale
-    total, scale = None, None
+    total, scale = None, 1.0  # (scale: the first target's, set with total)
     for i, target in enumerate(scene.targets):  # third-order light: the targets' signals add
         hist, span = _target_signal(backend, scene, i, paths, sigma_path, axis.n_bins)
         field = "scene.target" if i == 0 else f"scene.more_targets[{i - 1}]"
@@ -108,7 +108,7 @@ def _check_window(axis: TimeAxis, paths: PathAxis, span, sigma_path):
                           f"[{t_first * 1e9:.3f}, {t_last * 1e9:.3f}] ns", stacklevel=3)
 
 
-def add_noise(signals, snr_db: float = 10.0, seed: int = 0, *, model=None,
+def add_noise(signals, snr_db: float = 10.0, seed: int = 0, *, model: NoiseModel | None = None,
               backend=None) -> Signals:
     """Noise from `model` (anything with apply(signals, seed): nlos_cl.AWGN, PhotonCounter);
     by default the paper's white Gaussian noise at `snr_db` below each histogram's power."""

@@ -37,6 +37,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..core.errors import InputError, require
+from ..localization.estimators import estimator_names
 from ..io.scenefile import read_yaml
 from ..io.yamlfile import is_number, whole_number
 from .values import MAX_AXIS_VALUES, axis_values, check_scale, scaled, seed_values  # noqa: F401
@@ -46,7 +47,6 @@ TOP = {"description", "scene", "axes", "estimators", "seeds", "h_s", "filter", "
 SPECIAL = {"estimator", "seed", "h_s", "filter"}  # not scene keys: the run's own settings
 RECORDS = ("position", "error", "covariance", "timings", "photons")
 FILTERS = ("gauss", "gauss_fit", "none")
-ESTIMATORS = ("paper", "model")
 RECORD_COLUMNS = {  # what each `record` entry adds to the table (runs.py fills them)
     "position": ("x_m", "y_m", "z_m", "truth_x_m", "truth_y_m", "truth_z_m"),
     "error": ("error_m",),
@@ -175,7 +175,7 @@ def _axis(where: str, spec) -> Axis:
     values = axis_values(where, spec)
     path = spec["path"]
     if path in ("estimator", "filter"):
-        allowed = ESTIMATORS if path == "estimator" else FILTERS
+        allowed = estimator_names() if path == "estimator" else FILTERS
         bad = [v for v in values if v not in allowed]
         require(not bad, f"{where}.values", f"unknown {path} {bad[:1]}", f"use {list(allowed)}")
     scale = spec.get("scale")
@@ -267,7 +267,7 @@ def load_scene_study(raw, base_dir: Path) -> Study:
     groups = [axis_group(i, spec) for i, spec in enumerate(axes)]
     estimators = raw.get("estimators", ["paper"])
     require(isinstance(estimators, list) and estimators, "estimators", f"expected a list, got "
-            f"{estimators!r}", f"write e.g. estimators: [paper] (of {list(ESTIMATORS)})")
+            f"{estimators!r}", f"write e.g. estimators: [paper] (of {estimator_names()})")
     groups.append((Axis("estimator", "estimator", tuple(estimators)),))
     _axis("estimators", {"path": "estimator", "values": list(groups[-1][0].values)})
     groups.append((Axis("seed", "seed", seed_values(raw.get("seeds", 1))),))

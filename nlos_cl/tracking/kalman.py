@@ -9,7 +9,7 @@ with collinear wall spots) are left out of the update: they are not measured. Wh
 estimator gives no covariance (the paper's argmax) R = fallback_sigma_m^2 I: 0.05 m per axis by
 default, the spread of the argmax's per-frame error at 10 dB on the paper's scene (mean error
 0.062 m ~ 1.25 sigma for a 2D Gaussian). A plate the others partly hide adds its
-`hidden_sd_m`^2 (the model estimator's diagnostics, nlos_cl.localization.model.warm) on the
+`hidden_sd_m`^2 (the model estimator's diagnostics, nlos_cl.localization.model.policy.warm) on the
 diagonal: fitted over its lit part, its centre is as uncertain as the hidden part is long, which
 the data's covariance cannot say (it stays a few mm), so such a frame weighs as little as it
 tells and the track follows its motion past the crossing instead of the gate shutting it out.
@@ -66,11 +66,7 @@ def measurement(target, d: int, *, fallback_sigma_m: float, min_sigma_m: float,
 def hidden_sd(target) -> float:
     """The model estimator's `hidden_sd_m` for this target (0 where it has none; the paper's
     argmax has no fit, and its tracker imports no model code)."""
-    diagnostics = getattr(getattr(target, "fit", None), "diagnostics", None)
-    if not diagnostics:
-        return 0.0
-    from ..localization.model.warm import HIDDEN_SD_KEY
-    value = diagnostics.get(HIDDEN_SD_KEY)
+    value = getattr(getattr(target, "fit", None), "hidden_sd_m", None)
     return float(value) if value is not None and math.isfinite(value) else 0.0
 
 

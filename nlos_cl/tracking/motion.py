@@ -24,8 +24,13 @@ from ..core.errors import require
 
 
 class MotionModel(Protocol):
-    dims: int | None  # 2, 3, or None (the tracker's grid decides)
-    initial_speed_sigma: float  # m/s: a new track's velocity uncertainty
+    @property
+    def dims(self) -> int | None:
+        """2, 3, or None (the tracker's grid decides)."""
+
+    @property
+    def initial_speed_sigma(self) -> float:
+        """m/s: a new track's velocity uncertainty."""
 
     def transition(self, dt: float, d: int) -> np.ndarray:
         """F (2d, 2d): the state after dt without noise."""

@@ -8,7 +8,7 @@ file instead of refusing it.
 Measurement noise: measured on the data as the tracker's argmax sigma is (tracking/scatter.py:
 1.4826 MAD of second differences / sqrt(6)), over every frame given, never below `floor_m`
 (the range one bin spans over sqrt(12), where the record's quantisation is the noise). On
-Keyhole's letters (docs/real-data.md) the range's error against the stage is systematic (where
+Keyhole's letters (docs/results/real-data/real-data.md) the range's error against the stage is systematic (where
 each letter's bright middle sits), not frame-to-frame noise (0.4-2.8 mm): filtering moves the
 RMS by < 0.1 mm.
 """

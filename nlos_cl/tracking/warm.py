@@ -3,7 +3,7 @@
 Where each of the K targets the estimator fits is followed by a confirmed track whose last
 measurement was a plate fit, the next frame's fit starts from those plates moved to the tracks'
 predicted positions (a localization.estimate.Prior, `Locator(..., prior=...)`, then
-`ModelEstimator.estimate(scored, prior)`, nlos_cl.localization.model.warm): only the final fit
+`ModelEstimator.estimate(scored, prior)`, nlos_cl.localization.model.policy.warm): only the final fit
 runs, ~30 model evaluations on the host instead of ~150 forward calls. Two fallbacks to the
 cold (full) fit: the estimator's own (the warm fit misses the data: Birge ratio above its
 99.9 % point), and the tracker's (a warm-fitted position outside every start track's gate: the
@@ -15,20 +15,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..localization.estimate import Prior
+from ..core.tuning import HIDDEN_SHARE
+from ..localization.estimate import Prior, capabilities_of
 from . import kalman
 
 
 def can_start(estimator) -> bool:
-    """Does the tracker warm-start this estimator? The model estimator with a fixed number of
-    targets (not 'auto') and plates allowed. K >= 2 targets start from K tracks' plates (the
-    two-target crossing, docs/tracking.md: identities kept in 10 of 10 seeds warm, 9 of 10
-    cold, at 0.19 s against 1.41 s a frame)."""
-    if getattr(estimator, "name", None) != "model":
-        return False  # (and the paper's tracker never imports nlos_cl.localization.model)
-    from ..localization.model import ModelEstimator
-    return isinstance(estimator, ModelEstimator) and isinstance(estimator.targets, int) \
-        and estimator.closed is not True
+    """Does the tracker warm-start this estimator? Where it says it can
+    (`Capabilities.warm_start`: the model estimator with a fixed number of targets)."""
+    return capabilities_of(estimator).warm_start
 
 
 def plate_of(measurement):
@@ -42,7 +37,7 @@ def plate_of(measurement):
 
 # A size prior's sd relative to the remembered size, beside the remembered sizes' own scatter:
 # a rigid target keeps its size; 5 % lets a plate model of a non-rigid one (a person turning)
-# follow. It acts only on a plate the others hide by more than model.warm.HIDDEN_SHARE at that
+# follow. It acts only on a plate the others hide by more than tuning.HIDDEN_SHARE at that
 # size (model.warm.size_prior). In the fit it weighs less than this sd says: the whitened chi^2
 # of correlated filtered samples counts the data's information ~kappa times (kappa ~7.5 at
 # three samples a filter sigma), so the prior acts like an sd ~sqrt(kappa) = 2.7x wider.
@@ -51,16 +46,15 @@ SIZE_REL_SD = 0.05
 
 def remember(track, measurement) -> None:
     """After pairing: the track's warm-start plate, and its size where the fit saw the plate
-    whole (hidden_share <= model.warm.HIDDEN_SHARE, taken at the remembered size where that is
+    whole (ModelFit.hidden_share <= tuning.HIDDEN_SHARE, taken at the remembered size where that is
     larger: a partly hidden plate fits smaller, model.warm.size_prior). A track's first plate
     seeds the memory whatever it hid (a target hidden from its first frame keeps the size it
     was found with, not the one it shrinks to frame by frame from warm starts: crossing draw
     34, 0.056 -> 0.019 m RMS); the first size seen whole replaces the seed."""
     track.plate = plate_of(measurement)
-    if track.plate is None:  # (the paper's tracker never imports the model package)
+    if track.plate is None:
         return
-    from ..localization.model.warm import HIDDEN_SHARE, HIDDEN_SHARE_KEY
-    hidden = measurement.source.fit.diagnostics.get(HIDDEN_SHARE_KEY)
+    hidden = measurement.source.fit.hidden_share
     size = track.plate[3:5].copy()
     if hidden is not None and hidden <= HIDDEN_SHARE:
         if track.size_seeded:

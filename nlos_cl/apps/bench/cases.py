@@ -111,9 +111,10 @@ def closed_shapes_row(rt, smoke):
     which model_on='auto' uses here: on such small problems launches and read-backs cost more
     than the arithmetic."""
     from ...localization.estimate import Scored
-    from ...localization.model import ModelEstimator, box, cylinder, ellipsoid
-    from ...localization.model.host_shapes import HostShapeProblem
-    from ...localization.model.likelihood import Problem
+    from ...localization.model import ModelEstimator
+    from ...localization.model.shapes import box, cylinder, ellipsoid
+    from ...localization.model.forward.host_shapes import HostShapeProblem
+    from ...localization.model.forward.likelihood import Problem
     from ...physics.scene import Scene, Target, paper_setup
     truth = (4.0, 2.0, 0.0)
     scene = Scene(paper_setup(), Target(nl.rectangle(0.3, 1.6, centre=truth)), truth=truth)
@@ -148,7 +149,7 @@ def closed_shapes_row(rt, smoke):
                "cylinder, 3 spots; device launches vs the host batch (the default here)",
                len(rows) * len(shapes), k, statistics.median(twin), max(build - k, 0.0),
                len(rows) * len(shapes) / k, "columns", math.nan, "-", math.nan, k_spread,
-               note="twin = model.host_shapes, what model_on='auto' runs for <= 64 spots")
+               note="twin = model.forward.host_shapes, what model_on='auto' runs for <= 64 spots")
 
 
 def spad_model_row(rt, smoke, model_on="auto"):

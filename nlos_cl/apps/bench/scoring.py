@@ -1,7 +1,8 @@
 """Scoring rows for `nlos-cl bench`: the `Locator` plan, coarse to fine, against exhaustive
 scoring of every cell and, where scripts/bench_peers.sh has run, y-tal's backprojection on the
-same signals and grid (docs/performance-peers.json). Each row says whether the argmax cells
-agree. nlos_cl's two searches are timed interleaved, in one run; y-tal in its own venv."""
+same signals and grid (docs/results/performance/performance-peers.json). Each row says whether
+the argmax cells agree. nlos_cl's two searches are timed interleaved, in one run; y-tal in its
+own venv."""
 from __future__ import annotations
 
 import json
@@ -12,11 +13,13 @@ from pathlib import Path
 
 import numpy as np
 
-PEERS_JSON = Path(__file__).resolve().parents[3] / "docs" / "performance-peers.json"
+PEERS_JSON = (Path(__file__).resolve().parents[3] / "docs" / "results" / "performance"
+              / "performance-peers.json")
 
 
 def read_peers() -> dict:
-    """{grid size: y-tal row} from docs/performance-peers.json, or {} where it is absent."""
+    """{grid size: y-tal row} from docs/results/performance/performance-peers.json, or {}
+    where it is absent."""
     try:
         rows = json.loads(PEERS_JSON.read_text())["rows"]
     except (OSError, ValueError, KeyError):

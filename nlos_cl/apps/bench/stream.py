@@ -174,7 +174,7 @@ CROSSING_DRAW = 1  # of `reproduce draws --only crossings` (master seed 2201): i
 
 
 def crossing_row(rt, smoke, Row):
-    """Two plates crossing on an 8-spot circle, tracked by make_tracker's tracker (the model
+    """Two plates crossing on an 8-spot circle, tracked by nl.track_sequence's tracker (the model
     estimator, targets=2, warm starts, the gated search): per-frame Tracker.update times after
     the first frame; smoke: the first 8 frames."""
     import tempfile

@@ -32,10 +32,10 @@ EXPERIMENTS = {"fig5": fig5.fig5, "fig6": fig6.fig6, "fig7a": sweeps.fig7a, "fig
                "table1": sweeps.table1, "fig8": fig8.fig8, "fig9": sweeps.fig9,
                "fig10": fig10.fig10}
 PAPER_EXPERIMENTS = tuple(EXPERIMENTS)  # what 'all' runs: the paper's experiments
-EXPERIMENTS["beyond"] = beyond.beyond  # its own report (docs/beyond-the-paper.md); not in 'all'
+EXPERIMENTS["beyond"] = beyond.beyond  # own report (docs/results/beyond/); not in 'all'
 EXPERIMENTS["tracking"] = tracking.tracking  # docs/tracking.md's tables; not in 'all'
-EXPERIMENTS["real"] = real.real  # the measured datasets (docs/real-data.md); not in 'all'
-EXPERIMENTS["draws"] = draws.draws  # random draws (docs/draws.md); not in 'all'
+EXPERIMENTS["real"] = real.real  # the measured datasets (docs/results/real-data/); not in 'all'
+EXPERIMENTS["draws"] = draws.draws  # random draws (docs/results/draws/draws.md); not in 'all'
 
 
 def run(name: str, s: Settings, out: Path, **options) -> list[Result]:

@@ -4,7 +4,7 @@ scenes the paper does not cover: its 5 x 5 grid, extended targets, other wall-sp
 the model's 95 % region holds the truth. The cases live in beyond.yaml (none in code); the
 sections below turn them into frames (a case, its seeds), which run as one study through the
 sweep engine (beyond_sweep; a frame is beyond_runs.run); the report
-(docs/beyond-the-paper.md) is written by beyond_report from this run's numbers only.
+(docs/results/beyond/beyond-the-paper.md) is written by beyond_report from this run's numbers only.
 
 Not part of `reproduce all` (which re-runs the paper and writes paper-results.md): run it on
 its own; `--quick` is the small CI setting (tests/test_reproduce_beyond.py)."""

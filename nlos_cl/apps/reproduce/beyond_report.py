@@ -1,5 +1,5 @@
-"""The report of `reproduce beyond` (docs/beyond-the-paper.md): per-case statistics of both
-estimators, the model's 95 % region coverage, issue 11's goals checked against this run, and
+"""The report of `reproduce beyond` (docs/results/beyond/beyond-the-paper.md): per-case statistics
+of both estimators, the model's 95 % region coverage, issue 11's goals checked against this run, and
 remarks computed from the numbers. Prose templates and goals are in beyond_text.yaml."""
 from __future__ import annotations
 
@@ -148,8 +148,8 @@ def _remarks(summary) -> list[str]:
 
 def write_beyond_report(result, s: Settings, path: Path, out: Path, wall_s: float,
                         force: bool = False) -> None:
-    """docs/beyond-the-paper.md, atomically; never over a page nlos_cl did not generate
-    unless `force` (nlos_cl.io.safe_write)."""
+    """docs/results/beyond/beyond-the-paper.md, atomically; never over a page nlos_cl did not
+    generate unless `force` (nlos_cl.io.safe_write)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     try:
         fig_dir = out.resolve().relative_to(path.parent.resolve())

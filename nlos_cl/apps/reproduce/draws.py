@@ -7,8 +7,8 @@ tracked as `nlos-cl track` tracks them (draws_cross_run). The tables and the iss
 from the rows alone (draws_report; draws_cross_report for crossings).
 
 Writes OUT/draws.csv (every row, by `reproduce.run`), OUT/draws-summary.csv and OUT/draws.md
-(with --doc, that page there instead: docs/draws.md). Not part of `reproduce all`; --quick
-draws draws.yaml's quick_draws per family, `draws=N` (the CLI's --draws) N per family.
+(with --doc, that page there instead: docs/results/draws/draws.md). Not part of `reproduce all`;
+--quick draws draws.yaml's quick_draws per family, `draws=N` (the CLI's --draws) N per family.
 
 Re-run one draw alone: `rerun("one", 17)` (the family and index of its row; master_seed
 defaults to draws.yaml's)."""
@@ -173,8 +173,8 @@ def page(rows, summ, cfg, s: Settings, options: str, seconds: float, seed: int) 
 
 
 def write_doc(result: Result, path: Path) -> None:
-    """The run's page at `path` (--doc: docs/draws.md), atomically and never through a link.
-    Whether the page may be replaced (nlos_cl's, or --force) was checked before the run
+    """The run's page at `path` (--doc: docs/results/draws/draws.md), atomically and never through a
+    link. Whether the page may be replaced (nlos_cl's, or --force) was checked before the run
     (reproduce_cmd._check_outputs), as for tracking's page."""
     from ...io.safe_write import write_text
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -1,7 +1,7 @@
 """One `crossings` draw of `reproduce draws`, run: its frames simulated with nlos_cl's forward
 model (simulate_sequence, AWGN at the draw's SNR) and written as a sequence file, then tracked
-as `nlos-cl track FILE --targets 2` tracks it: the CLI's own arguments and defaults
-(cli.parser) and its make_tracker, so the default estimator (the model fit, warm-started from
+as `nlos-cl track FILE --targets 2` tracks it: nl.track_sequence with every default but the
+targets, as the CLI builds it, so the default estimator (the model fit, warm-started from
 the tracks), its search region, sigma and motion noise. Nothing here tunes the tracker.
 
 Per draw one row (draws_cross_report reads it): from first_frame on, per target the track
@@ -10,7 +10,7 @@ distinct ids those were, the RMS of that track's 3-D (and x-y) distance, and wha
 where it did: births, tracks lost, frames where both targets' nearest track was the same one
 (a merged blob), frames with fewer than two measurements, ids taken over from the other
 target (swaps). frames/s counts Tracker.update alone, after the first frame (which builds the
-kernels and plans, timed apart as make_tracker is): not the simulation, not the file's reads."""
+kernels and plans, timed apart as building the tracker is): not the simulation, not the file's reads."""
 from __future__ import annotations
 
 import math
@@ -45,15 +45,13 @@ def write_frames(d: dict, path: Path) -> float:
 
 
 def track_file(path: Path, targets: int = 2) -> dict:
-    """`nlos-cl track PATH --targets N`'s tracker on the file, frame by frame: per frame
-    {id: position} of the live tracks, the measurement count and the truths; the times."""
-    from ..cli import parser
-    from ..track import make_tracker
+    """`nlos-cl track PATH --targets N`'s tracker (nl.track_sequence's) on the file, frame by
+    frame: per frame {id: position} of the live tracks, the measurement count and the truths;
+    the times."""
     from nlos_cl.tracking import read_sequence
-    args = parser().parse_args(["track", str(path), "--targets", str(targets)])
     seq = read_sequence(path)
     start = time.perf_counter()
-    tracker = make_tracker(args, seq, nl.resolve_backend(args.device))
+    tracker = nl.track_sequence(seq, targets=targets, backend=nl.resolve_backend(None)).tracker
     setup_s, update_s, frames = time.perf_counter() - start, [], []
     for frame in seq.frames(0, len(seq)):
         start = time.perf_counter()

@@ -12,6 +12,7 @@ import numpy as np
 
 import nlos_cl as nl
 
+from ...core.constants import TINY
 from .common import Settings
 
 
@@ -108,7 +109,7 @@ def photon_counts(clean, counting: dict, seed: int):
     quiet = nl.PhotonCounter(n_pulses=1.0, dark_count_rate_hz=0.0, ambient_rate_hz=0.0,
                              tdc_bin_s=counting["tdc_ps"] * 1e-12)
     per_pulse = float(np.mean(quiet.expected_counts(clean).data.sum(axis=1)))
-    counter = nl.PhotonCounter(n_pulses=counting["signal_photons"] / max(per_pulse, 1e-300),
+    counter = nl.PhotonCounter(n_pulses=counting["signal_photons"] / max(per_pulse, TINY),
                                ambient_rate_hz=counting["ambient_rate_hz"],
                                tdc_bin_s=counting["tdc_ps"] * 1e-12)
     return counter.counts(clean, seed=seed)

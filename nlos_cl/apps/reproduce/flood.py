@@ -16,7 +16,8 @@ the sensor both ways and locates both as `nl.locate_capture` locates the convert
 
 Both detect at the zone's spot (its patch's centre): only the illumination differs. The
 sensor's pose is fitted to the dataset's own wall spots (fit_sensor; flood.yaml keeps it), so
-the study runs without the dataset. scripts/flood_study.py runs it and writes docs/flood.md.
+the study runs without the dataset. scripts/flood_study.py runs it and writes
+docs/results/flood/flood.md.
 """
 from __future__ import annotations
 

@@ -3,8 +3,8 @@ figure 4, LCT, Keyhole E/K/Y, the consumer-nlos walk), each read as `nlos-cl con
 and located or tracked with the library's defaults, against the truth or reference it ships,
 timed in the same run (real_runs). The cases, the geometry facts and issue 21's goals are in
 real.yaml. Writes OUT/real.csv (a row per case), OUT/real-<section>.csv, OUT/real-*.png and
-OUT/real-data.md; `--doc docs/real-data.md` writes the page there, its figures beside it in
-real/ (real_report). Not part of `reproduce all`: it needs ../shared/realdata."""
+OUT/real-data.md; `--doc docs/results/real-data/real-data.md` writes the page there, its figures
+beside it in real/ (real_report). Not part of `reproduce all`: it needs ../shared/realdata."""
 from __future__ import annotations
 
 import os
@@ -87,7 +87,8 @@ def real(s: Settings, out: Path, data=None) -> Result:
 
 
 def write_doc(result: Result, path: Path, out: Path, force: bool = False) -> None:
-    """The page at `path` (docs/real-data.md), its figures copied into path's folder/real/."""
+    """The page at `path` (docs/results/real-data/real-data.md), its figures copied into path's
+    folder/real/."""
     import shutil
     from ...io.safe_write import atomic_write, write_text
     figures = path.parent / "real"

@@ -1,6 +1,6 @@
-"""docs/real-data.md from a `reproduce real` run: per dataset its geometry (real.yaml, from
-the dataset's README), what nlos_cl found, the truth it ships, the error and the time; the
-goals met or not with the number; the Keyhole and walk figures."""
+"""docs/results/real-data/real-data.md from a `reproduce real` run: per dataset its geometry
+(real.yaml, from the dataset's README), what nlos_cl found, the truth it ships, the error and the
+time; the goals met or not with the number; the Keyhole and walk figures."""
 from __future__ import annotations
 
 from pathlib import Path

@@ -100,20 +100,17 @@ def keyhole(cfg: dict, root: Path) -> dict:
     `nlos-cl track` follows the range: apps.track._range_main's steps with every default)
     against the stage's range: correlation, and RMS after the one constant offset that best
     aligns them; the frames' own measured ranges' RMS beside it."""
-    from nlos_cl.apps.cli import parser
-    from nlos_cl.apps.track import motion_model
     from nlos_cl.tracking import read_sequence, write_sequence
     from nlos_cl.tracking.ranges import track_frames
+    from nlos_cl.tracking.sequences import motion_for
     rows, series = [], {}
     for letter in cfg["letters"]:
         (frames, meta), read_s = _timed(lambda: nl.read_dataset(root / "keyhole" / letter))
         with tempfile.TemporaryDirectory() as tmp:
             path = write_sequence(Path(tmp) / f"{letter}.h5", frames, fps=meta.get("fps"))
             seq = read_sequence(path)
-            args = parser().parse_args(["track", str(path)])
-
             points, seconds = _timed(lambda: track_frames(
-                seq.frames(), h_s=args.h_ns * 1e-9, motion=motion_model(args))[0])
+                seq.frames(), h_s=nl.PAPER_H_S, motion=motion_for())[0])
         ours = np.array([p.range_m for p in points])
         measured = np.array([p.measured_m for p in points])
         stage = np.asarray(meta["stage_range_m"])
@@ -123,7 +120,7 @@ def keyhole(cfg: dict, root: Path) -> dict:
         series[letter] = (ours, stage, offset)
         lateral, rms_lateral = _letter_lateral(ours, meta)
         rules = {f"rms_{name}_m": round(_rms_after_offset(r, stage), 4)
-                 for name, r in _range_rules(frames, args.h_ns * 1e-9).items()}
+                 for name, r in _range_rules(frames, nl.PAPER_H_S).items()}
         rows.append({"case": letter, "exposures": len(frames), "corr": round(corr, 3),
                      "rms_m": round(rms, 4), "rms_measured_m": round(rms_measured, 4),
                      "offset_m": round(offset, 3),
@@ -179,13 +176,11 @@ def _letter_lateral(ours, meta) -> tuple[float, float]:
 
 def walk(cfg: dict, root: Path) -> dict:
     """The walk through `nlos-cl track`'s path (a sequence file; the Tracker the command
-    builds with every default: apps.track.make_tracker), against the authors'
+    builds with every default: nl.track_sequence), against the authors'
     particle-filter means on the top view (their X, Z; Y is the weakly seen vertical). Three
     rows from one run: the causal filter (the goal's), the fixed-lag estimate `--lag L` prints
     (L = cfg["lag_frames"] later frames used: real time with L frames of latency) and the
     offline `--smooth`, each of the longest-lived confirmed track."""
-    from nlos_cl.apps.cli import parser
-    from nlos_cl.apps.track import make_tracker
     from nlos_cl.tracking import read_sequence, write_sequence
     (frames, meta), read_s = _timed(lambda: nl.read_dataset(root / cfg["folder"]))
     frames = frames[:cfg["frames"]] if cfg["frames"] else frames
@@ -194,7 +189,7 @@ def walk(cfg: dict, root: Path) -> dict:
         warnings.simplefilter("ignore")  # the default's note on paired captures
         path = write_sequence(Path(tmp) / "walk.h5", frames, fps=meta["fps"])
         seq = read_sequence(path)
-        tracker = make_tracker(parser().parse_args(["track", str(path)]), seq, None)
+        tracker = nl.track_sequence(seq).tracker
         grid = tracker.grid
         ours, ids, per_frame = np.full((len(seq), 3), np.nan), [], []
         lagged, reported = np.full((len(seq), 3), np.nan), None

@@ -1,5 +1,5 @@
-"""The report (docs/paper-results.md): every experiment's numbers from this run, the paper's
-beside them, the settings, and the remarks (text.yaml) on where and why they differ; and the
+"""The report (docs/results/paper/paper-results.md): every experiment's numbers from this run, the
+paper's beside them, the settings, and the remarks (text.yaml) on where and why they differ; and the
 JSON summary that `--json` prints."""
 from __future__ import annotations
 
@@ -99,8 +99,8 @@ def _section(r: Result) -> str:
 
 def write_report(results, s: Settings, path: Path, out: Path, wall_s: float,
                  force: bool = False) -> None:
-    """docs/paper-results.md: every experiment's numbers from this run, the paper's beside
-    them, the settings, and the remarks (text.yaml) on where and why they differ. Written
+    """docs/results/paper/paper-results.md: every experiment's numbers from this run, the paper's
+    beside them, the settings, and the remarks (text.yaml) on where and why they differ. Written
     atomically, never over a page nlos_cl did not generate unless `force` (safe_write)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     try:

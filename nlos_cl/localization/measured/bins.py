@@ -6,6 +6,7 @@ import warnings
 
 import numpy as np
 
+from ...core.constants import TINY
 from ...core.errors import require
 
 # A hot bin stands this many sigma above both neighbours in every histogram (Poisson sigma of
@@ -72,7 +73,7 @@ def _sigma(rows, near, counts):
     with warnings.catch_warnings():  # an all-zero row (a gated histogram) has no steps
         warnings.simplefilter("ignore", RuntimeWarning)
         step = np.nan_to_num(np.nanmedian(steps, axis=1, keepdims=True)) * 1.4826
-    return np.maximum(step, 1e-9 * np.abs(rows).max(axis=1, keepdims=True) + 1e-300)
+    return np.maximum(step, 1e-9 * np.abs(rows).max(axis=1, keepdims=True) + TINY)
 
 
 def mask_bins(data: np.ndarray, bins) -> np.ndarray:
@@ -102,6 +103,6 @@ def coates(data: np.ndarray, pulses: int) -> tuple[np.ndarray, int]:
             f"{pulses} pulses", "pass the number of laser pulses (frames) the histograms "
             "were accumulated over")
     saturated = (n >= remaining) & (n > 0)
-    ratio = np.where(remaining > 0, n / np.maximum(remaining, 1e-300), 0.0)
+    ratio = np.where(remaining > 0, n / np.maximum(remaining, TINY), 0.0)
     ratio = np.where(saturated, remaining / (remaining + 1.0), ratio)
     return -pulses * np.log1p(-ratio), int(saturated.sum())

@@ -13,6 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...core.constants import TINY
+
 _ERFC = np.vectorize(math.erfc, otypes=[np.float64])
 
 
@@ -75,7 +77,7 @@ def fit_exgauss(t, y, weights, start, *, iterations: int = 80) -> ExGaussFit | N
         r_trial = res(trial) if np.all(np.isfinite(trial)) and abs(trial[2]) < 30 \
             and abs(trial[3]) < 30 else np.full_like(r, np.inf)
         if np.all(np.isfinite(r_trial)) and r_trial @ r_trial < r @ r:
-            gain = (r @ r - r_trial @ r_trial) / max(r @ r, 1e-300)
+            gain = (r @ r - r_trial @ r_trial) / max(r @ r, TINY)
             theta, r, damping = trial, r_trial, max(damping / 3, 1e-9)
             if gain < 1e-10 and np.max(np.abs(step)) < 1e-6:
                 converged = True

@@ -5,11 +5,11 @@ histograms with the forward model, report centre, extent and a covariance per ta
     loc = nl.locate(filtered, grid, estimator=ModelEstimator(targets="auto"), raw=noisy)
 
 See docs/model-estimator.md. No SciPy on this path (a one-shot `nlos-cl locate` would pay
-~0.5 s to import it): the least squares are nlos_cl.localization.model.lm.
+~0.5 s to import it): the least squares are nlos_cl.localization.model.solve.lm.
 """
-from .box import box_facets
-from .estimator import HEIGHT_WARNING, ModelEstimator, model_estimator
-from .plate import height_observable, plate_facets
+from .estimator import HEIGHT_WARNING, ModelEstimator
+from .shapes.box import box_facets
+from .shapes.plate import height_observable, plate_facets
 
 __all__ = ["HEIGHT_WARNING", "ModelEstimator", "box_facets", "height_observable",
-           "model_estimator", "plate_facets"]
+           "plate_facets"]

@@ -11,7 +11,7 @@ import warnings
 import numpy as np
 
 from ...core.blas_threads import serial_blas
-from ...core.constants import FWHM_PER_SIGMA, PAPER_H_S
+from ...core.constants import DEFAULT_JITTER_S, FWHM_PER_SIGMA, PAPER_H_S, PAPER_PULSE_FWHM_S
 from ...core.errors import require
 from ...core.limits import require_targets
 from ...core.tuning import SEARCH_DETECTORS
@@ -19,15 +19,17 @@ from ..estimate import Capabilities, Estimate, LocatedTarget, Prior
 from ..fit_result import ModelFit, Parameter, WarmStart
 from ..paper import PaperArgmax
 from ..region import unseen_axis
-from . import data, plate
-from .warm import checked_sizes, hidden_diagnostics
-from .covariance import centre_covariance, covariance
-from .filtered_search import searched, smooth_observation
-from .lattices import lattice_for
-from .likelihood import Problem
-from .depth import unseen_note
-from .sanity import checked, fit_checks, unfittable_line
-from .shape import MODELS, name_of
+from .forward import data
+from .forward.likelihood import Problem
+from .policy.depth import unseen_note
+from .policy.filtered_search import searched, smooth_observation
+from .policy.sanity import checked, fit_checks, unfittable_line
+from .policy.warm import checked_sizes, hidden_diagnostics
+from .shapes import plate
+from .shapes.lattices import lattice_for
+from .shapes.shape import MODELS, name_of
+from .solve.covariance import centre_covariance, covariance
+from .solve.records import Chosen, Fitted
 
 HEIGHT_WARNING = ("height (z) is unobservable with collinear wall spots (rotating the target "
                   "about their line changes no path): z is held at {v:.3f} m; use spots off "
@@ -45,7 +47,7 @@ WARM_NFEV = 10
 # (model.batch, a Jacobian's plates in one call), larger ones with the forward op on
 # the device. On the paper's scene a forward call costs ~2 ms of launches and read-backs for
 # ~240 samples a detector; the host's batched float64 model gives the same fit (costs within
-# 1e-4) 3-5x faster (one-shot `nlos-cl locate`: docs/performance.md). The closed shapes too
+# 1e-4) 3-5x faster (one-shot `nlos-cl locate`: docs/results/performance/performance.md). The closed shapes too
 # (model.host_shapes; any laser layout): a Jacobian's 8 columns 40-70 -> 10-13 ms on 6 spots,
 # 140-220 -> 40-65 ms on 42 (one-target draws 1 and 173).
 HOST_DETECTORS = 64
@@ -58,7 +60,7 @@ def _host_problem(obs, lattice, backend, refl, model_on):
     takes there too (the host's closed shapes know any layout; the forward op's plates took 5x
     as long: 0.64-0.94 against 0.12-0.15 s a confocal frame, tests/test_paired's scan, the
     same positions). GGX: only the forward op has it."""
-    from .batch import HostProblem
+    from .forward.batch import HostProblem
     paired = obs.laser.ndim == 2
     if paired and model_on not in ("kernel", "auto"):
         return None
@@ -82,12 +84,16 @@ class ModelEstimator:
     Retroreflective), known, not fitted; the amplitude absorbs its scale (GGX: device only)."""
 
     name = "model"
-    # The scored frame is used only for the paper's estimate (the starts' second candidate, the
-    # no-signal test): a Locator may hand it over from its fused search, with no score map.
-    capabilities = Capabilities(from_paper=True, needs_raw=True, paired=True)
 
-    def __init__(self, targets=1, *, likelihood="auto", h_s=PAPER_H_S, pulse_fwhm_s=70e-12,
-                 jitter_s=30e-12, lattice=None, max_targets=3, backend=None, final_nfev=30,
+    @property
+    def capabilities(self) -> Capabilities:
+        """from_paper: the scored frame serves only the paper's estimate (a start, the no-signal
+        test); warm_start: a fixed number of targets, plates allowed (docs/tracking.md)."""
+        return Capabilities(from_paper=True, needs_raw=True, paired=True,
+                            warm_start=isinstance(self.targets, int) and self.closed is not True)
+
+    def __init__(self, targets=1, *, likelihood="auto", h_s=PAPER_H_S, pulse_fwhm_s=PAPER_PULSE_FWHM_S,
+                 jitter_s=DEFAULT_JITTER_S, lattice=None, max_targets=3, backend=None, final_nfev=30,
                  closed="auto", warm_nfev=WARM_NFEV, model_on="auto", sanity=True,
                  reflectance=None):
         require(targets == "auto" or (isinstance(targets, int) and targets >= 1), "targets",
@@ -118,7 +124,7 @@ class ModelEstimator:
         """The targets in one frame. prior: None (the full fit from the data alone), or a
         Prior of (targets, 6) plate rows (x, y, z, width, height, yaw) to warm-start from, e.g.
         the previous frame's fit moved to where a tracker predicts it: only the final fit
-        runs, from there (nlos_cl.localization.model.warm), and the full fit replaces it where
+        runs, from there (nlos_cl.localization.model.policy.warm), and the full fit replaces it where
         it misses the data; each target's fit.warm_start says which. Its size, size_sd hold a
         plate the others hide (model.warm.size_prior). start=rows is prior=Prior(rows)."""
         with serial_blas():  # core.blas_threads: small products, threads only cost
@@ -139,12 +145,13 @@ class ModelEstimator:
             observable = held.axis != 2  # the height (ModelFit.height_observable)
             free = held.free_mask()
             fitted, warm_info = _warm_or_cold(self, scored, obs, paper, free, held, prior, clock)
-            problem, chosen, result, free, (cov_all, info), history = fitted
+            chosen, result, free, (cov_all, info) = fitted.chosen
+            history = fitted.history
             info = _reported(chosen, result, free, cov_all, info, warm_info)
             notes = _notes(held, chosen.shape, result, cov_all, info)
             for note in notes:
                 warnings.warn(note, stacklevel=3)
-            self.timings = _stages(clock, problem)
+            self.timings = _stages(clock, fitted.problem)
             hidden = hidden_diagnostics(chosen, result, prior)
             located = [self._target(result, cov_all, k, dict(info, **hidden[k]), notes,
                                     obs, history, observable, chosen.shape)
@@ -154,29 +161,27 @@ class ModelEstimator:
             return Estimate(located, paper.cell_position, paper.score)
 
     def _cold(self, scored, obs, paper, free, held, clock):
-        """The full fit: starts, short fits, final fit, covariance, plate or closed shape.
-        (problem, chosen problem, result, free, (cov_all, info), history)."""
+        """The full fit: starts, short fits, final fit, covariance, plate or closed shape."""
         problem = self.problem(obs, self.backend or scored.backend)
         smooth = smooth_observation(self, scored, obs)  # counts: searched on it
         result, history, choice = self._fit(problem, paper.targets[0].position, free, held,
                                             smooth)
         clock["fit"] = time.perf_counter()
         if result is None:  # decided on a subset of many detectors (model.subset.cold_fit)
-            return (problem, *choice[1], history)
+            return Fitted(problem, choice.chosen, history)
         cov = covariance(problem, result, free, reuse=result.jacobian is not None)
         clock["covariance"] = time.perf_counter()
-        chosen = problem
+        chosen = Chosen(problem, result, free, cov)
         if len(result.params) == 1:  # one target: a plate, or a box where the data ask for it
-            from .subset import plate_or_closed
-            chosen, result, free, cov = plate_or_closed(self, problem, result, free, cov,
-                                                        choice, smooth)
+            from .policy.subset import plate_or_closed
+            chosen = plate_or_closed(self, problem, result, free, cov, choice, smooth)
             clock["box"] = time.perf_counter()
-        return problem, chosen, result, free, cov, history
+        return Fitted(problem, chosen, history)
 
     def problem(self, obs, backend):
         """The plates' Problem: the model on the host or with the forward op on `backend`
         (model_on); a HostProblem keeps `backend` for the closed shapes."""
-        from .host_shapes import host_can
+        from .forward.host_shapes import host_can
         lattice = self.lattice_for(obs)
         refl = self.reflectance
         on_host = host_can(refl) and (self.model_on in ("host", "kernel") or (
@@ -203,7 +208,7 @@ class ModelEstimator:
         (model.filtered_search)."""
         if len(problem.obs.spots) <= SEARCH_DETECTORS:
             return (*searched(self, problem, argmax_position, free, held, smooth), None)
-        from .subset import cold_fit
+        from .policy.subset import cold_fit
         return cold_fit(self, problem, argmax_position, free, held, smooth)
 
     def _target(self, result, cov_all, k, info, notes, obs, history, observable, shape):
@@ -258,22 +263,22 @@ def _model_fit(shape, p, result, cov_all, k, info, notes, obs, history, observab
                     None if warm is None else WarmStart(**warm), diagnostics)
 
 
-def _warm_or_cold(est, scored, obs, paper, free, held, prior, clock):
+def _warm_or_cold(est, scored, obs, paper, free, held, prior, clock) -> tuple[Fitted, dict]:
     """(fitted, warm_info): the warm fit from the Prior's rows (and sizes) where it explains
     the data, else the cold fit, unless the cold fit costs more than the misfit warm one (same
     data, same K; data costs alone: the warm fit's size prior is not counted)."""
     fitted, warm_info, missed = None, None, None
     if prior is not None:
         sizes = checked_sizes(prior, len(prior.rows))
-        from .warm import warm_fit
+        from .policy.warm import warm_fit
         fitted, warm_info, missed = warm_fit(est, obs, start_rows(est, prior.rows), free, held,
                                              scored.backend, sizes)
         clock["warm_fit"] = time.perf_counter()
     if fitted is None:
         fitted = est._cold(scored, obs, paper, free, held, clock)
-        if missed is not None and missed[2].cost < fitted[2].cost:
-            missed[0].calls += fitted[0].calls  # the timings count the cold fit's work too
-            missed[0].model_s += fitted[0].model_s
+        if missed is not None and missed.result.cost < fitted.result.cost:
+            missed.problem.calls += fitted.problem.calls  # the timings count the cold fit's work
+            missed.problem.model_s += fitted.problem.model_s
             fitted = missed
             warm_info = dict(warm_info, used=True, reason=warm_info["reason"] +
                              "; the cold fit cost more, so the warm fit is kept")
@@ -333,7 +338,3 @@ def _stages(clock, problem) -> dict:
     out["forward_s"] = problem.model_s
     out["total"] = clock[keys[-1]] - clock[keys[0]]
     return out
-
-
-def model_estimator(**options) -> ModelEstimator:
-    return ModelEstimator(**options)

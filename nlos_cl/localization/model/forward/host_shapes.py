@@ -1,0 +1,213 @@
+"""Closed shapes (box, ellipsoid, cylinder) evaluated on the host, a batch of rows per call:
+the model of `likelihood.Problem(shape=...)`, whose `column` makes one forward launch per
+lit face, in float64 NumPy and vectorised over every piece of every row of a Jacobian.
+
+Why: a one-target fit that tries the closed shapes makes ~2,000 of their columns (44 LM
+fits from their starts, cross-seeded and rounded refits, the depth profile). On a 6-spot
+layout a column cost ~5 ms on PoCL: ~2.5 ms of launches and read-backs for a few thousand
+point facets x 6 detectors x 85 bins (the arithmetic is microseconds), ~2.5 ms of cell
+statistics on the host. One-target draws with a closed shape took 20 s a locate (median).
+
+Same model as `Problem.column`: per piece (a box's face; a curved shape's whole surface) the
+cells the laser lights and a spot sees (ellipsoid.lit_mask), their statistics
+(plate.cell_statistics: pull-in, shared blur, shift per detector), the pulled-in Gauss points,
+each piece its own pulse width; the bins integrated over their width by model.batch's
+deposit and correlation (split error <= 2e-4 of the peak, as the kernel's).
+
+A Jacobian's moved rows (`column_batch(rows, like)`) borrow the unmoved row's culling and cell
+statistics, as model.batch.HostProblem's plates do: derivatives at frozen blur, shift and
+pull-in (a cell that turns into or out of view is at zero weight there, so borrowing its
+culling changes nothing to first order); residuals always use each row's own.
+"""
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from ....core.allocator import keep_freed_memory
+from ....core.constants import TINY
+from ....core.geometry import spot_legs
+from ....ops.forward import SUB_BINS_PER_SIGMA
+from ..shapes import plate
+from ..shapes.ellipsoid import culled, lit_mask
+from .deposit import deposit_bins
+from .likelihood import Problem
+
+# point-detector pairs per NumPy pass (each temporary ~8 bytes a pair): bounds the memory
+PAIRS_PER_PASS = 1_500_000
+STATS_KEPT = 64  # rows whose culling and cell statistics are remembered (for `like`)
+
+
+def shape_problem(problem, shape):
+    """The closed shape's Problem for the data of plate problem `problem`: on the host where
+    the estimator put it there (`problem.closed_on_host`, model.estimator), else the forward
+    op on the device (one launch per lit face and column)."""
+    if problem.closed_on_host:
+        return HostShapeProblem(problem.obs, shape, problem.lattice, problem.backend,
+                                problem.reflectance)
+    return Problem(problem.obs, problem.backend, problem.lattice, shape=shape,
+                   reflectance=problem.reflectance)
+
+
+def host_can(reflectance) -> bool:
+    """Whether the host's models know this reflectance (None: Lambertian; a factor of l.v)."""
+    return reflectance is None or hasattr(reflectance, "factor_of_cosine")
+
+
+class HostShapeProblem(Problem):
+    """A `Problem` for one closed shape (`shape`: model.box, .ellipsoid or .cylinder: their
+    `pieces`) evaluated on the host. reflectance: None (Lambertian) or one with
+    factor_of_cosine (Retroreflective), as model.batch.HostProblem; the laser one spot (3,)
+    or one per detector (D, 3)."""
+
+    batched = True  # column_batch: one host call (or one launch) for all rows
+
+    def __init__(self, obs, shape, lattice=(16, 24), backend=None, reflectance=None):
+        super().__init__(obs, backend, lattice, shape=shape, reflectance=reflectance)
+        keep_freed_memory()  # core.allocator
+        if not host_can(reflectance):
+            raise ValueError("reflectance: the host model takes a factor of l.v alone "
+                             "(Retroreflective); use likelihood.Problem for this one")
+        self._factor = None if reflectance is None else reflectance.factor_of_cosine
+        floor = math.sqrt(max(obs.sigma0_m ** 2 - obs.box_excess_m2, TINY))
+        self.os = max(1, int(math.ceil(float(np.max(obs.dpath)) * SUB_BINS_PER_SIGMA / floor)))
+        self._stats = {}  # row bytes -> per piece (mask, keep, blur2, shift) (`_statistics`)
+        self._taps = {}
+
+    def column(self, p) -> np.ndarray:
+        return self.column_batch(np.asarray(p, float)[None])[0]
+
+    def column_batch(self, rows, like=None, occluders=None) -> np.ndarray:
+        """(B, D, n) unit-amplitude histograms of rows (B, 7); like: None, or (B, 7) rows
+        whose culling and cell statistics each row borrows (a Jacobian's)."""
+        if occluders is not None and any(o is not None and len(o) for o in occluders):
+            raise NotImplementedError("closed shapes are fitted one target at a time: no "
+                                      "shadows between targets")
+        t = time.perf_counter()
+        rows = np.atleast_2d(np.asarray(rows, np.float64))
+        obs = self.obs
+        pieces = []  # (row index, points (M, 3), normals (M, 3), areas (M,), blur2, shift)
+        for i, row in enumerate(rows):
+            own = self.shape.pieces(row, self.lattice)
+            source = row if like is None else like[i]  # whose culling and statistics
+            stats = self._statistics(source, own if np.array_equal(source, row) else None)
+            for (cells, edges, _), (mask, keep, blur2, shift) in zip(own, stats):
+                if not mask.any():
+                    continue
+                pts = plate._gauss_points(*culled(cells, edges, mask), keep)
+                pieces.append((i, pts.centres, pts.normals, pts.areas, blur2, shift))
+        out = np.zeros((len(rows),) + obs.y.shape)
+        for group in _groups(pieces, len(obs.spots)):
+            hist = self._evaluate(group)
+            for (i, *_), h in zip(group, hist):
+                out[i] += h
+        self.calls += len(rows)
+        self.model_s += time.perf_counter() - t
+        return np.where(obs.valid[None], out, 0.0)
+
+    def columns(self, params) -> np.ndarray:
+        return self.column_batch(np.reshape(params, (-1, self.shape.N_PARAMS)))
+
+    def _statistics(self, row, pieces=None):
+        """Per piece of closed shape `row`: the lit-and-seen mask of its cells and their
+        statistics on the masked cells (keep, blur2, shift); remembered by the row."""
+        key = row.tobytes()
+        got = self._stats.get(key)
+        if got is not None:
+            return got
+        obs = self.obs
+        pieces = self.shape.pieces(row, self.lattice) if pieces is None else pieces
+        got = []
+        for cells, edges, share in pieces:
+            mask = lit_mask(cells.centres, cells.normals, obs.spots, obs.laser)
+            if mask.any():
+                stats = plate.cell_statistics(*culled(cells, edges, mask), obs.spots, obs.laser,
+                                              share)
+            else:
+                stats = (np.zeros(0), 0.0, np.zeros(len(obs.spots)))
+            got.append((mask, *stats))
+        if len(self._stats) >= STATS_KEPT:  # bounded; what this call needs is in hand
+            self._stats.clear()
+        self._stats[key] = got
+        return got
+
+    def _evaluate(self, group) -> np.ndarray:
+        """(G, D, n): the histograms of a group of pieces (padded to its largest with copies
+        of its first point at zero area: zero weight, which the deposit skips)."""
+        obs = self.obs
+        size = max(len(p[1]) for p in group)
+        points = np.empty((len(group), size, 3))
+        normals = np.empty((len(group), size, 3))
+        areas = np.zeros((len(group), size))
+        for g, (_, pts, nrm, area, _, _) in enumerate(group):
+            points[g, :len(pts)], normals[g, :len(pts)], areas[g, :len(pts)] = pts, nrm, area
+            points[g, len(pts):], normals[g, len(pts):] = pts[0], nrm[0]  # real geometry
+        blur2 = np.array([p[4] for p in group])
+        edge0 = obs.edge0[None] - np.stack([p[5] for p in group])  # (G, D): shifted
+        sigma = np.sqrt(obs.sigma0_m ** 2 + blur2 - obs.box_excess_m2)
+        laser = np.asarray(obs.laser, float)
+        out = np.empty((len(group),) + obs.y.shape)
+        step = max(1, PAIRS_PER_PASS // (len(group) * size))  # detectors a pass
+        for d in range(0, len(obs.spots), step):
+            part = slice(d, d + step)
+            path, weight = point_paths(points, normals, areas, obs.spots[part],
+                                       laser[part] if laser.ndim == 2 else laser, self._factor)
+            out[:, part] = deposit_bins(path, weight, edge0[:, part], obs.dpath[part], sigma,
+                                        obs.n, self.os, self._taps)
+        return out
+
+
+def _groups(pieces, n_det):
+    """The pieces in consecutive groups of at most PAIRS_PER_PASS (point, detector) pairs
+    (padded to the group's largest piece); a piece larger alone is a group of its own, which
+    `_evaluate` splits over the detectors."""
+    group, largest = [], 0
+    for piece in pieces:
+        size = max(largest, len(piece[1]))
+        if group and (len(group) + 1) * size * n_det > PAIRS_PER_PASS:
+            yield group
+            group, size = [], len(piece[1])
+        group.append(piece)
+        largest = size
+    if group:
+        yield group
+
+
+def point_paths(points, normals, areas, spots, laser, factor=None):
+    """Hidden path r1 + r2 and weight per (detector, piece, point) (D, G, M): the forward
+    twin's (ops.forward.facet_paths: four cosines, area / (r1^2 r2^2), 0 where the point faces
+    away from the laser spot or the detector spot) with a normal per point, component by
+    component and in place (no (D, G, M, 3) temporaries). points, normals (G, M, 3), areas
+    (G, M); laser (3,) or (D, 3) (each detector its own); factor: the reflectance's factor of
+    l.v, or None. (batch._paths is its special case for upright plates, one normal and one
+    laser spot: the facing factors one number per plate and spot, 10-40 % faster on the
+    plates' problems, within 1e-15 of this.)"""
+    laser = np.asarray(laser, float)
+    lasers = laser.reshape(-1, 1, 1, 3)  # (1 or D, 1, 1, 3)
+    px, py, pz = (points[None, ..., k] for k in range(3))
+    nx, ny, nz = (normals[None, ..., k] for k in range(3))
+    v1x, v1y, v1z = px - lasers[..., 0], py - lasers[..., 1], pz - lasers[..., 2]
+    r1sq = v1x * v1x + v1y * v1y + v1z * v1z
+    # cos_a1 cos_b1 area / r1^2 = |v1y| max(-n.v1, 0) area / r1^4
+    front = np.maximum(-(nx * v1x + ny * v1y + nz * v1z), 0.0)
+    front *= np.abs(v1y)
+    front *= areas[None]
+    front /= r1sq
+    front /= r1sq
+    v2x, v2y, v2z, r2sq = spot_legs(px, py, pz, spots)
+    weight = nx * v2x  # -> max(n.v2, 0) |v2y| / r2^4 x front
+    weight += ny * v2y
+    weight += nz * v2z
+    np.maximum(weight, 0.0, out=weight)
+    weight *= np.abs(v2y)
+    weight *= front
+    weight /= r2sq
+    weight /= r2sq
+    if factor is not None:
+        dot = v1x * v2x + v1y * v2y + v1z * v2z
+        weight *= factor(-dot / np.sqrt(r1sq * r2sq))
+    path = np.sqrt(r2sq, out=r2sq)
+    path += np.sqrt(r1sq)
+    return path, weight

@@ -1,0 +1,192 @@
+"""Warm-started fits: a frame's model fit started from given plate rows (a tracker's previous
+fit, moved to its predicted position) instead of from the data alone.
+
+The cold fit (model.select) spends ~120-200 model evaluations on finding the basin:
+the centroid start, a lattice of 20-40 yaws and sizes, three short fits, then the final
+Levenberg-Marquardt fit. Where the previous frame's plate is known and the target moved a few
+cm, the start is already in the basin, so only the final fit runs, with `warm_nfev`
+evaluations (stopping on a statistical scale, WARM_ATOL), then the covariance (the same
+sandwich and Birge-ratio calibration as a cold fit, its derivatives the solver's last
+Jacobian: REUSE_JACOBIAN), on the estimator's `problem` (the host's
+batched model for up to HOST_DETECTORS detectors with model_on='auto', as a cold fit).
+
+Fallback: where the warm fit misses the data (the Birge ratio above the 99.9 % point of its
+noise distribution: `select.misfit`, the test that also sends a cold fit on to the closed
+shapes), the start was wrong (another basin, a target that turned or changed shape) and the
+estimator runs the cold fit, keeping the warm one where the cold fit costs more (a shadowed
+plate misses the data from any start: crossing draw 7 frame 13, warm Birge 7.9, cold 20). A fit that explains the data but lands far from where the
+caller expected is the caller's to judge (the tracker's gate: nlos_cl.tracking.warm).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ....core.errors import require
+from ....core.tuning import HIDDEN_SHARE
+from ...fit_result import HIDDEN_SD_KEY, HIDDEN_SHARE_KEY
+from ..shapes import plate
+from ..solve.covariance import covariance
+from ..solve.fit import fit
+from ..solve.records import Chosen, Fitted
+
+# Stop when a step's predicted cost decrease (cost = chi^2 / 2 for whitened residuals, or the
+# deviance / 2) is below this: what is left moved the centre by <= 0.015 sd (starts 0.5-4 sd
+# off, paper's scene, 10 dB; 0.005 took 1-3 more evaluations for ~0.005 sd). The cold fit's
+# relative ftol instead waits through rejected steps for the last ~1e-4 of cost, which
+# finite-difference Jacobians cannot find.
+WARM_ATOL = 0.05
+# Initial LM damping (x max diag J'J) of a warm fit: the start is in the basin, so nearly
+# Gauss-Newton steps are taken at once. Stream bench frames: 30.5 -> 25.9 ms a frame, 6.0 -> 5.3
+# evaluations, positions within 0.08 mm of the cold fit's default damping (1e-4); 1e-8 moved
+# them by up to 8.7 mm. (Cold fits keep 1e-4: from far starts 1e-6 jumped basins.)
+WARM_TAU = 1e-6
+# The warm fit's covariance from the solver's last Jacobian (model.covariance's `reuse`)
+# instead of new derivatives: paper-scene tracker 12.65 -> 10.59 ms a frame, crossing draw 1
+# 38.3 -> 28.9 ms; sds within the forward differences' ~2-5 % of the analytic ones
+# (docs/model-estimator.md, "Uncertainty").
+REUSE_JACOBIAN = True
+# The warm fit steps each plate's width and yaw as its width vector (model.width_vectors:
+# the data's width-yaw valley is straight there). Stream bench, interleaved: 12.95 -> 11.73 ms
+# a frame; the two noise draws that crawled along the valley 34-35 -> 25-31 model calls, to a
+# lower cost. Cold fits keep (width, yaw): their frames' median moved < 2 % (51.3 -> 49.8 ms,
+# the same answers), so the accuracy draws were not re-run for it.
+WIDTH_VECTORS = True
+# model.lm's best-gain stop (atol on the Jacobian's Gauss-Newton step: no trial step, no
+# Jacobian made only to learn that the fit is done) for one plate; plates that may shadow
+# each other keep the plain test (the step just tried). Stream bench: 19.0 -> 16.7 model
+# calls, 10.3 -> 9.2-9.8 ms a frame. Two plates: crossing draw 15 (seed 2201), a half-hidden
+# 0.52 m plate whose fits run to warm_nfev with the size prior, went 0.011 -> 0.174 m RMS with
+# it: past a shadow's edge the quadratic model is no guide, and that draw flips on any change
+# of its fits' paths (seed 777's 20 draws kept 100 % within 0.05 m with it on two plates).
+BEST_GAIN_PLATES = 1
+# model.fit's `speculate` (a residual's plate and its Jacobian's stepped plates in one host
+# call) for one plate: 91 % of a warm fit's residual points are asked for a Jacobian next
+# (stream bench: 219 of 240). Warm tracker, whole processes interleaved: 10.06 / 9.65 ->
+# 9.29 / 9.02 ms a frame, the same track. Cold fits do without it: their short fits' last
+# point and rejected trials left 34 % of it unused, and 137 -> 182 model columns made a
+# paper-scene locate 49-51 -> 58 ms (lockstep already pairs the fits' calls).
+SPECULATE = True
+
+
+def warm_fit(est, obs, rows, free, held, backend=None, sizes=None):
+    """(fitted, info, missed): a Fitted as ModelEstimator._cold returns it, or None where the
+    warm fit misses the data (the caller then fits cold, and keeps `missed`, the misfit warm
+    fit's Fitted, if the cold fit costs more); info: what was tried
+    (details['warm_start']). sizes: None or (size, sd), each (K, 2) (Prior.size, size_sd):
+    the sizes a plate the others partly hide starts from and is held to (`size_prior`)."""
+    from .closed import closed_or_plate
+    from .select import misfit
+    # an axis the spots cannot see: held on the search plane, as a cold fit holds it
+    rows = held.put(rows)
+    problem = est.problem(obs, est.backend or backend)
+    prior = size_prior(problem, rows, sizes)
+    if prior is not None:
+        rows = prior[0]  # the hidden plates start at their known size
+    result = fit(problem, rows, free, est.warm_nfev, tau=WARM_TAU, atol=WARM_ATOL, prior=prior,
+                 keep_jacobian=REUSE_JACOBIAN, width_vectors=WIDTH_VECTORS,
+                 best_gain=len(rows) <= BEST_GAIN_PLATES, speculate=SPECULATE)
+    cov = covariance(problem, result, free, reuse=REUSE_JACOBIAN)
+    inadequate, birge = misfit(problem, result, free, cov.info)
+    info = {"used": not inadequate, "birge_ratio": birge, "nfev": result.nfev,
+            "forward_calls": problem.calls,
+            "moved_m": float(np.max(np.linalg.norm(result.params[:, :3] - rows[:, :3], axis=1)))}
+    history = [{"targets": len(rows), "cost": result.cost, "warm_start": True}]
+    if inadequate:
+        info["reason"] = "the warm fit misses the data (Birge ratio above its 99.9 % point)"
+        return None, info, Fitted(problem, Chosen(problem, result, free, cov), history)
+    chosen = Chosen(problem, result, free, cov)
+    if len(rows) == 1:  # adequate: closed_or_plate keeps the plate (and records why); no
+        # depth probe: a tracked frame stays a plate fit of a few evaluations
+        chosen = closed_or_plate(problem, result, free, est.final_nfev, cov, est.closed,
+                                 probe_depth=False)
+    return Fitted(problem, chosen, history), info, None
+
+
+SIZE = [plate.WIDTH, plate.HEIGHT]
+
+
+def size_prior(problem, rows, sizes):
+    """(mean, sd) over the rows' parameters for model.fit's `prior`, or None: each plate the
+    others partly hide at the start (> HIDDEN_SHARE of its paths blocked) with a known size
+    (sizes: (size, sd), (K, 2) each; sd inf: unknown) has the mean's width and height set to
+    that size, with that sd; the other rows and parameters are the start's, without a prior.
+    Where a plate is partly hidden, a narrower plate over its visible part explains the data as
+    well or better (crossing draw 15, frame 27: the true 0.52 m plate, half hidden, fitted at
+    0.19 m and 0.15 m off, costing less than the truth even on noiseless data, so no better
+    model fixes it); the size learnt while it was seen whole decides. A frame in which no plate
+    is held is fitted as without a prior, bit for bit (one held plate moves the others' fit
+    too: the fit is joint). The cold fit the estimator falls back to has no prior, and the
+    warm/cold comparisons (estimator._warm_or_cold, tracking.warm.better) weigh data costs
+    alone: where a narrow plate costs less, a fallback takes it."""
+    if sizes is None or not getattr(problem, "shadows", False) or len(rows) < 2:
+        return None
+    from ..forward.shadow import hidden_shares
+    size, size_sd = (np.asarray(v, float).reshape(len(rows), 2) for v in sizes)
+    known = np.isfinite(size_sd).all(axis=1)
+    mean, sd = np.array(rows, float), np.full(np.shape(rows), np.inf)
+    mean[np.ix_(known, SIZE)] = size[known]
+    # hidden at the known size (a plate already fitted small over its visible part is not)
+    hidden = hidden_shares(mean, problem.obs.laser, problem.obs.spots)
+    held = known & (hidden > HIDDEN_SHARE)
+    mean[np.ix_(~held, SIZE)] = np.asarray(rows, float)[np.ix_(~held, SIZE)]
+    sd[np.ix_(held, SIZE)] = size_sd[held]
+    return (mean, sd) if held.any() else None
+
+
+def _nearest_rows(centres, prior_centres) -> list[tuple[int, int]]:
+    """(result row, prior row) pairs: the one-to-one matching with the least summed centre
+    distance (SciPy's linear_sum_assignment, which the tracker's association imports anyway)."""
+    from scipy.optimize import linear_sum_assignment
+    gap = np.linalg.norm(centres[:, None] - prior_centres[None], axis=2)
+    return [(int(k), int(j)) for k, j in zip(*linear_sum_assignment(gap))]
+
+
+def checked_sizes(prior, k: int):
+    """The Prior's (size, size_sd) for model.warm.size_prior, each (K, 2), or None."""
+    if prior.size_sd is None:
+        return None
+    size, sd = (np.asarray(v, np.float64) if v is not None else None
+                for v in (prior.size, prior.size_sd))
+    require(size is not None and size.shape == (k, 2) and sd.shape == (k, 2)
+            and bool(np.all(np.isfinite(size) & (size > 0))) and bool(np.all(sd > 0)),
+            "prior", f"size and size_sd must both be (K={k}, 2) arrays of positive widths and "
+            "heights and their sds (inf: unknown)", "pass Prior(rows, size, size_sd) with one "
+            "row per target, or size_sd=None")
+    return size, sd
+
+
+
+
+def hidden_diagnostics(problem, result, prior=None) -> list[dict]:
+    """Per target of the result, diagnostics: `hidden_share`, the share of its paths the other
+    targets block (model.shadow.hidden_shares), at its fitted size or, where `prior` (the
+    tracker's Prior; falsy: none) knows a larger one for the row nearest it, at that size (a
+    plate fitted small over its lit part is not seen whole; a cold fit that replaced the warm
+    one has its own order, hence the matching); 0.0 for one target, None where K >= 2 plates
+    are fitted without shadows (the device Problem: unknown).
+    `hidden_sd_m`: how far the hidden part could move the centre, share x half the plate's
+    larger side at that size (m; a plate 78 % hidden is fitted over its lit part, its centre
+    degenerate: crossing draw 8's frames 19-22 were 0.06-0.14 m off with fitted sds of 3-9
+    mm); 0.0 or None as the share. It is not in the covariance, which stays the data's.
+    `size_held`: the warm fit's size prior held its width and height (`size_prior`)."""
+    params = np.array(result.params, float)
+    held = np.zeros(len(params), bool) if result.prior is None else \
+        np.isfinite(np.asarray(result.prior[1])[:, [plate.WIDTH, plate.HEIGHT]]).any(axis=1)
+    if len(params) < 2 or not getattr(problem, "shadows", False):
+        share = [0.0 if len(params) < 2 else None] * len(params)
+        sd = share
+    else:
+        from ..forward.shadow import hidden_shares
+        if prior and prior.size_sd is not None:
+            rows = np.asarray(prior.rows, float).reshape(-1, params.shape[1])
+            known = np.isfinite(np.asarray(prior.size_sd, float)).all(axis=1)
+            size = np.asarray(prior.size, float)
+            for k, j in _nearest_rows(params[:, :3], rows[:, :3]):
+                if known[j]:
+                    params[k, SIZE] = np.maximum(params[k, SIZE], size[j])
+        obs = problem.obs
+        share = [round(float(h), 4) for h in hidden_shares(params, obs.laser, obs.spots)]
+        side = params[:, SIZE].max(axis=1)
+        sd = [round(h * float(w) / 2, 4) for h, w in zip(share, side)]
+    return [{HIDDEN_SHARE_KEY: h, HIDDEN_SD_KEY: d, "size_held": bool(b)}
+            for h, d, b in zip(share, sd, held)]

@@ -1,0 +1,170 @@
+"""Track a sequence: the library's one way to build a Tracker for a sequence file (or an opened
+Sequence) with the defaults `nlos-cl track` uses, and to run it frame by frame.
+
+    for step in nl.track_sequence("walk.h5"):
+        print(step.frame.index, [t.position for t in step.tracks])
+
+    run = nl.track_sequence("walk.h5", targets=2, max_frames=50)
+    steps = list(run)                 # every frame's tracks and measurements
+    smoothed = run.tracker.smooth()   # offline: Rauch-Tung-Striebel over the frames run
+
+Positions are in the internal frame (the Tracker's); `run.sequence.frame.from_internal`
+gives the file's. A sequence of one confocal spot gives a range per frame, not a position:
+nlos_cl.tracking.ranges.track_frames follows it.
+"""
+from __future__ import annotations
+
+import copy
+import sys
+import warnings
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Iterator, Mapping
+
+import numpy as np
+
+from ..core.constants import PAPER_H_S
+from ..core.errors import require
+from ..core.stats import unique_sorted
+from ..localization.estimators import choose_estimator
+from .motion import ConstantVelocity, Interacting, MotionModel
+from .tracker import Tracker
+
+# How errors name the options: the keywords here; the CLI passes its flags (TRACK_FLAGS).
+OPTION_NAMES = {"region": "region", "step_m": "step_m", "estimator": "estimator",
+                "targets": "targets", "reflectance": "reflectance", "accel": "accel",
+                "steady_accel": "steady_accel", "motion": "motion"}
+REACH_FRAMES = 32  # frames spread over the sequence whose signal bounds the search region
+
+
+def motion_for(kind: str = "imm", *, accel: float = 0.5, steady_accel: float = 0.05,
+               names: Mapping[str, str] = OPTION_NAMES) -> MotionModel:
+    """'imm': the interacting multiple model of a steady (`steady_accel`) and a manoeuvring
+    (`accel`) constant-velocity mode; 'cv': one constant-velocity model (`accel`), in m/s^2."""
+    require(kind in ("imm", "cv"), names["motion"], f"unknown motion {kind!r}",
+            "pass 'imm' or 'cv'")
+    if kind == "cv":
+        return ConstantVelocity(accel_sigma=accel)
+    require(steady_accel < accel, names["steady_accel"], f"must be below {names['accel']} "
+            f"({accel}), got {steady_accel}", f"pass e.g. {_pair(names)}, or "
+            f"{_flag_or_kw(names['motion'], 'cv')}")
+    return Interacting(accel_sigmas=(steady_accel, accel))
+
+
+def _pair(names) -> str:
+    if names["accel"].startswith("--"):
+        return f"{names['steady_accel']} 0.05 {names['accel']} 0.5"
+    return f"{names['steady_accel']}=0.05, {names['accel']}=0.5"
+
+
+def _flag_or_kw(name: str, value: str) -> str:
+    return f"{name} {value}" if name.startswith("--") else f"{name}={value!r}"
+
+
+def sampled_frames(seq) -> list:
+    """Up to REACH_FRAMES frames spread over the sequence: the search region reaches as far as
+    their signal does (a target walking away later than frame 0 stays inside)."""
+    n = len(seq)
+    picks = unique_sorted(np.linspace(0, n - 1, min(n, REACH_FRAMES)).astype(int))
+    return [seq[int(i)].histograms for i in picks]
+
+
+def tracker_for(seq, *, estimator=None, targets: int = 1, reflectance=None, region=None,
+                step_m: float | None = None, h_s: float = PAPER_H_S, background=None,
+                running_mean: float | None = None, motion: MotionModel | None = None,
+                full_search: bool = False,
+                backend=None, names: Mapping[str, str] = OPTION_NAMES) -> Tracker:
+    """A Tracker for `seq` (an opened Sequence) on the search region `nlos-cl locate` would use
+    for its first frame, reaching as far as the signal of frames spread over the sequence.
+
+    estimator: None (the default policy, localization.estimators.choose_estimator: the model
+    fit, warm-started from the tracks; for paired and confocal captures the mean of the paper's
+    likelihood with one target and its argmax with several, with a warning), a name or an
+    object. region: three (low, high) ranges along the file's axes, or a Grid; step_m with it.
+    background: a target-free capture (path or HistogramSet) subtracted from every frame, or
+    running_mean: the weight of a running mean of past frames subtracted instead. motion: a
+    motion model (default motion_for()). full_search: search the whole region every frame."""
+    from ..io.ytal.capture import read_capture
+    from ..localization.background import BackgroundRemover
+    from ..localization.capture import search_region
+    first = seq[0].histograms
+    grid, _ = search_region(first, seq.frame, region, step_m, h_s,
+                            names=(names["region"], names["step_m"]), reach_from=sampled_frames(seq))
+    remover = None
+    if background is not None:
+        if isinstance(background, (str, Path)):
+            background = read_capture(background)[0]
+        remover = BackgroundRemover(background, backend=backend)
+    elif running_mean is not None:
+        remover = BackgroundRemover(alpha=running_mean, backend=backend)
+    chosen, note = choose_estimator(estimator, targets=targets, reflectance=reflectance,
+                                    paired=first.paired, tracking=True, names=names)
+    if note:
+        warnings.warn(note, stacklevel=2)
+    interval = 1.0 / seq.fps if seq.fps else 0.1
+    sigma = 0.05  # the Tracker's default; the paper's argmax: measured on the first frames
+    if getattr(chosen, "name", None) == "paper" and remover is None:
+        from .scatter import sequence_scatter
+        sigma = sequence_scatter(seq, grid, h_s=h_s, backend=backend)
+    return Tracker(seq, grid, estimator=chosen, h_s=h_s, background=remover,
+                   motion=motion_for() if motion is None else motion, max_tracks=targets,
+                   frame_interval_s=interval, backend=backend, fallback_sigma_m=sigma,
+                   gated_search=not full_search)
+
+
+@dataclass(frozen=True)
+class TrackedFrame:
+    """One frame's result: the frame's header (its histograms dropped), copies of the tracks
+    as they stood after it, and the measurements the estimator gave."""
+    frame: object
+    tracks: list
+    measurements: list
+
+
+class SequenceRun:
+    """A sequence and its tracker; iterating runs the tracker over frames 0..stop-1 once,
+    yielding a TrackedFrame per frame (with a progress bar on stderr if `progress`)."""
+
+    def __init__(self, sequence, tracker: Tracker, stop: int, progress: bool = False):
+        self.sequence, self.tracker, self.stop, self.progress = sequence, tracker, stop, progress
+        self._started = False
+
+    def __len__(self) -> int:
+        return self.stop
+
+    def __iter__(self) -> Iterator[TrackedFrame]:
+        require(not self._started, "track_sequence", "a run's frames are tracked once",
+                "call track_sequence again to track the sequence anew")
+        self._started = True
+        from tqdm import tqdm
+        bar = tqdm(total=self.stop, unit="frame", desc="track", file=sys.stderr,
+                   disable=not self.progress)
+        try:
+            for frame in self.sequence.frames(0, self.stop):
+                tracks = self.tracker.update(frame.histograms, frame.t_s)
+                yield TrackedFrame(replace(frame, histograms=None),
+                                   [copy.copy(t) for t in tracks],
+                                   list(self.tracker.last_measurements))
+                bar.update(1)
+        finally:
+            bar.close()
+
+
+def track_sequence(source, *, max_frames: int | None = None, progress: bool = False,
+                   **options) -> SequenceRun:
+    """Track the targets of a sequence file (path) or an opened Sequence with `nlos-cl track`'s
+    defaults; `options` are tracker_for's (estimator, targets, region, background, motion, ...).
+    Returns a SequenceRun: iterate it for each frame's tracks (a TrackedFrame); its `tracker`
+    holds the tracks, their histories and smooth() / lagged(L) afterwards."""
+    from ..io.ytal.reading import read_sequence
+    from ..localization.ranges import is_single_confocal
+    seq = read_sequence(source) if isinstance(source, (str, Path)) else source
+    require(hasattr(seq, "frames") and hasattr(seq, "frame"), "source", f"expected a sequence "
+            f"file's path or a Sequence, got {type(source).__name__}",
+            "pass a path to a .h5 sequence (nlos_cl.write_sequence writes one)")
+    require(not is_single_confocal(seq[0].histograms), "source", "holds one confocal spot, which "
+            "gives a range per frame, not a position",
+            "follow its range with nlos_cl.tracking.ranges.track_frames")
+    tracker = tracker_for(seq, **options)
+    stop = len(seq) if max_frames is None else min(int(max_frames), len(seq))
+    return SequenceRun(seq, tracker, stop, progress)
