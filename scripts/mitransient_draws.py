@@ -12,8 +12,9 @@ mitransient_check.py:
                                  scaled to nlos_cl's total energy (one constant per draw: the
                                  estimators fit the amplitude, and the noise follows the draw's
                                  SNR, so only the renders' shapes and per-spot ratios matter),
-                                 the draw's noise added (draws_scene.noisy), the paper's argmax
-                                 and the default located (draws_run.locate); errors as draws.py
+                                 the draw's noise added (simulation.draws.scenes.noisy), the
+                                 paper's argmax and the default located (reproduce.draws.run
+                                 .locate); errors as `reproduce draws` measures them
 
 How a spot is rendered (nothing of nlos_cl's geometry enters): mitransient's nlos_capture_meter
 measures the wall at its film's pixel centres; with a 1 x 1 film on a relay-wall rectangle
@@ -52,16 +53,16 @@ def _indices(args) -> range:
 
 
 def export(out: Path, indices, family: str = "one"):
-    from nlos_cl.apps.reproduce import draws_gen, draws_scene
+    from nlos_cl.simulation.draws import families, scenes
     from nlos_cl.apps.reproduce.common import Settings
     s = Settings.make()
     for i in indices:
-        d = draws_gen.draw(family, i)
+        d = families.draw(family, i)
         for k, t in enumerate(d["targets"]):
-            draws_scene.mesh_of(t, s.facet_m).export(out / f"draw{i}_{k}.ply")
+            scenes.mesh_of(t, s.facet_m).export(out / f"draw{i}_{k}.ply")
         meta = {"draw": d, "spots": np.asarray(d["layout"]["spots"], float).tolist(),
                 "laser": [0.0, 0.0, 0.0], "n_targets": len(d["targets"]),
-                **render_axis(draws_scene.scene(d, s), s)}
+                **render_axis(scenes.scene(d, s), s)}
         (out / f"draw{i}.json").write_text(json.dumps(meta))
 
 
@@ -159,14 +160,15 @@ def pulse_convolved(data, bin_m: float, sigma_m: float) -> np.ndarray:
 def locate_one(job) -> list[dict]:
     """Both estimators on draw i's rendered frame: one row each ([] where it has no render)."""
     out, i = job
-    from nlos_cl.apps.reproduce import draws_run, draws_scene
+    from nlos_cl.apps.reproduce.draws import run as draws_run
+    from nlos_cl.simulation.draws import scenes
     from nlos_cl.apps.reproduce.common import Settings
     s = Settings.make()
     rows = []
     if (out / f"draw{i}_render.npy").exists():
         meta = json.loads((out / f"draw{i}.json").read_text())
         d = meta["draw"]
-        clean, _ = draws_scene.simulate(d, s)
+        clean, _ = scenes.simulate(d, s)
         parts = np.load(out / f"draw{i}_render.npy").astype(np.float64)  # (spots, splits, bins)
         conv = np.stack([pulse_convolved(parts[:, j], meta["bin_opl"], meta["sigma_m"])
                          for j in range(parts.shape[1])], axis=1)
@@ -181,7 +183,7 @@ def locate_one(job) -> list[dict]:
         shape = (np.abs(render - clean.data).max(axis=1) / peak).max()
         mc = (np.abs(conv[:, 0] - conv[:, -1]).max(axis=1) * scale / 2 / peak).max() \
             if conv.shape[1] > 1 else math.nan
-        frame = draws_scene.noisy(clean.with_data(render.astype(clean.data.dtype)), d)
+        frame = scenes.noisy(clean.with_data(render.astype(clean.data.dtype)), d)
         rows = draws_run.located_rows(d, frame, {
             "energy_ratio_min": round(float(energy.min()), 4),
             "energy_ratio_max": round(float(energy.max()), 4),
@@ -192,7 +194,7 @@ def locate_one(job) -> list[dict]:
 
 
 def locate(out: Path, indices, jobs: int = 1):
-    from nlos_cl.apps.reproduce import draws_report
+    from nlos_cl.apps.reproduce.draws import report as draws_report
     work = [(out, i) for i in indices]
     if jobs > 1:
         import multiprocessing as mp

@@ -10,11 +10,12 @@ same targets, noise level and noise seed:
   exhaustive  a laser grid x a sensor grid located jointly: lasers {O, spot 0, spot S // 2}
               x every spot (its laser = sensor pairs are confocal, as y-tal's are).
 
-The targets are `reproduce draws`' one-target draws (draws_gen, family "one", the same index,
-SNR and noise seed as docs/results/draws/draws.md), every index in --start .. --start + --count
-whose layout has at most MAX_SPOTS spots and no instrument mismatch (SPAD patches of 25-64 spots
-would cost 3-7x the renders; the mismatch kinds change the instrument, not the layout). Three steps,
-two venvs (as scripts/mitransient_draws.py, whose render_pair renders one laser/spot pair):
+The targets are `reproduce draws`' one-target draws (nlos_cl.simulation.draws.families, family
+"one", the same index, SNR and noise seed as docs/results/draws/draws.md), every index in
+--start .. --start + --count whose layout has at most MAX_SPOTS spots and no instrument mismatch
+(SPAD patches of 25-64 spots would cost 3-7x the renders; the mismatch kinds change the
+instrument, not the layout). Three steps, two venvs (as scripts/mitransient_draws.py, whose
+render_pair renders one laser/spot pair):
 
   export  (.venv)              each target as PLY, its pairs and time axis as JSON
   render  (.venv-mitransient)  each distinct (laser, spot) pair once (the one-laser pairs
@@ -50,9 +51,9 @@ CONFOCAL_GAP_M = 1e-3  # nlos_cl's Setup refuses a detector spot on the laser sp
 
 
 def chosen(start: int, count: int) -> list[int]:
-    from nlos_cl.apps.reproduce import draws_gen
+    from nlos_cl.simulation.draws import families
     return [i for i in range(start, start + count)
-            if len((d := draws_gen.draw("one", i))["layout"]["spots"]) <= MAX_SPOTS
+            if len((d := families.draw("one", i))["layout"]["spots"]) <= MAX_SPOTS
             and not d["mismatch"]]
 
 
@@ -70,17 +71,17 @@ def _key(laser, spot) -> str:
 
 
 def export(out: Path, indices):
-    from nlos_cl.apps.reproduce import draws_gen, draws_scene
+    from nlos_cl.simulation.draws import families, scenes
     from nlos_cl.apps.reproduce.common import Settings
     s = Settings.make()
     for i in indices:
-        d = draws_gen.draw("one", i)
-        draws_scene.mesh_of(d["targets"][0], s.facet_m).export(out / f"draw{i}_0.ply")
+        d = families.draw("one", i)
+        scenes.mesh_of(d["targets"][0], s.facet_m).export(out / f"draw{i}_0.ply")
         layouts = pairs_of(np.asarray(d["layout"]["spots"], float))
         keys = sorted({_key(a, b) for lasers, spots in layouts.values()
                        for a, b in zip(lasers, spots)})
         meta = {"draw": d, "pairs": keys, "n_targets": 1,
-                **render_axis(draws_scene.scene(d, s), s)}
+                **render_axis(scenes.scene(d, s), s)}
         (out / f"draw{i}.json").write_text(json.dumps(meta))
 
 
@@ -94,8 +95,8 @@ def simulated(d: dict, lasers, spots, axis, facet_m: float):
     """nlos_cl's clean HistogramSet of these pairs: each pair its own Setup (the forward model
     takes one laser spot per Setup); the set holds every row's own laser spot."""
     import nlos_cl as nl
-    from nlos_cl.apps.reproduce import draws_scene
-    target = nl.Target(draws_scene.mesh_of(d["targets"][0], facet_m), 0.1284)
+    from nlos_cl.simulation.draws import scenes
+    target = nl.Target(scenes.mesh_of(d["targets"][0], facet_m), 0.1284)
     rows, offsets, scale = [], [], None
     for laser, spot in zip(lasers, spots):
         seen = spot + (np.array([CONFOCAL_GAP_M, 0, 0]) if np.allclose(laser, spot) else 0)
@@ -113,14 +114,15 @@ def locate_one(job) -> list[dict]:
     """Every estimator on draw i's four layouts, simulated and rendered: one row each."""
     out, i = job
     import nlos_cl as nl
-    from nlos_cl.apps.reproduce import draws_run, draws_scene
+    from nlos_cl.apps.reproduce.draws import run as draws_run
+    from nlos_cl.simulation.draws import scenes
     from nlos_cl.apps.reproduce.common import Settings
     s = Settings.make()
     meta = json.loads((out / f"draw{i}.json").read_text())
     if not (out / f"draw{i}_pairs.npy").exists():
         return []
     d = meta["draw"]
-    axis = nl.default_time_axis(draws_scene.scene(d, s).setup, s.dt_s)
+    axis = nl.default_time_axis(scenes.scene(d, s).setup, s.dt_s)
     parts = np.load(out / f"draw{i}_pairs.npy").astype(np.float64)  # (pairs, splits, bins)
     where = {k: n for n, k in enumerate(meta["pairs"])}
     truth = np.asarray(d["targets"][0]["centre"], float)
@@ -140,7 +142,7 @@ def locate_one(job) -> list[dict]:
         shape = float((np.abs(render - clean.data).max(axis=1) / peak).max())
         mc = float((np.abs(halves[0] - halves[-1]).max(axis=1) * scale / 2 / peak).max())
         for source, data in (("nlos_cl", clean.data), ("mitransient", render)):
-            frame = draws_scene.noisy(clean.with_data(data.astype(clean.data.dtype)), d)
+            frame = scenes.noisy(clean.with_data(data.astype(clean.data.dtype)), d)
             for label, options in ESTIMATORS:
                 found, notes, seconds, _ = draws_run.locate(frame, options)
                 error = float(np.linalg.norm(found[0] - truth)) if found else math.nan

@@ -72,3 +72,15 @@ def model_observation(filtered, raw):
     from nlos_cl.localization.model import ModelEstimator
     return ModelEstimator().observation(Scored(filtered.backend, None, nl.Grid(), False,
                                                filtered.n_detectors, filtered, raw))
+
+
+@pytest.fixture(scope="session")
+def walk_file(tmp_path_factory):
+    """12 frames (10 fps, 10 dB) of a plate walking 1.1 m on the paper's setup, as a file."""
+    from nlos_cl.tracking import MovingTarget, Trajectory, simulate_sequence
+    setup = nl.paper_setup()
+    walk = Trajectory([0, 1.2], [[3, 1.5, 0], [3.5, 2.5, 0]])
+    target = MovingTarget(nl.Target(nl.rectangle(centre=walk.at(0), cell_m=0.03)), walk)
+    frames = simulate_sequence(setup, target, n_frames=12, fps=10, noise=nl.AWGN(10), seed=0,
+                               facet_size_m=0.03, time_axis=nl.default_time_axis(setup, 1e-11))
+    return nl.write_sequence(tmp_path_factory.mktemp("walk") / "walk.h5", frames)

@@ -74,7 +74,7 @@ def test_locate_map_replaces_its_own_map_only(tmp_path):
     with pytest.raises(CommandLineError, match="--map"):
         cli("locate", capture, "--map", mine, "--estimator", "paper")
     assert mine.read_bytes() == before
-    from nlos_cl.apps.files import is_map
+    from nlos_cl.apps.locate import is_map
     np.savez(out, score=np.zeros(1), x=[0.0], y=[0.0], z=[0.0])
     assert is_map(out) and not is_map(mine)
 
@@ -115,7 +115,7 @@ def test_the_cli_opt_in_and_a_resume_over_its_own_outputs(tmp_path, monkeypatch)
 
 
 def test_nlos_cl_s_own_runner_studies_need_no_opt_in():
-    from nlos_cl.apps.reproduce.beyond_sweep import RUNNER
+    from nlos_cl.apps.reproduce.beyond.sweep import RUNNER
     from nlos_cl.sweep.runner import resolve
     assert callable(resolve("nlos_cl.sweep.examples:paper_target")) and callable(resolve(RUNNER))
 

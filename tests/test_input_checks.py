@@ -57,7 +57,7 @@ def test_the_same_loader_guards_study_files_and_the_packaged_studies(tmp_path):
     path.write_text(alias_bomb() + "scene: {targets: [{shape: sphere}]}\n")
     with pytest.raises(nl.InputError, match="study file .*aliases expand"):
         load_study(path)
-    with pytest.raises(Exception, match="aliases expand"):  # apps/reproduce/studies.py's use
+    with pytest.raises(Exception, match="aliases expand"):  # apps/reproduce/paper/studies.py's use
         yaml.load(alias_bomb(), Loader=yaml_loader())
     assert yaml.load("dt: 1e-11\nt: 10e-12\n", Loader=yaml_loader()) == {"dt": 1e-11, "t": 1e-11}
 

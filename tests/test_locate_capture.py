@@ -9,7 +9,8 @@ import pytest
 import nlos_cl as nl
 from nlos_cl.apps import cli
 from nlos_cl.io.ytal.frames import INTERNAL, YTAL
-from nlos_cl.localization.capture import covariance_json, search_region
+from nlos_cl.io.json_format import covariance_json
+from nlos_cl.localization.capture import search_region
 from nlos_cl.localization.region import default_region
 
 C = nl.SPEED_OF_LIGHT

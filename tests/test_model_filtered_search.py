@@ -66,13 +66,16 @@ def _counts_draw(index):
     """(draw, the located target) of counts draw `index`, as `reproduce draws` locates it."""
     import warnings
     import nlos_cl as nl
-    from nlos_cl.apps.reproduce import draws_gen, draws_scene
-    from nlos_cl.apps.reproduce.common import Settings
-    d = draws_gen.draw("counts", index)
-    frame = draws_scene.noisy(draws_scene.simulate(d, Settings())[0], d)
+    from nlos_cl.simulation.draws import families, scenes
+    d = families.draw("counts", index)
+    frame = scenes.noisy(scenes.simulate(d, DRAWS_SETTINGS)[0], d)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return d, nl.locate_capture(frame).points[0].location.targets[0]
+
+
+# what the draws' scenes read of `reproduce draws`' full settings: facet size and time bin
+DRAWS_SETTINGS = SimpleNamespace(facet_m=0.01, dt_s=1e-12)
 
 
 def test_counts_draw_165s_box_is_found_by_racing_the_filtered_frames_closed_fits(monkeypatch):

@@ -8,6 +8,7 @@ of its energy (the scene of a random draw of `reproduce draws`, multi index 11, 
 plate was 8.3 m off). With this noise seed and only 3 residual starts, the far plate was
 1.8 m off; with 8 (select.RESIDUAL_STARTS), 8 of 8 seeds within 0.12 m (sd ~0.075 m)."""
 import warnings
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -16,8 +17,11 @@ import nlos_cl as nl
 from nlos_cl.localization.model import ModelEstimator
 from nlos_cl.localization.model.forward.data import TARGETS_FRAC, signal_windows
 from nlos_cl.localization.model.forward.likelihood import nonnegative_lstsq
-from nlos_cl.localization.model.policy.select import separate
+from nlos_cl.localization.model.policy.criteria import separate
 from nlos_cl.localization.model.policy.starts import MAX_AMPLITUDE_RATIO, plausible
+
+# what the draws' scenes read of `reproduce draws`' full settings: facet size and time bin
+DRAWS_SETTINGS = SimpleNamespace(facet_m=0.01, dt_s=1e-12)
 
 SPOTS = [[-0.880, 0.0, -0.932], [-0.343, 0.0, -0.711], [-0.266, 0.0, -0.135],
          [-0.726, 0.0, 0.219], [-1.263, 0.0, -0.002], [-1.340, 0.0, -0.577]]
@@ -114,10 +118,9 @@ def test_amplitudes_of_one_frame_stay_within_a_ratio_of_reflectances():
 # place in the order: before, the same plate was dropped twice and the sliver never).
 @pytest.mark.parametrize("index", [60, 55])
 def test_a_plate_the_joint_fit_left_dead_or_misplaced_is_reseated_from_the_residual(index):
-    from nlos_cl.apps.reproduce import draws_gen, draws_scene
-    from nlos_cl.apps.reproduce.common import Settings
-    d = draws_gen.draw("multi", index, master_seed=2201)
-    frame = draws_scene.noisy(draws_scene.simulate(d, Settings())[0], d)
+    from nlos_cl.simulation.draws import families, scenes
+    d = families.draw("multi", index, master_seed=2201)
+    frame = scenes.noisy(scenes.simulate(d, DRAWS_SETTINGS)[0], d)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         loc = nl.locate_capture(frame, targets=len(d["targets"])).points[0].location
@@ -130,7 +133,7 @@ def test_a_plate_the_joint_fit_left_dead_or_misplaced_is_reseated_from_the_resid
 
 def test_dead_plates_are_those_at_zero_amplitude_or_a_negligible_share_of_the_energy():
     from nlos_cl.localization.model.solve.fit import FitResult
-    from nlos_cl.localization.model.policy.select import DEAD_SHARE, dead_plates
+    from nlos_cl.localization.model.policy.criteria import DEAD_SHARE, dead_plates
 
     class Columns:  # three plates' columns: unit energy each
         def columns(self, params):

@@ -281,12 +281,12 @@ def test_a_misfit_plate_another_can_shadow_is_refitted_from_facing_yaws(host):
     """select.reseat_shadowed: FAR started turned 65 degrees off (yaw 2.0 rad, where the fit
     cannot leave: Birge ~600, a misfit) comes back within 2 cm from the yaws about facing the
     spots; an adequate fit is returned as it is (the same object: no work, no change)."""
-    from nlos_cl.localization.model.policy import select
+    from nlos_cl.localization.model.policy import criteria, select
     truth = np.stack([NEAR, FAR])
     start = truth.copy()
     start[1, plate.YAW] = 2.0
     stuck = fit(host, start, FREE, 30)
-    assert select.misfit(host, stuck, FREE, covariance(host, stuck, FREE)[1])[0]
+    assert criteria.misfit(host, stuck, FREE, covariance(host, stuck, FREE)[1])[0]
     again = select.reseat_shadowed(host, stuck, FREE, 30)
     assert again.cost < 0.01 * stuck.cost
     assert np.linalg.norm(again.params[1, :3] - FAR[:3]) < 0.02

@@ -58,13 +58,13 @@ def test_no_pair_no_variables():
 
 @pytest.fixture(scope="module")
 def valley():
-    """The stream bench's frames (apps.bench.stream: the paper's scene, 3 x 4,096 bins, 10 dB,
+    """The stream bench's frames (simulation.stream: the paper's scene, 3 x 4,096 bins, 10 dB,
     noise seed 0): copy 2 fitted from copy 1's fitted plate, the case that crawled."""
-    from nlos_cl.apps.bench.stream import _frames
+    from nlos_cl.simulation.stream import stream_frames
     from nlos_cl.localization.filter import GaussFilter
     from nlos_cl.ops.signals import upload
     rt = nl.resolve_backend(None)
-    clean, frames = _frames(rt)
+    clean, frames = stream_frames(rt)
     gauss, est = GaussFilter(time_axis=clean.time_axis), ModelEstimator()
 
     def observed(i):

@@ -62,7 +62,7 @@ def test_one_laser_by_reciprocity_puts_the_4_at_its_depth_without_numpy_noise(fu
     before stop 51, a box since: depth unseen) is rejected for the argmax (model.sanity); 4 points keep the misfit plate (no closed shape
     fitted better): on the "4" either way. No numpy warning reaches the answer (4 points' start candidates
     overflowed a Newton step: likelihood._poisson_linear)."""
-    from nlos_cl.apps.reproduce.real_runs import reciprocal
+    from nlos_cl.core.histograms import reciprocal
     h = reciprocal(full.select(farthest_points(full.laser_spots, k)))
     assert not h.paired
     depth, notes = _depth(h)
@@ -78,7 +78,7 @@ def test_the_full_scan_as_one_laser_is_decided_on_a_spread_subset(full, monkeypa
     misses the counts, the closed shape chosen on CHOICE_DETECTORS spread points is one the
     sanity check rejects, so the answer is the argmax on the "4" and nothing was fitted on
     every detector (stop 48: over 7 minutes; now ~10 s on the 2-core machine, not asserted)."""
-    from nlos_cl.apps.reproduce.real_runs import reciprocal
+    from nlos_cl.core.histograms import reciprocal
     from nlos_cl.core.tuning import CHOICE_DETECTORS
     from nlos_cl.localization.model.policy import subset
     fitted_on = []

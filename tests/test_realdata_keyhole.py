@@ -78,10 +78,10 @@ def test_range_rules_of_a_simulated_point_target(runtime):
     near and far half-height edges either side of it by half the filtered pulse's full width
     at half maximum (pulse and Gauss filter, sigma h / 3, added in quadrature: 2.3548 sigma of
     time, c / 2 of range per second), to 5 % (the 5 cm plate widens it a little)."""
-    from nlos_cl.apps.reproduce.real_runs import _range_rules
+    from nlos_cl.localization.ranges import range_rules
     from nlos_cl.core.constants import PAPER_H_S, SPEED_OF_LIGHT
     confocal, setup = _point_target_frame(runtime)
-    rules = {k: float(v[0]) for k, v in _range_rules([(0.0, confocal)], PAPER_H_S).items()}
+    rules = {k: float(v[0]) for k, v in range_rules([(0.0, confocal)], PAPER_H_S).items()}
     truth = float(np.linalg.norm(POINT_TARGET))
     assert rules["peak"] == pytest.approx(truth, abs=0.005)
     assert 0.5 * (rules["leading"] + rules["trailing"]) == pytest.approx(truth, abs=0.005)

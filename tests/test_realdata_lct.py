@@ -17,7 +17,7 @@ LCT = Path(__file__).resolve().parents[2] / "shared" / "realdata" / "lct"
 def backprojection_peak(h, step_m=0.02, every=2):
     """The brightest voxel of a confocal backprojection over every `every`-th scan point
     (reproduce real's reference, on a 0.8 m wide, 0.1-1.5 m deep volume)."""
-    from nlos_cl.apps.reproduce.real_runs import backprojection_peak as peak
+    from nlos_cl.localization.backprojection import backprojection_peak as peak
     return peak(h, step_m, every, 0.4, (0.1, 1.5))
 
 

@@ -66,7 +66,7 @@ def test_study_figures_give_the_classic_loops_numbers(name, axis, value, seeds, 
     """fig7a/fig7b/table1/fig9 run their study files through nl.sweep; one swept value (not one
     of --quick's, so the package file's value is used) gives exactly the loop's row: same
     scene, same seeds, same filter, so every number is equal, not close."""
-    from nlos_cl.apps.reproduce import studies
+    from nlos_cl.apps.reproduce.paper import studies
     monkeypatch.setitem(studies.QUICK, name, (axis, (value,)))
     s = rp.Settings.make(quick=True, seeds=seeds)
     (result,) = rp.run(name, s, tmp_path)

@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 from nlos_cl.apps import reproduce as rp
-from nlos_cl.apps.reproduce import draws_gen as g
-from nlos_cl.apps.reproduce import draws, draws_cross_gen as cg, draws_cross_run, draws_report
-from nlos_cl.apps.reproduce import draws_run
 from nlos_cl.apps.reproduce.common import Settings
+from nlos_cl.apps.reproduce.draws import cross_run as draws_cross_run, experiment as draws
+from nlos_cl.apps.reproduce.draws import report as draws_report, run as draws_run
+from nlos_cl.simulation.draws import crossings as cg, families as g
 from nlos_cl.core.errors import InputError
 
 CFG = g.config()
@@ -278,11 +278,11 @@ def test_a_counts_draw_is_photon_counts_with_its_drawn_signal():
     """The counts family's frame: whole numbers in the drawn TDC bins, whose mean total per
     detector is the drawn signal photons plus the dark and ambient counts' expectation (at
     the pulses that signal needs), within 5 Poisson sd."""
-    from nlos_cl.apps.reproduce import draws_scene
     from nlos_cl.physics.noise import PhotonCounter
+    from nlos_cl.simulation.draws import scenes
     d = g.draw("counts", 3)
-    clean, _ = draws_scene.simulate(d, Settings.make(quick=True))
-    frame = draws_scene.noisy(clean, d)
+    clean, _ = scenes.simulate(d, Settings.make(quick=True))
+    frame = scenes.noisy(clean, d)
     c = d["counting"]
     assert np.array_equal(frame.data, np.round(frame.data)) and frame.data.min() >= 0
     assert abs(frame.time_axis.dt_s - c["tdc_ps"] * 1e-12) < 1e-18

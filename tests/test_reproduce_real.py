@@ -10,7 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from nlos_cl.apps.reproduce import EXPERIMENTS, PAPER_EXPERIMENTS, real
+from nlos_cl.apps.reproduce import EXPERIMENTS, PAPER_EXPERIMENTS
+from nlos_cl.apps.reproduce.real import experiment as real
 from nlos_cl.core.errors import InputError
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "realdata"

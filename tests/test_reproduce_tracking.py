@@ -12,7 +12,8 @@ from pathlib import Path
 import pytest
 
 from nlos_cl.apps import reproduce as rp
-from nlos_cl.apps.reproduce import tracking, tracking_cases as tc, tracking_report
+from nlos_cl.apps.reproduce.tracking import cases as tc, experiment as tracking
+from nlos_cl.apps.reproduce.tracking import report as tracking_report
 from nlos_cl.apps.reproduce.common import Result
 from nlos_cl.core.errors import InputError
 
@@ -99,14 +100,14 @@ def test_quick_synthetic_crossing_speed_and_memory_are_plausible(quick_run):
 
 
 def test_a_bad_case_is_one_line_naming_its_field():
-    data = copy.deepcopy(tc.load_data("tracking.yaml"))
+    data = copy.deepcopy(tc.load_data("tracking.yaml", tc.__package__))
     data["lines"]["frames"] = 0
     with pytest.raises(InputError) as caught:
         tc.config(False, data)
     message = str(caught.value)
     assert message.startswith("tracking.yaml lines.frames: expected a positive integer, got 0")
     assert "\n" not in message and "Fix:" in message
-    data = copy.deepcopy(tc.load_data("tracking.yaml"))
+    data = copy.deepcopy(tc.load_data("tracking.yaml", tc.__package__))
     data["quick"]["box"]["layout"] = "9-spot"  # a name the layouts do not have
     with pytest.raises(InputError, match=r"^tracking.yaml quick.box.layout: unknown layout"):
         tc.config(True, data)

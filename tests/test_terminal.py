@@ -2,7 +2,7 @@
 each distinct warning once as one line `nlos-cl: warning: ...` with no source line; OpenCL
 compiler output stays off the terminal unless --verbose (or inside the error of a failed build);
 an unwritable cache folder falls back with one warning; a tight `ulimit -v` is refused in one
-line; and scripts/redteam.py runs and classifies a few inputs."""
+line; and tests/redteam.py runs and classifies a few inputs."""
 import os
 import secrets
 import subprocess
@@ -13,12 +13,11 @@ from pathlib import Path
 
 import pytest
 
-from nlos_cl.apps import cli, files
+from nlos_cl.apps import calibrate as calibrate_cmd, cli
 from nlos_cl.core.errors import DeviceError
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "scripts"))
-import redteam  # noqa: E402
+import redteam  # noqa: E402  (tests/redteam.py, beside this file)
 from redteam_cases import CASES, Case  # noqa: E402
 
 WARNING_KERNEL = "__kernel void k(__global float *a) { int y = (int)a; a[0] = y; }\n"
@@ -30,7 +29,7 @@ def test_each_distinct_warning_is_one_line_once(monkeypatch, capsys, tmp_path):
             warnings.warn("the same\n  thing, over two lines", RuntimeWarning)
         warnings.warn("another thing", UserWarning)
         return 0
-    monkeypatch.setattr(files, "calibrate", noisy)
+    monkeypatch.setattr(calibrate_cmd, "calibrate", noisy)
     shown = warnings.showwarning
     assert cli.main(["calibrate", str(tmp_path / "pairs.csv")]) == 0
     err = capsys.readouterr().err.splitlines()
@@ -44,10 +43,10 @@ def _cold_build(tmp_path, *flags):
     about (as PoCL does on CPUs without AVX-512): stderr of the run."""
     code = textwrap.dedent(f"""
         import sys
-        from nlos_cl.apps import cli, files
+        from nlos_cl.apps import calibrate as calibrate_cmd, cli
         from nlos_cl.device import runtime
         runtime.kernel_source = lambda name: "// {secrets.token_hex(8)}\\n" + {WARNING_KERNEL!r}
-        files.calibrate = lambda args: runtime.Runtime().kernel("w", "k") and 0
+        calibrate_cmd.calibrate = lambda args: runtime.Runtime().kernel("w", "k") and 0
         sys.exit(cli.main(["calibrate", "pairs.csv", *{list(flags)!r}]))
         """)
     env = dict(os.environ, XDG_CACHE_HOME=str(tmp_path / f"cold{len(flags)}"))
@@ -132,7 +131,7 @@ def test_redteam_runs_a_few_inputs(tmp_path):
     numbers = [str(i) for i, c in enumerate(CASES, 1) if c.name in names]
     assert len(numbers) == 3
     page = tmp_path / "redteam.md"
-    done = subprocess.run([sys.executable, str(REPO / "scripts" / "redteam.py"),
+    done = subprocess.run([sys.executable, str(REPO / "tests" / "redteam.py"),
                            *sum((["--case", n] for n in numbers), []), "--out", str(page)],
                           capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr

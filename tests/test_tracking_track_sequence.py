@@ -13,8 +13,6 @@ from nlos_cl.localization.estimators import (PAIRED_LOCATE_NOTE, PAIRED_TRACK_NO
 from nlos_cl.tracking import ConstantVelocity, Interacting, read_sequence
 from nlos_cl.tracking.sequences import TrackedFrame, motion_for
 
-from test_tracking_sequence import walk_file  # noqa: F401  (12 frames of a plate walking)
-
 
 def test_a_run_yields_each_frame_and_agrees_with_the_command(walk_file, capsys):
     """The library's frames are the command's JSON lines: same tracks, same positions (the

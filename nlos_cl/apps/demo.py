@@ -31,7 +31,7 @@ def _run_once(args, backend, grid):
 
 
 def _estimates(paper, model, warm) -> dict:
-    from ..localization.capture import covariance_json, rounded
+    from ..io.json_format import covariance_json, rounded
     first = model.targets[0]
     return {"paper": {"position": rounded(paper.position), "error_m": round(paper.error_m, 5),
                       "time_s": round(warm["locate_paper"], 4)},
@@ -87,7 +87,7 @@ def run(args) -> int:
     (scene, sim, noisy, filtered, paper, model), cold, notes = _run_once(args, backend, grid)
     warm = _run_once(args, backend, grid)[1]  # programs built, buffers pooled: steady state
     if args.png:
-        from .files import write_figure
+        from .plotting import write_figure
         from .plotting import demo_figure
         write_figure(args.png, lambda fh: demo_figure(noisy.histograms(), filtered.histograms(),
                                                       paper, fh), what="--png", force=args.force)
@@ -122,7 +122,9 @@ def run_track(args) -> int:
     from ..physics.noise import AWGN
     from ..core.paths import TimeAxis
     from ..physics.scene import Target, paper_setup
-    from ..tracking import MovingTarget, Tracker, Trajectory, simulate_sequence
+    from ..physics.trajectory import MovingTarget, Trajectory
+    from ..simulation.sequence import simulate_sequence
+    from ..tracking import Tracker
     setup, n_frames = paper_setup(), 30
     walk = MovingTarget(Target(rectangle(centre=(3.0, 1.5, 0.0), cell_m=0.02)),
                         Trajectory([0.0, 2.9], [[3.0, 1.5, 0.0], [4.5, 3.0, 0.0]]))

@@ -243,3 +243,22 @@ def beyond_figure(summary, out: Path, name: str) -> str:
     fig.suptitle("paper's argmax vs model-based estimator (this run)")
     fig.tight_layout()
     return save(fig, out, name)
+
+
+def write_figure(path, draw, *, what: str, force: bool = False, keep_unless=None):
+    """The figure `draw(fh)` saves (a plotting function given an open binary file) written to
+    `path` through nlos_cl.io.safe_write.atomic_write: whole or not at all, never over a file
+    nlos_cl did not write unless force, never through a link or onto a device. matplotlib takes
+    a file object's format from savefig.format, so that is set from the suffix (.png, .pdf)."""
+    from pathlib import Path
+
+    import matplotlib
+
+    from ..io.safe_write import atomic_write
+    fmt = Path(path).suffix.lstrip(".").lower() or "png"
+
+    def write(tmp):
+        with matplotlib.rc_context({"savefig.format": fmt}), open(tmp, "wb") as fh:
+            draw(fh)
+    return atomic_write(path, write, keep_unless=keep_unless, force=force, what=what,
+                        kind="a figure")

@@ -2,7 +2,8 @@
 paper-results.md; `reproduce beyond` writes beyond-the-paper.md (OUT/ unless --doc);
 `reproduce tracking --doc docs/tracking.md` fills that page's tables; `reproduce real --doc
 docs/results/real-data/real-data.md` writes that page (figures in docs/results/real-data/real/;
-OUT/real-data.md always)."""
+OUT/real-data.md always); `reproduce draws` and `reproduce flood` write OUT/NAME.md, and with
+--doc that page there (flood: its flood.csv beside it)."""
 from __future__ import annotations
 
 import json
@@ -69,7 +70,7 @@ def _record_outputs(out: Path, names) -> None:
 
 
 def _write_doc(rp, args, settings, results, wall) -> None:
-    if args.name in ("tracking", "draws"):  # own writers (tracking: between the page's markers)
+    if args.name in ("tracking", "draws", "flood"):  # own writers (tracking: between markers)
         if args.doc:
             from importlib import import_module
             writer = import_module(f".reproduce.{args.name}", __package__).write_doc
@@ -81,7 +82,7 @@ def _write_doc(rp, args, settings, results, wall) -> None:
             write_doc(results[0], Path(args.doc), Path(args.out), args.force)
         return
     if args.name == "beyond":
-        from .reproduce.beyond_report import write_beyond_report
+        from .reproduce.beyond.report import write_beyond_report
         write_beyond_report(results[0], settings, _doc_path(args), Path(args.out), wall,
                             args.force)
     elif args.name == "all" or args.doc:

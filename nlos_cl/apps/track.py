@@ -36,7 +36,13 @@ def tracker_options(args, backend) -> dict:
                 region=region, step_m=args.step, h_s=args.h_ns * 1e-9,
                 background=args.background or None, running_mean=args.running_mean,
                 motion=motion_model(args), full_search=args.full_search, backend=backend,
-                names=OPTION_FLAGS)
+                names=OPTION_FLAGS, on_note=_warn)
+
+
+def _warn(text: str) -> None:
+    """The default estimator's note, printed as the command always has (whatever Python's
+    warning filters say)."""
+    print(f"nlos-cl: warning: {text}", file=sys.stderr)
 
 
 def motion_model(args):
@@ -52,7 +58,7 @@ def _entry(frame, tracks, measurements, cframe, smoothed=None, mark=None) -> dic
     """One frame's JSON object; `smoothed`: {(id, frame): Smoothed} replaces the filter's
     position, velocity and covariance where it holds the track; `mark`: keys added (what
     replaced them: {"smoothed": true} or {"lag_frames": L})."""
-    from ..localization.capture import covariance_json, vector_json
+    from ..io.json_format import covariance_json, vector_json
     states = [(t, (smoothed or {}).get((t.id, frame.index))) for t in tracks]
     states = [(t, s.position, s.velocity, s.covariance) if s is not None else
               (t, t.position, t.velocity, t.position_covariance) for t, s in states]
@@ -70,7 +76,7 @@ def _entry(frame, tracks, measurements, cframe, smoothed=None, mark=None) -> dic
 def main(args) -> int:
     from ..ops.backend import resolve_backend
     from ..io.safe_write import atomic_write
-    from ..tracking import read_sequence
+    from ..io.ytal.reading import read_sequence
     from ..core.errors import require
     require(not (args.lag and (args.smooth or not args.json)), "--lag", "prints fixed-lag "
             "lines with --json, and --smooth already uses every later frame",

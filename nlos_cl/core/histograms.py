@@ -151,3 +151,11 @@ def laser_spots_of(laser_spot, n: int) -> np.ndarray:
     """(n, 3): the laser spot of each of n histograms."""
     laser = np.asarray(laser_spot, dtype=np.float64)
     return laser if laser.ndim == 2 else np.broadcast_to(laser, (n, 3))
+
+
+def reciprocal(h: HistogramSet) -> HistogramSet:
+    """A capture of N laser points and ONE detection point read by reciprocity as one laser
+    (that point) and N detector spots (the laser points): the same paths, the same data."""
+    require(np.allclose(h.detector_spots, h.detector_spots[0]), "capture",
+            "has more than one detection point", "pass a scan with one detector")
+    return HistogramSet(h.data, h.time_axis, h.laser_spots, h.detector_spots[0], h.calibration)

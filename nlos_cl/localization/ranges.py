@@ -37,3 +37,22 @@ def confocal_ranges(frames, h_s: float = PAPER_H_S, *, backend=None) -> np.ndarr
     """confocal_range of each frame: HistogramSets, or (t_s, HistogramSet, ...) tuples."""
     sets = [f[1] if isinstance(f, tuple) else f for f in frames]
     return np.array([confocal_range(h, h_s, backend=backend) for h in sets])
+
+
+def range_rules(frames, h_s: float = PAPER_H_S) -> dict:
+    """A diagnosis: each frame's range (m) by other rules on the same Gauss-filtered return:
+    its peak, and the half-height crossings of its main lobe (the near edge, `leading`, and
+    the far one, `trailing`). A letter beside the grid's centre moves them apart: where each
+    rule sits on the letter is another lateral place."""
+    out = {"peak": [], "leading": [], "trailing": []}
+    for _, h in frames:
+        y = gauss_filter(h, h_s).histograms().data[0].astype(np.float64)
+        half_path = 0.5 * h.hidden_path_axis()[0]
+        k = int(np.argmax(y))
+        half = 0.5 * y[k]
+        lo = k - int(np.argmax(y[k::-1] <= half))  # the first bin at or below half, each side
+        hi = k + int(np.argmax(y[k:] <= half))
+        at = lambda a, b: a + (half - y[a]) / (y[b] - y[a]) * (b - a)  # noqa: E731
+        for name, place in (("peak", k), ("leading", at(lo, lo + 1)), ("trailing", at(hi - 1, hi))):
+            out[name].append(float(np.interp(place, np.arange(len(y)), half_path)))
+    return {k: np.array(v) for k, v in out.items()}

@@ -1,24 +1,37 @@
 """Tracking hidden objects over frames (docs/tracking.md): a constant-velocity Kalman tracker
-with identities, gating, association, warm-started model fits and fixed-lag smoothing.
+with identities, gating, association, warm-started model fits and fixed-lag smoothing, and
+`track_sequence`, which builds one for a sequence file and runs it.
 
-The tracker's inputs live in their own layers and are re-exported here for convenience:
-moving scenes (nlos_cl.physics.trajectory) simulated frame by frame (nlos_cl.simulation.sequence),
-sequence files (nlos_cl.io.ytal), background removal (nlos_cl.localization.background) and sensor
-noise (nlos_cl.physics.noise). SciPy, h5py and trimesh load on first use.
+What a tracker takes lives in its own layer and is reached from there or from the facade
+(`nl.MovingTarget`, `nl.simulate_sequence`, `nl.read_sequence`, ...): moving scenes
+(nlos_cl.physics.trajectory), frames simulated one by one (nlos_cl.simulation.sequence),
+sequence files (nlos_cl.io.ytal), background removal (nlos_cl.localization.background), sensor
+noise (nlos_cl.physics.noise). `from nlos_cl.tracking import MovingTarget` still works (old code,
+the notebooks): those names resolve here on first use, without importing their layers before.
 """
 from __future__ import annotations
 
-from ..io.ytal.reading import Sequence, read_sequence
-from ..io.ytal.sequence import SequenceFrame, write_sequence
-from ..localization.background import BackgroundRemover
-from ..physics.noise import SensorNoise
-from ..physics.trajectory import MovingTarget, Trajectory
-from ..simulation.sequence import SimFrame, frame_seed, simulate_sequence
+import importlib
+
 from .kalman import Measurement
-from .motion import ConstantVelocity, Interacting
+from .motion import ConstantVelocity, Interacting, MotionModel
+from .sequences import TrackedFrame, track_sequence
 from .track import Track
 from .tracker import Tracker
 
-__all__ = ["BackgroundRemover", "ConstantVelocity", "Interacting", "Measurement", "MovingTarget",
-           "SensorNoise", "Sequence", "SequenceFrame", "SimFrame", "Track", "Tracker", "Trajectory",
-           "frame_seed", "read_sequence", "simulate_sequence", "write_sequence"]
+# Other layers' names once re-exported here: where they live (resolved on first use).
+_ELSEWHERE = {"Sequence": "..io.ytal.reading", "read_sequence": "..io.ytal.reading",
+              "SequenceFrame": "..io.ytal.sequence", "write_sequence": "..io.ytal.sequence",
+              "BackgroundRemover": "..localization.background",
+              "SensorNoise": "..physics.noise", "MovingTarget": "..physics.trajectory",
+              "Trajectory": "..physics.trajectory", "SimFrame": "..simulation.sequence",
+              "frame_seed": "..simulation.sequence", "simulate_sequence": "..simulation.sequence"}
+
+__all__ = ["ConstantVelocity", "Interacting", "Measurement", "MotionModel", "Track",
+           "TrackedFrame", "Tracker", "track_sequence"]
+
+
+def __getattr__(name):
+    if name in _ELSEWHERE:
+        return getattr(importlib.import_module(_ELSEWHERE[name], __name__), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

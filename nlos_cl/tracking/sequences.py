@@ -72,8 +72,8 @@ def sampled_frames(seq) -> list:
 def tracker_for(seq, *, estimator=None, targets: int = 1, reflectance=None, region=None,
                 step_m: float | None = None, h_s: float = PAPER_H_S, background=None,
                 running_mean: float | None = None, motion: MotionModel | None = None,
-                full_search: bool = False,
-                backend=None, names: Mapping[str, str] = OPTION_NAMES) -> Tracker:
+                full_search: bool = False, backend=None,
+                names: Mapping[str, str] = OPTION_NAMES, on_note=None) -> Tracker:
     """A Tracker for `seq` (an opened Sequence) on the search region `nlos-cl locate` would use
     for its first frame, reaching as far as the signal of frames spread over the sequence.
 
@@ -83,7 +83,8 @@ def tracker_for(seq, *, estimator=None, targets: int = 1, reflectance=None, regi
     object. region: three (low, high) ranges along the file's axes, or a Grid; step_m with it.
     background: a target-free capture (path or HistogramSet) subtracted from every frame, or
     running_mean: the weight of a running mean of past frames subtracted instead. motion: a
-    motion model (default motion_for()). full_search: search the whole region every frame."""
+    motion model (default motion_for()). full_search: search the whole region every frame.
+    on_note: what says the default's note (a callable of the text; default warnings.warn)."""
     from ..io.ytal.capture import read_capture
     from ..localization.background import BackgroundRemover
     from ..localization.capture import search_region
@@ -100,7 +101,7 @@ def tracker_for(seq, *, estimator=None, targets: int = 1, reflectance=None, regi
     chosen, note = choose_estimator(estimator, targets=targets, reflectance=reflectance,
                                     paired=first.paired, tracking=True, names=names)
     if note:
-        warnings.warn(note, stacklevel=2)
+        (on_note or (lambda text: warnings.warn(text, stacklevel=3)))(note)
     interval = 1.0 / seq.fps if seq.fps else 0.1
     sigma = 0.05  # the Tracker's default; the paper's argmax: measured on the first frames
     if getattr(chosen, "name", None) == "paper" and remover is None:

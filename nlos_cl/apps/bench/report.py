@@ -113,7 +113,7 @@ def report(device_name: str, rows, smoke: bool, out_dir: Path | None, force: boo
     """The table as text; with out_dir, also OUT/performance.md, .json and .png, each written
     atomically under nlos_cl.io.safe_write's rule (see is_ours; `force` replaces others)."""
     from ...io.safe_write import write_text
-    from ..files import write_figure
+    from ..plotting import write_figure
     from ..plotting import performance_figure
     text = f"Device: {device_name}\n\n" + table(rows) + "\n"
     if out_dir is None:

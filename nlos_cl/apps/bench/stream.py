@@ -28,21 +28,10 @@ import numpy as np
 import nlos_cl as nl
 
 from ...ops.backend import NumpyBackend
+from ...simulation.stream import stream_frames
 
 # frames/s: issue 12's (500 and 30), the model tracker's raised by issue 23 (warm, paper's scene)
 GOALS = {"tracker, paper estimator": 500.0, "tracker, model estimator": 100.0}
-
-
-def _frames(rt, n_copies=8):
-    from ...core.paths import TimeAxis
-    from ...physics.scene import paper_scene
-    clean = nl.simulate(paper_scene(facet_size_m=0.02), TimeAxis(40 / 299_792_458.0, 10e-12, 4096),
-                        backend=rt).histograms()
-    rng = np.random.default_rng(0)
-    power = np.sqrt(np.mean(clean.data ** 2, axis=1, keepdims=True) / 10.0)
-    # cycled: the noise draws are not what is timed
-    return clean, [clean.with_data(clean.data + power * rng.standard_normal(clean.data.shape))
-                   for _ in range(n_copies)]
 
 
 def _cases(rt, clean, frames, grid, smoke):
@@ -92,7 +81,7 @@ def _grid(smoke):
 
 def stream_rows(rt, smoke, Row):
     grid, size = _grid(smoke)
-    clean, frames = _frames(rt)
+    clean, frames = stream_frames(rt)
     cases = _cases(rt, clean, frames, grid, smoke)
     for step, _, _ in cases.values():  # warm-up: programs, and "auto" searches' trials
         for i in range(10):
@@ -139,7 +128,7 @@ def cold_row(rt, smoke, Row):
     seed 0, copy 2) has the depth probe send the fit on to the closed shapes (~2-3 s; the
     warm_start=False tracker row's mean is mostly that frame), which the note counts."""
     grid, size = _grid(smoke)
-    _, frames = _frames(rt)
+    _, frames = stream_frames(rt)
     frames = frames[:2] if smoke else frames
     pairs = [(f, nl.gauss_filter(f, backend=rt)) for f in frames]
     for f, g in pairs[:2]:  # warm-up: programs and plans
@@ -179,14 +168,15 @@ def crossing_row(rt, smoke, Row):
     the first frame; smoke: the first 8 frames."""
     import tempfile
     from pathlib import Path
-    from ..reproduce import draws_cross_run, draws_gen
-    d = draws_gen.draw("crossings", CROSSING_DRAW, None)
+    from ...simulation.draws import families
+    from ..reproduce.draws import cross_run
+    d = families.draw("crossings", CROSSING_DRAW, None)
     if smoke:
         d["frames"]["frames"] = 8
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "crossing.h5"
-        draws_cross_run.write_frames(d, path)
-        out = draws_cross_run.track_file(path)
+        cross_run.write_frames(d, path)
+        out = cross_run.track_file(path)
     times = out["update_s"][1:]
     med = statistics.median(times)
     q1, q3 = np.percentile(times, [25, 75])

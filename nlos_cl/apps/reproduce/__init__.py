@@ -5,14 +5,17 @@ Each experiment simulates its scenes once on the device, then for every noise se
 device-resident pipeline (noise -> Gauss filter -> locate), the Gauss-fit baseline (a converged
 SciPy fit per histogram, Eq. 25) and the raw signal, and reports mean +- std and max over seeds.
 
-One module per experiment (fig5, fig6, sweeps: fig7a/fig7b/table1/fig9, fig8, fig10); what they
-share in `common`; the report in `report`; the paper's numbers in paper.yaml and our prose in
-text.yaml (data files of this package); every figure in `nlos_cl.apps.plotting`. The sweeps and
-fig10 are study files (nlos_cl/sweep/<name>.yaml) run through the sweep engine (`studies`).
+The paper's experiments are the subpackage `paper` (fig5, fig6, sweeps: fig7a/fig7b/table1/fig9,
+fig8, fig10); what every experiment shares in `common`; the paper's report in `report`; the
+paper's numbers in paper.yaml and our prose in text.yaml (data files of this package); every
+figure in `nlos_cl.apps.plotting`. The sweeps and fig10 are study files
+(nlos_cl/sweep/<name>.yaml) run through the sweep engine (`paper.studies`).
 
-`beyond` (beyond*.py, beyond*.yaml) is not one of the paper's experiments: it sets the paper's
-estimator against the model-based one and writes its own report; 'all' does not include it.
-Nor does `tracking` (tracking*.py, tracking.yaml): the tracker's tables of docs/tracking.md.
+The other experiments are one subpackage each, with their own data files, and 'all' includes
+none of them: `beyond` sets the paper's estimator against the model-based one and writes its own
+report; `tracking` the tracker's tables of docs/tracking.md; `real` the measured datasets;
+`draws` random draws (the draws themselves: nlos_cl.simulation.draws); `flood` a multizone
+sensor's flood read as confocal.
 """
 from __future__ import annotations
 
@@ -23,9 +26,10 @@ from pathlib import Path
 from tqdm import tqdm
 
 from ...core.errors import require
-from . import beyond, draws, fig5, fig6, fig8, fig10, real, sweeps, tracking
+from . import beyond, draws, flood, real, tracking
 from .common import (PAPER, Result, Settings, fwhm_ns, paper_target, run_trials, stats,
                      write_csv)
+from .paper import fig5, fig6, fig8, fig10, sweeps
 from .report import summary_json, write_report
 
 EXPERIMENTS = {"fig5": fig5.fig5, "fig6": fig6.fig6, "fig7a": sweeps.fig7a, "fig7b": sweeps.fig7b,
@@ -36,6 +40,7 @@ EXPERIMENTS["beyond"] = beyond.beyond  # own report (docs/results/beyond/); not 
 EXPERIMENTS["tracking"] = tracking.tracking  # docs/tracking.md's tables; not in 'all'
 EXPERIMENTS["real"] = real.real  # the measured datasets (docs/results/real-data/); not in 'all'
 EXPERIMENTS["draws"] = draws.draws  # random draws (docs/results/draws/draws.md); not in 'all'
+EXPERIMENTS["flood"] = flood.flood  # the flood study (docs/results/flood/flood.md); not in 'all'
 
 
 def run(name: str, s: Settings, out: Path, **options) -> list[Result]:
@@ -47,7 +52,7 @@ def run(name: str, s: Settings, out: Path, **options) -> list[Result]:
         for option in options:
             require(option in taken, f"--{option}", f"is not an option of {n}",
                     "leave it out (beyond takes --only; tracking --only and --cold; draws "
-                    "--only, --draws and --jobs; real --data)")
+                    "--only, --draws and --jobs; real --data; flood --draws)")
     out.mkdir(parents=True, exist_ok=True)
     results = []
     for n in tqdm(names, desc="reproduce", disable=len(names) == 1):

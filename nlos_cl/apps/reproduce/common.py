@@ -1,6 +1,7 @@
 """What every experiment shares: settings, the result record, the paper's target, the trial
 loop (noise seeds x methods), error statistics, and the data files (the paper's numbers and
-our prose) loaded from this package."""
+our prose) loaded from this package; each experiment's subpackage keeps its own data files,
+read with load_data(name, __package__)."""
 from __future__ import annotations
 
 import csv
@@ -18,9 +19,10 @@ METHODS = ("filter", "fit", "raw")
 PAPER_POSITION = (4.0, 2.0, 0.0)
 
 
-def load_data(name: str) -> dict:
-    """A YAML data file of this package (ships in the wheel)."""
-    return yaml.safe_load(resources.files(__package__).joinpath(name).read_text("utf-8"))
+def load_data(name: str, package: str = __package__) -> dict:
+    """A YAML data file of `package` (this one by default; an experiment's subpackage passes
+    its own __package__): package data, so it ships in the wheel."""
+    return yaml.safe_load(resources.files(package).joinpath(name).read_text("utf-8"))
 
 
 PAPER: dict = load_data("paper.yaml")  # the paper's numbers, as printed

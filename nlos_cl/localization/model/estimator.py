@@ -310,7 +310,7 @@ def _held_axis(spots: bytes, laser: bytes, laser_ndim: int, grid) -> plate.Held 
 
 def _reported(chosen, result, free, cov_all, info, warm_info) -> dict:
     """info with the warm start's report (where one was tried) and what sanity.doubt reads:
-    the misfit (the Birge ratio, or counts' deviance per degree of freedom, as select.misfit)
+    the misfit (the Birge ratio, or counts' deviance per degree of freedom, as criteria.misfit)
     and whether one target's depth is unseen."""
     if warm_info is not None:
         info = dict(info, warm_start=warm_info)

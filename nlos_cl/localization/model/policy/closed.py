@@ -1,5 +1,5 @@
 """Plate or closed shape for one target (`closed_or_plate`): where the plate, re-seated, still
-misses the data (select.misfit) or the depth probe finds a box behind it better, the closed
+misses the data (criteria.misfit) or the depth probe finds a box behind it better, the closed
 shapes (box, ellipsoid, cylinder) are fitted from starts around the plate and at the centroid,
 and the one of lowest cost is kept where its one more parameter (depth) passes the BIC test."""
 from __future__ import annotations
@@ -16,7 +16,8 @@ from ..solve.covariance import covariance
 from ..solve.fit import fit
 from ..solve.records import Chosen, ShapeFit
 from . import depth, starts
-from .select import FINAL_ATOL, best_of, kappa, misfit
+from .criteria import kappa, misfit
+from .select import FINAL_ATOL, best_of
 
 CLOSED = CLOSED_SHAPES  # the closed families tried (box, ellipsoid, cylinder), same parameters
 BOX_DEPTHS = (0.1, 0.3, 0.6)  # m: starts behind the fitted plate's face
@@ -208,7 +209,7 @@ def closed_fits(problem, plate_result, free, final_nfev, smooth=None) -> tuple[l
 
 def worth_racing(closed_problem, result, free_closed) -> bool:
     """Should counts' closed fits also be sought on the filtered frame? Where the best one
-    misses the counts (select.misfit: the deviance per degree of freedom above its 99.9 %
+    misses the counts (criteria.misfit: the deviance per degree of freedom above its 99.9 %
     point), but by at most MISFIT_BIRGE (above it no closed shape is the data's model, and the
     sanity check treats it so: CC-SOCR's one-laser readings, ~400, where the race took 4 -> 9 s
     for the same rejected box). Measured on the 200 counts draws (stop 52): the race always

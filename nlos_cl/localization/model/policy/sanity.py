@@ -69,11 +69,11 @@ def doubt(target: LocatedTarget, paper_position, spots, lasers) -> str | None:
 def fit_checks(chosen, result, free, cov_all, info) -> dict:
     """What `doubt` reads from a fit's diagnostics (model.estimator reports them; model.subset
     asks before it refits on every detector): misfit_ratio (the Birge ratio, or counts'
-    deviance per degree of freedom, as select.misfit), explained (the share of the
+    deviance per degree of freedom, as criteria.misfit), explained (the share of the
     no-target cost the fit removes, 1 - cost / Problem.null_cost) and depth_unseen (one
     target whose depth these spots cannot tell: depth.unseen_note)."""
     from .depth import unseen_note
-    from .select import misfit as misfit_of
+    from .criteria import misfit as misfit_of
     null = chosen.null_cost()
     return {"misfit_ratio": misfit_of(chosen, result, free, info)[1],
             "explained": 1.0 - result.cost / null if null > 0 else None,

@@ -35,7 +35,7 @@ from ..solve.fit import fit, shape_of
 from ..solve.records import Chosen, SubsetChoice
 from .closed import box_behind, closed_or_plate
 from .sanity import closed_centre_guessed, fit_checks
-from .select import misfit
+from .criteria import misfit
 
 
 def spread_rows(obs, count=SEARCH_DETECTORS) -> np.ndarray:

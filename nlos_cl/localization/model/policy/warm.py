@@ -11,7 +11,7 @@ Jacobian: REUSE_JACOBIAN), on the estimator's `problem` (the host's
 batched model for up to HOST_DETECTORS detectors with model_on='auto', as a cold fit).
 
 Fallback: where the warm fit misses the data (the Birge ratio above the 99.9 % point of its
-noise distribution: `select.misfit`, the test that also sends a cold fit on to the closed
+noise distribution: `criteria.misfit`, the test that also sends a cold fit on to the closed
 shapes), the start was wrong (another basin, a target that turned or changed shape) and the
 estimator runs the cold fit, keeping the warm one where the cold fit costs more (a shadowed
 plate misses the data from any start: crossing draw 7 frame 13, warm Birge 7.9, cold 20). A fit that explains the data but lands far from where the
@@ -75,7 +75,7 @@ def warm_fit(est, obs, rows, free, held, backend=None, sizes=None):
     (details['warm_start']). sizes: None or (size, sd), each (K, 2) (Prior.size, size_sd):
     the sizes a plate the others partly hide starts from and is held to (`size_prior`)."""
     from .closed import closed_or_plate
-    from .select import misfit
+    from .criteria import misfit
     # an axis the spots cannot see: held on the search plane, as a cold fit holds it
     rows = held.put(rows)
     problem = est.problem(obs, est.backend or backend)

@@ -4,7 +4,7 @@ Parameters (one row): centre x, y, z (m), width w (across the front face), heigh
 (along the front face's normal), yaw (the front face's normal, n = (cos yaw, sin yaw, 0)). The
 centre is the box's own centre (its bounding-box centre when upright), not its front face's.
 Depth 0 is the plate (`model.plate`) with the same centre, size and yaw: the families
-are nested, so one test (nlos_cl.localization.model.policy.select.accepts_box) decides between them.
+are nested, so one test (nlos_cl.localization.model.policy.criteria.accepts) decides between them.
 
 A box of depth d shows the wall its front face and, unless the wall sees it exactly head on, a
 side face, and the face below or above when it is off the spots' height: a plate fits such a
