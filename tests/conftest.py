@@ -1,3 +1,5 @@
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -6,6 +8,37 @@ from nlos_cl.ops.backend import NumpyBackend
 from nlos_cl.ops.opencl_backend import get_runtime
 
 C = nl.SPEED_OF_LIGHT
+TESTS = Path(__file__).resolve().parent
+
+# Tests of 10 s or more on the 2-core CI machine (full suite, 2026-12-06): `-m "not slow"` for
+# a quick pass. By test function (every parametrization), measured seconds beside each.
+SLOW = {
+    "test_95_percent_region_covers_the_truth_90_to_98_percent_of_the_time",  # 35
+    "test_notebook_runs",  # 26 (tracking.ipynb)
+    "test_a_short_crossing_run_writes_its_section",  # 19
+    "test_two_runs_give_bit_identical_positions",  # 18
+    "test_two_targets_keep_their_identities_through_a_crossing",  # 15
+    "test_a_cached_plan_gives_each_frame_its_own_answer",  # 15
+    "test_confocal_scan_depth_matches_a_backprojection",  # 14
+    "test_counts_draw_165s_box_is_found_by_racing_the_filtered_frames_closed_fits",  # 14
+    "test_draws_in_worker_processes_are_those_of_one_process",  # 12
+    "test_quick_run_writes_every_section",  # 11
+    "test_auto_finds_both_squares",  # 11
+}
+DEVICE_FIXTURES = {"runtime", "device_runtime"}
+
+
+def pytest_collection_modifyitems(config, items):
+    """The markers, by class rather than by hand: `device` where a test takes a runtime
+    fixture (directly or through another fixture), `realdata` for tests/realdata/, `slow`
+    from SLOW."""
+    for item in items:
+        if DEVICE_FIXTURES & set(getattr(item, "fixturenames", ())):
+            item.add_marker(pytest.mark.device)
+        if TESTS / "realdata" in Path(item.path).parents:
+            item.add_marker(pytest.mark.realdata)
+        if getattr(item, "originalname", item.name) in SLOW:
+            item.add_marker(pytest.mark.slow)
 
 
 @pytest.fixture(scope="session")

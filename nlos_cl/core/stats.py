@@ -1,7 +1,7 @@
 """The chi-square quantile every test in nlos_cl uses (the tracker's gates, the model fit's
 misfit test), without SciPy: scipy.stats' import (~0.6 s) would be most of a one-shot
 `nlos-cl locate`. Newton's method on the regularized incomplete gamma function from the
-Wilson-Hilferty start; within 1e-10 (relative) of scipy.stats.chi2.ppf (tests/test_stats.py).
+Wilson-Hilferty start; within 1e-10 (relative) of scipy.stats.chi2.ppf (tests/core/test_stats.py).
 And a row median with NumPy's numbers at a tenth of its cost on long rows; a median and
 np.unique's values without the numpy.ma import (~7 ms) their first call costs a one-shot
 command."""

@@ -15,7 +15,7 @@ noise floor, and combines the rows:
   false alarms is at most the nominal one;
 - Fisher's combination, -2 sum ln p ~ chi^2 with 2 D degrees of freedom under no target, and
   detected where it exceeds the (1 - false_alarm) quantile.
-The false-alarm rate is measured on pure-noise frames in tests/test_detection.py.
+The false-alarm rate is measured on pure-noise frames in tests/localization/test_detection.py.
 """
 from __future__ import annotations
 

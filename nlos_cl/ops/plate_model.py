@@ -1,6 +1,6 @@
 """plate_model (kernels/plate_model.cl): the model fit's plates evaluated on the device, many per
 call: the host model of nlos_cl/localization/model/forward/batch.py (HostProblem(kernel=True) calls
-this; tests/test_plate_model.py holds the two together), its float64 twin here written out
+this; tests/ops/test_plate_model.py holds the two together), its float64 twin here written out
 plate by plate.
 
 plate_model(rows (B, 6), stat_rows (R, 6), stat_of (B,), spots (D, 3), laser ((3,): one for
@@ -277,7 +277,7 @@ def _tolerance(dpath, os_):
     """The linear split's bound, (dsub / sigma)^2 / 8 of the peak (the twin integrates each
     point's pulse exactly; the kernel splits it between two sub-bins of dsub first), plus 2e-5
     for float32 (path differences, the 2^30 fixed-point deposit, A&S erf taps: ~1e-6 measured
-    against the host model, tests/test_plate_model.py)."""
+    against the host model, tests/ops/test_plate_model.py)."""
     return (dpath / os_ / SIGMA0) ** 2 / 8.0 + 2e-5
 
 
@@ -306,5 +306,5 @@ OP = Operation(
     tolerance_note="the linear split's (dsub / sigma)^2 / 8 of the peak (the twin integrates "
     "each point's pulse exactly) plus 2e-5 for float32: path differences from the plate's "
     "centre (its path in float64 on the host), a 2^30 fixed-point deposit, A&S erf taps. "
-    "Against the host model (the same split): ~1e-6, tests/test_plate_model.py.",
+    "Against the host model (the same split): ~1e-6, tests/ops/test_plate_model.py.",
     bound="launches and one read per call (a few thousand points)")

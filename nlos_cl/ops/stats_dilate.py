@@ -5,7 +5,7 @@ is a share of a frame.
 stats_dilate(signal (rows, n_bins), half) -> (stats (rows, 2) as row_stats, dilated (rows,
 n_bins + 2 half) as max_filter), for windows 2 half + 1 <= max_filter.DIRECT_MAX_WINDOW bins.
 The stats come from row_stats.cl's loop, operation for operation (scores computed with either
-are bit-identical: tests/test_search.py compares them exactly).
+are bit-identical: tests/localization/test_search.py compares them exactly).
 """
 from __future__ import annotations
 

@@ -58,7 +58,7 @@ def _host_problem(obs, lattice, backend, refl, model_on):
     """The host's batched plates (model.batch), or None where they cannot model the layout. A
     laser spot per detector (confocal, paired): only on the plate_model kernel, which 'auto'
     takes there too (the host's closed shapes know any layout; the forward op's plates took 5x
-    as long: 0.64-0.94 against 0.12-0.15 s a confocal frame, tests/test_paired's scan, the
+    as long: 0.64-0.94 against 0.12-0.15 s a confocal frame, tests/localization/test_paired.py's scan, the
     same positions). GGX: only the forward op has it."""
     from .forward.batch import HostProblem
     paired = obs.laser.ndim == 2

@@ -7,7 +7,7 @@ sweep engine (sweep; a frame is runs.run); the report
 (docs/results/beyond/beyond-the-paper.md) is written by report from this run's numbers only.
 
 Not part of `reproduce all` (which re-runs the paper and writes paper-results.md): run it on
-its own; `--quick` is the small CI setting (tests/test_reproduce_beyond.py)."""
+its own; `--quick` is the small CI setting (tests/apps/test_reproduce_beyond.py)."""
 from __future__ import annotations
 
 from pathlib import Path

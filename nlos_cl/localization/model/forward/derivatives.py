@@ -1,7 +1,7 @@
 """Analytic derivatives of the host plate model (model.batch.HostProblem): d(histograms) /
 d(x, y, z, width, height, yaw) of each plate at its frozen cell statistics (pull-in, blur,
 shift), what model.fit's forward differences with borrowed statistics approximate with a 2 mm
-step. Within 0.1 % of central differences (tests/test_model_derivatives.py). The covariance
+step. Within 0.1 % of central differences (tests/localization/model/test_model_derivatives.py). The covariance
 uses them; the LM's Jacobian does not, being cheaper as differences on the host (the comment
 at model.fit.ANALYTIC says what was measured).
 """

@@ -216,7 +216,7 @@ def _poisson_newton(y, valid, cols, phi, iters):
     iteration): valid is 0 / 1, so y valid is formed once and the weights need no second mask;
     the finiteness test reads the row sums (a non-finite weight or residual reaches its row's
     sum: w >= 0, r >= -1); the same numbers as the straightforward form, bit for bit, in 0.6
-    of its time (tests/test_model_poisson.py). A step past zero stops at BOUND_SHARE of
+    of its time (tests/localization/model/test_model_poisson.py). A step past zero stops at BOUND_SHARE of
     the value; an entry converges relatively (1e-9) or once its step moves the expected counts by
     under 1e-9 of those observed (stop 50: the calls that ran to the cap, 43 iterations, now
     converge in 7-11, to the same counts within 1e-16 of the total)."""

@@ -38,7 +38,7 @@ MIN_SHARE = 0.10
 # others needs no MIN_SHARE). The weakest true target of 200 multi draws (targets 0.2-1.2 m,
 # 1/r^4) carried 1.0e-4 of the noise-free filtered energy, 10 more below 5e-4; the residual
 # of two squares' mutual shadow that the shadow model leaves (Birge 3.2) was taken up by a
-# 1.16 x 0.04 m strip 0.11 m from the wall carrying 4.8e-6 (tests/test_model_selection.py).
+# 1.16 x 0.04 m strip 0.11 m from the wall carrying 4.8e-6 (tests/localization/model/test_model_selection.py).
 # A return 1e-5 of the energy is ~0.3 % of the peak: the level of a measured instrument
 # response's tail and of the model's own error on the bright targets.
 MIN_ANY_SHARE = 1e-5

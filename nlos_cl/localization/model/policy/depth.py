@@ -85,7 +85,7 @@ def _face_plates(problem, q, depths) -> list:
     itself (remembered from its fit), each side a plate across the depth (the device's
     forward op per face cost ~8 ms of a 50 ms paper-scene locate; one host call per depth
     ~0.7 ms each). The same box as box.model_facets up to the lattice across the depth
-    (tests/test_model_depth.py)."""
+    (tests/localization/model/test_model_depth.py)."""
     rows, owner, front = [q], [-1], plate.normal_of(q)  # owner: the depth a row is a side of
     for k, depth in enumerate(depths):
         if depth > 0:

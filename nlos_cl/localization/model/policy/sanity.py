@@ -8,7 +8,7 @@ contradict (thresholds and their reasons: core/tuning.py):
   2 ARGMAX_MARGIN_M of the path through the paper's argmax, which lies on the target's
   visible surface (the fit went to another basin). Paths, not positions: with collinear spots
   the argmax slides along its ridge (1.4 m from an 0.8 x 1.2 m plate's centre in
-  tests/test_model_estimator.py) while its paths stay right.
+  tests/localization/model/test_model_estimator.py) while its paths stay right.
 One target: a fit that fails one is replaced by the paper's argmax (no covariance: a tracker
 uses its fallback sigma) and the reason is warned. Several targets: the paper's argmax gives
 one position only, on one of them, so the paths check is skipped and a target failing the

@@ -85,7 +85,7 @@ def add_plate(problem, current, free, held, final_nfev, passes):
 # Passes of reseat_each, with K given and in 'auto' alike. 'auto' weighs each larger model
 # with the plates' shadows (`weigh`): weighed on the unshadowed search's costs, a spare
 # plate re-seated near the wall absorbed two squares' unmodelled shadow well enough to pass
-# the BIC test (tests/test_model_selection.py), so 'auto' had run no passes at all.
+# the BIC test (tests/localization/model/test_model_selection.py), so 'auto' had run no passes at all.
 RESEAT_PASSES = 3
 AUTO_RESEAT_PASSES = RESEAT_PASSES
 

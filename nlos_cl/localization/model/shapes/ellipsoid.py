@@ -28,7 +28,7 @@ STEPS, X_SCALE = box.STEPS, box.X_SCALE
 # cells' mean path variance the shared pulse blur carries (plate.cell_model). A curved
 # surface's cells range from facing the spots (small path variance) to grazing (large): one
 # blur of half the mean variance widened the front's pulse, as one blur for all of a box's
-# faces had. Against 1 cm-facet meshes (tests/test_model_depth.py), L2 per detector: a 0.7 m
+# faces had. Against 1 cm-facet meshes (tests/localization/model/test_model_depth.py), L2 per detector: a 0.7 m
 # sphere on (32, 16) cells with share 0.5 was 6.4-6.8 % off, (64, 32) with 0.05 0.2 %; a
 # 0.6 m cylinder (cylinder.SIDE_CELLS) against one cut into 5 mm cells 5.2-6.2 % -> 0.16 %.
 CLOSED = True

@@ -18,7 +18,7 @@ from . import box, plate
 GAUSS_LATTICE = (16, 24)
 # Photon counts are not Gauss-filtered: the model's pulse is the laser's and the jitter alone
 # (sigma0 ~1.27 cm of path at 70 ps FWHM and 30 ps), and a cell spanning a few of those combs
-# (tests/test_model_cell_comb.py): on 16 x 32 a 1.2 m plate seen obliquely was modelled 19 %
+# (tests/localization/model/test_model_cell_comb.py): on 16 x 32 a 1.2 m plate seen obliquely was modelled 19 %
 # off, and counts draw 46's true plate cost 5,510 deviance units against 3,783 converged, so a
 # cylinder 0.5 m off fitted better. POISSON_LATTICE keeps every case of that test within
 # 1.6 % at that pulse (32 x 30: 960 cells, under ops.plate_model's 1,016, which the paired
@@ -57,5 +57,5 @@ def counts_depth_cells(nu) -> int:
     """A box's cells along its depth for counts on nu cells across: box.DEPTH_CELLS (8) at the
     filtered lattice's 16 across, as many per cell across beyond it (16 at 32 across): on 8,
     a 0.6 m-deep box seen side-on was modelled 2.6 % off at counts' pulse (16: 0.3 %;
-    tests/test_model_cell_comb.py)."""
+    tests/localization/model/test_model_cell_comb.py)."""
     return max(box.DEPTH_CELLS, -(-box.DEPTH_CELLS * int(nu) // GAUSS_LATTICE[0]))

@@ -67,7 +67,7 @@ BLUR_SHARE = 0.5
 # +-1/4 of its edges (keep sqrt(3)/2): the midpoints of a 2 x 2 sub-lattice, a comb whose first
 # harmonic (period: one cell's range of paths) cancels. At 1/2 they sit at +-0.20 and that
 # harmonic survives where a cell spans a few pulse widths: a 0.95 m plate was modelled 9 % off
-# and 2 % at 1/4, on the same 16 cells across (tests/test_model_cell_comb.py).
+# and 2 % at 1/4, on the same 16 cells across (tests/localization/model/test_model_cell_comb.py).
 COUNTS_BLUR_SHARE = 0.25
 
 

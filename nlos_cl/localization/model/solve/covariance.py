@@ -81,7 +81,7 @@ def _reused_jacobian(problem, result, free):
     the target parameters' block of the sandwich and trace(H C) unchanged, so the covariance
     of the target parameters and the Birge ratio are the same. What differs: the solver's
     forward differences (2 mm, 4 mrad, at frozen cell statistics: a truncation of ~h / (2
-    sigma), sds 0.2-5 % from the analytic ones, tests/test_model_covariance_reuse.py) taken up
+    sigma), sds 0.2-5 % from the analytic ones, tests/localization/model/test_model_covariance_reuse.py) taken up
     to one accepted step before the solution (a warm fit stops once a step promises less than
     WARM_ATOL of cost: ~0.3 sd)."""
     if problem.obs.mode != "gauss" or result.jacobian is None:

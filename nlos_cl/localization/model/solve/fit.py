@@ -13,7 +13,7 @@ Jacobians (and model.covariance's derivatives) tell `column_batch` which row eac
 the host's HostProblem then evaluates the moved plates with the unmoved plate's cell
 statistics (nlos_cl.localization.model.forward.batch):
 derivatives at frozen blur and shift, within 0.2 % of the exact ones per column and per sd
-(tests/test_tracking_warm.py), for half the work of a column. Residuals are always exact, so
+(tests/tracking/test_tracking_warm.py), for half the work of a column. Residuals are always exact, so
 the fitted parameters do not depend on it beyond the solver's tolerance.
 """
 from __future__ import annotations
@@ -196,7 +196,7 @@ def analytic_derivatives(problem, params):
 
 
 # The covariance from analytic derivatives where the problem has them (host plates; within
-# 0.1 % of central differences: tests/test_model_derivatives.py): exact, in the time of the
+# 0.1 % of central differences: tests/localization/model/test_model_derivatives.py): exact, in the time of the
 # central differences they replace (tracker 17.5 vs 17.6 ms a frame, positions within
 # 0.014 mm). The LM's Jacobian keeps forward differences: borrowing the unmoved plate's
 # statistics they cost one deposit per parameter (5 plates 0.59 ms), the analytic derivative

@@ -1,0 +1,106 @@
+"""`nlos-cl track`: the command's options and output (--json lines, --smooth, --lag, --motion)
+against the library's track_sequence on the same file (tests/conftest.py's walk_file)."""
+import json
+
+import numpy as np
+import pytest
+
+import nlos_cl as nl
+from nlos_cl.tracking import ConstantVelocity, Interacting, read_sequence
+from nlos_cl.tracking.sequences import TrackedFrame
+
+
+def test_track_command_smooths_offline(walk_file, capsys):
+    from nlos_cl.apps import track
+    from nlos_cl.apps.cli import parser
+    lines = {}
+    for smooth in (False, True):  # through the parser: `nlos-cl track F --json --smooth`
+        args = parser().parse_args(["track", str(walk_file), "--json", "--estimator", "paper",
+                                    "--no-progress"] + (["--smooth"] if smooth else []))
+        assert args.smooth is smooth
+        capsys.readouterr()
+        assert track.main(args) == 0
+        lines[smooth] = [json.loads(x) for x in capsys.readouterr().out.splitlines()
+                         if x.startswith("{")]
+    causal, smoothed = lines[False], lines[True]
+    assert len(smoothed) == len(causal) == 12
+    assert all(e["smoothed"] for e in smoothed) and not any("smoothed" in e for e in causal)
+    pos = lambda e: np.array(e["tracks"][0]["position"])  # noqa: E731
+    # the last frame has no later frames: the same; earlier ones see the later frames
+    np.testing.assert_allclose(pos(smoothed[-1]), pos(causal[-1]), atol=1e-5)
+    assert max(np.abs(pos(s) - pos(c)).max() for s, c in zip(smoothed[2:-1], causal[2:-1])) > 1e-4
+
+
+def test_track_command_prints_fixed_lag_lines(walk_file, capsys):
+    """`nlos-cl track F --json --lag 3`: frame k's line after frame k + 3, with what
+    Tracker.lagged(3) says of frame k then (the API run on the same file); the last 3 frames
+    at the end with lags 2, 1, 0 (lag 0: the filter's own state, the causal line)."""
+    from nlos_cl.apps import track
+    from nlos_cl.apps.cli import parser
+    out = {}
+    for lag in (0, 3):
+        args = parser().parse_args(["track", str(walk_file), "--json", "--no-progress", "--lag",
+                                    str(lag)])
+        capsys.readouterr()
+        assert track.main(args) == 0
+        out[lag] = [json.loads(x) for x in capsys.readouterr().out.splitlines()
+                    if x.startswith("{")]
+    causal, lagged = out[0], out[3]
+    assert [e["frame"] for e in lagged] == list(range(12))
+    assert [e["lag_frames"] for e in lagged] == [3] * 9 + [2, 1, 0]
+    # the API: the same tracker settings as the command's defaults
+    seq = read_sequence(walk_file)
+    tracker = nl.track_sequence(seq).tracker
+    expected = {}
+    for fr in seq:
+        tracker.update(fr.histograms, fr.t_s)
+        for s in tracker.lagged(3).values():
+            expected[s.frame] = seq.frame.from_internal(s.position)
+    for e in lagged[3:9]:  # frames whose track is older than 3 frames
+        np.testing.assert_allclose(e["tracks"][0]["position"], expected[e["frame"]], atol=2e-5)
+    np.testing.assert_allclose(lagged[-1]["tracks"][0]["position"],
+                               causal[-1]["tracks"][0]["position"], atol=1e-5)
+    assert max(abs(np.array(a["tracks"][0]["position"]) - b["tracks"][0]["position"]).max()
+               for a, b in zip(lagged[3:9], causal[3:9])) > 1e-4
+    with pytest.raises(nl.InputError, match="--lag"):
+        track.main(parser().parse_args(["track", str(walk_file), "--lag", "2"]))  # without --json
+
+
+def test_track_command_motion_options():
+    from nlos_cl.apps.cli import parser
+    from nlos_cl.apps.track import motion_model
+    parse = lambda *a: parser("track").parse_args(["track", "walk.h5", *a])  # noqa: E731
+    assert motion_model(parse()) == Interacting(accel_sigmas=(0.05, 0.5))
+    assert motion_model(parse("--motion", "cv", "--accel", "0.3")) == ConstantVelocity(0.3)
+    assert motion_model(parse("--steady-accel", "0.02", "--accel", "1")) == Interacting(
+        accel_sigmas=(0.02, 1.0))
+    with pytest.raises(nl.InputError, match="--steady-accel"):
+        motion_model(parse("--steady-accel", "1"))
+
+
+def test_a_run_yields_each_frame_and_agrees_with_the_command(walk_file, capsys):
+    """The library's frames are the command's JSON lines: same tracks, same positions (the
+    command prints them in the file's frame; here they are converted back)."""
+    from nlos_cl.apps import track
+    from nlos_cl.apps.cli import parser
+    run = nl.track_sequence(walk_file, estimator="paper")
+    steps = list(run)
+    assert len(run) == len(steps) == 12
+    assert all(isinstance(s, TrackedFrame) and s.frame.histograms is None for s in steps)
+    assert [s.frame.index for s in steps] == list(range(12))
+    args = parser().parse_args(["track", str(walk_file), "--json", "--estimator", "paper",
+                                "--no-progress"])
+    capsys.readouterr()
+    assert track.main(args) == 0
+    lines = [json.loads(x) for x in capsys.readouterr().out.splitlines() if x.startswith("{")]
+    assert len(lines) == 12
+    cframe = run.sequence.frame
+    for step, line in zip(steps, lines):
+        assert [t.id for t in step.tracks] == [t["id"] for t in line["tracks"]]
+        for t, printed in zip(step.tracks, line["tracks"]):
+            np.testing.assert_allclose(cframe.from_internal(t.position), printed["position"],
+                                       atol=5.1e-6)  # the JSON's 5 decimals
+    # the copies keep each frame's state: the last track moved on after the first frames
+    first = [s for s in steps if s.tracks][0].tracks[0]
+    last = steps[-1].tracks[0]
+    assert first.id == last.id and np.linalg.norm(first.position - last.position) > 0.1
