@@ -57,13 +57,18 @@ def _albedo(what: str, total: float, fix: str) -> None:
 
 
 class _LobeOverDiffuse:
-    """A lobe over a diffuse base (GGX, Retroreflective): the dataclass's field LOBE is the
-    lobe's albedo, KNOB = (field, upper bound) its shape (>= 1e-3); both albedos in [0, 1],
-    their sum an albedo. scale = (lobe + diffuse) / pi."""
+    """A lobe over a diffuse base (GGX, Retroreflective), named as the class is declared:
+    `lobe` the field of the lobe's albedo, `knob` = (field, upper bound) its shape (>= 1e-3),
+    `example` what the fix suggests; both albedos in [0, 1], their sum an albedo.
+    scale = (lobe + diffuse) / pi."""
     LOBE: ClassVar[str]
     KNOB: ClassVar[tuple[str, float]]
     EXAMPLE: ClassVar[str]
     diffuse: float
+
+    def __init_subclass__(cls, *, lobe: str, knob: tuple[str, float], example: str, **kw):
+        super().__init_subclass__(**kw)
+        cls.LOBE, cls.KNOB, cls.EXAMPLE = lobe, knob, example
 
     def __post_init__(self):
         fix, lobe, (knob, high) = f"pass e.g. {self.EXAMPLE}", getattr(self, self.LOBE), self.KNOB
@@ -78,7 +83,8 @@ class _LobeOverDiffuse:
 
 
 @dataclass(frozen=True)
-class GGX(_LobeOverDiffuse):
+class GGX(_LobeOverDiffuse, lobe="specular", knob=("roughness", 1.0),
+          example="GGX(specular=0.5, roughness=0.3, diffuse=0.1)"):
     """A glossy surface: a GGX (Trowbridge-Reitz) microfacet lobe over an optional diffuse
     base, f = diffuse / pi + specular D(h) G(l, v) / (4 cos_l cos_v), with
     D(h) = a^2 / (pi ((n.h)^2 (a^2 - 1) + 1)^2) and Smith's separable masking-shadowing
@@ -88,8 +94,6 @@ class GGX(_LobeOverDiffuse):
     roughconductor (distribution ggx, material none, specular_reflectance = `specular`)
     blended with a diffuse BSDF is the same function. scale = (diffuse + specular) / pi."""
 
-    LOBE, KNOB = "specular", ("roughness", 1.0)
-    EXAMPLE = "GGX(specular=0.5, roughness=0.3, diffuse=0.1)"
     specular: float = 0.5
     roughness: float = 0.3
     diffuse: float = 0.0
@@ -120,7 +124,8 @@ class GGX(_LobeOverDiffuse):
 
 
 @dataclass(frozen=True)
-class Retroreflective(_LobeOverDiffuse):
+class Retroreflective(_LobeOverDiffuse, lobe="retro", knob=("width_rad", 1e3),
+                      example="Retroreflective(retro=0.7, width_rad=0.005, diffuse=0.2)"):
     """Retroreflective sheeting or tape (glass beads, prisms): a diffuse base plus a lobe
     around the retro direction, f = diffuse / pi + retro exp(-|l - v|^2 / (2 w^2)) / A(w),
     A(w) = 2 pi (lam - 1 + e^-lam) / lam^2, lam = 1 / w^2. l, v: unit directions from the
@@ -136,8 +141,6 @@ class Retroreflective(_LobeOverDiffuse):
     Default width 0.005 rad (0.3 deg): Greg Ward's glass-bead fit (Radiance lib/retrorefl.cal)
     falls to 1/4 of its peak at a 0.5 deg observation angle. scale = (diffuse + retro) / pi."""
 
-    LOBE, KNOB = "retro", ("width_rad", 1e3)
-    EXAMPLE = "Retroreflective(retro=0.7, width_rad=0.005, diffuse=0.2)"
     retro: float = 0.7
     width_rad: float = 0.005
     diffuse: float = 0.2

@@ -15,6 +15,7 @@ import importlib
 
 from .kalman import Measurement
 from .motion import ConstantVelocity, Interacting, MotionModel
+from .options import MeasurementNoise, SearchPlan, TrackRules, grouped
 from .sequences import TrackedFrame, track_sequence
 from .track import Track
 from .tracker import Tracker
@@ -27,8 +28,9 @@ _ELSEWHERE = {"Sequence": "..io.ytal.reading", "read_sequence": "..io.ytal.readi
               "Trajectory": "..physics.trajectory", "SimFrame": "..simulation.sequence",
               "frame_seed": "..simulation.sequence", "simulate_sequence": "..simulation.sequence"}
 
-__all__ = ["ConstantVelocity", "Interacting", "Measurement", "MotionModel", "Track",
-           "TrackedFrame", "Tracker", "track_sequence"]
+__all__ = ["ConstantVelocity", "Interacting", "Measurement", "MeasurementNoise", "MotionModel",
+           "SearchPlan", "Track", "TrackRules", "TrackedFrame", "Tracker", "grouped",
+           "track_sequence"]
 
 
 def __getattr__(name):

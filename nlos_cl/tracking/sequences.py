@@ -28,6 +28,7 @@ from ..core.errors import require
 from ..core.stats import unique_sorted
 from ..localization.estimators import choose_estimator
 from .motion import ConstantVelocity, Interacting, MotionModel
+from .options import MeasurementNoise, SearchPlan
 from .tracker import Tracker
 
 # How errors name the options: the keywords here; the CLI passes its flags (TRACK_FLAGS).
@@ -109,8 +110,9 @@ def tracker_for(seq, *, estimator=None, targets: int = 1, reflectance=None, regi
         sigma = sequence_scatter(seq, grid, h_s=h_s, backend=backend)
     return Tracker(seq, grid, estimator=chosen, h_s=h_s, background=remover,
                    motion=motion_for() if motion is None else motion, max_tracks=targets,
-                   frame_interval_s=interval, backend=backend, fallback_sigma_m=sigma,
-                   gated_search=not full_search)
+                   frame_interval_s=interval, backend=backend,
+                   noise=MeasurementNoise(fallback_sigma_m=sigma),
+                   plan=SearchPlan(gated_search=not full_search))
 
 
 @dataclass(frozen=True)

@@ -11,7 +11,7 @@ out; SciPy's linear_sum_assignment on the squared Mahalanobis distance inside a 
 one blob for two tracks updates neither) -> paired tracks are updated, the others coast on
 their prediction -> measurements left over start tentative tracks (while fewer than
 `max_tracks` are alive). A tentative track is confirmed after M hits in its first N frames
-(`confirm=(M, N)`) and deleted if it is not; a confirmed track is deleted after `max_misses`
+(`rules=TrackRules(confirm=(M, N))`) and deleted if it is not; a confirmed track is deleted after `max_misses`
 frames in a row without a measurement. Identities survive crossings because the assignment
 compares measurements with each track's *predicted* position and covariance, and tracks coast
 where the measurements cannot tell the targets apart. A target whose track lost it while every
@@ -34,6 +34,7 @@ from . import association, gated, kalman, warm
 from .lifecycle import Lifecycle
 from .recovery import Recovery
 from .motion import MEMBERS as MOTION_MEMBERS, Interacting
+from .options import MeasurementNoise, SearchPlan, TrackRules
 from .track import Smoothed, Track  # noqa: F401  (Smoothed: what Track.smoothed() returns)
 
 NO_SIGNAL = "no cell has a non-zero likelihood"
@@ -47,20 +48,17 @@ class Tracker:
     frame: a HistogramSet (uploaded) or Signals, unfiltered. t_s: the frame's time (default:
     the previous one + frame_interval_s). background: a BackgroundRemover or None. max_tracks:
     how many targets may be followed at once (the model estimator finds several with
-    estimator=ModelEstimator(targets=K)). warm_start: with the model estimator (a fixed
-    number of targets), fit each frame from the confirmed tracks' last plates moved to their
-    predictions (nlos_cl.tracking.warm; ~10x faster), else from the data alone. log_mode:
-    None chooses by the number of detectors (core.tuning.auto_log_mode). gated_search: search
-    near the tracks where that can do (tracking.gated). See the module docstring for the rest."""
+    estimator=ModelEstimator(targets=K)). noise, rules, plan: the option groups of
+    tracking.options (MeasurementNoise, TrackRules, SearchPlan: plan.warm_start fits each frame
+    from the confirmed tracks' last plates moved to their predictions, ~10x faster;
+    plan.gated_search searches near the tracks where that can do). See the module docstring."""
 
     def __init__(self, layout, grid=None, *, estimator="paper", motion=None,
-                 h_s: float = PAPER_H_S, log_mode: bool | None = None, background=None,
-                 max_tracks: int = 1, gate_probability: float = 0.999,
-                 fallback_sigma_m: float = 0.05, min_sigma_m: float = 0.002,
-                 confirm=(2, 3), max_misses: int = 5, frame_interval_s: float = 0.1,
-                 max_history: int | None = None, backend=None, search="auto",
-                 max_sigma_m: float | None = 0.5, max_birge_ratio: float | None = None,
-                 warm_start: bool = True, reacquire: bool = True, gated_search: bool = True):
+                 h_s: float = PAPER_H_S, background=None, max_tracks: int = 1,
+                 frame_interval_s: float = 0.1, backend=None,
+                 noise: MeasurementNoise = MeasurementNoise(), rules: TrackRules = TrackRules(),
+                 plan: SearchPlan = SearchPlan(), **moved):
+        _refuse_moved(moved)
         from ..core.grid import Grid
         from ..localization.estimators import as_estimator
         from ..localization.filter import GaussFilter
@@ -71,28 +69,31 @@ class Tracker:
         require(all(hasattr(motion, m) for m in MOTION_MEMBERS), "motion", f"expected a motion "
                 f"model ({', '.join(MOTION_MEMBERS)}), got {type(motion).__name__}",
                 "pass Interacting() or ConstantVelocity(accel_sigma=0.5)")
-        _check_options(max_tracks, gate_probability, fallback_sigma_m, min_sigma_m,
-                       max_misses, frame_interval_s, max_sigma_m, max_birge_ratio)
-        log_mode = auto_log_mode(layout.n_detectors) if log_mode is None else bool(log_mode)
+        _check_options(max_tracks, rules.gate_probability, noise.fallback_sigma_m,
+                       noise.min_sigma_m, rules.max_misses, frame_interval_s, noise.max_sigma_m,
+                       noise.max_birge_ratio)
+        log_mode = auto_log_mode(layout.n_detectors) if plan.log_mode is None else \
+            bool(plan.log_mode)
         self.gauss = GaussFilter(h_s, layout.time_axis, backend=backend)
         self.estimator = as_estimator(estimator)
-        self.warm_start = bool(warm_start) and warm.can_start(self.estimator)
+        self.warm_start = bool(plan.warm_start) and warm.can_start(self.estimator)
         self.locator = Locator(layout, grid, estimator=self.estimator, log_mode=log_mode,
-                               backend=backend, search=search)
+                               backend=backend, search=plan.search)
         self.layout, self.grid, self.motion, self.background = layout, grid, motion, background
         self.dims = motion.dims or (3 if grid.shape[2] > 1 else 2)
         self.plane_z = float(grid.origin[2] + 0.5 * (grid.shape[2] - 1) * grid.step[2])
-        self.lifecycle = Lifecycle(motion, self.dims, self.plane_z, confirm=confirm,
-                                   max_misses=max_misses, max_history=max_history)
-        self.max_tracks, self.gate_probability = int(max_tracks), float(gate_probability)
+        self.lifecycle = Lifecycle(motion, self.dims, self.plane_z, confirm=rules.confirm,
+                                   max_misses=rules.max_misses, max_history=rules.max_history)
+        self.max_tracks, self.gate_probability = int(max_tracks), float(rules.gate_probability)
         self.recovery = Recovery(self.lifecycle, motion, self.gate_probability) \
-            if reacquire else None
+            if rules.reacquire else None
         self.frame_interval_s, self.backend = float(frame_interval_s), backend
-        self.gated_search, self.fallback_sigma_m = bool(gated_search), float(fallback_sigma_m)
-        self.max_sigma_m, self.max_birge_ratio = max_sigma_m, max_birge_ratio
+        self.gated_search = bool(plan.gated_search)
+        self.fallback_sigma_m = float(noise.fallback_sigma_m)
+        self.max_sigma_m, self.max_birge_ratio = noise.max_sigma_m, noise.max_birge_ratio
         self._as_measurement = functools.partial(
             kalman.measurement, d=self.dims, fallback_sigma_m=self.fallback_sigma_m,
-            min_sigma_m=float(min_sigma_m),
+            min_sigma_m=float(noise.min_sigma_m),
             unseen_axis=_unseen_axis(layout))
         self.tracks: list[Track] = []  # live
         self.finished: list[Track] = []  # deleted, most recent last (at most 100 kept)
@@ -210,6 +211,21 @@ def _next_time(previous, t_s, interval):
             f"must be a finite time after the previous frame's ({previous}), got {t_s!r}",
             "pass increasing frame timestamps in seconds")
     return float(t_s)
+
+
+def _refuse_moved(moved: dict) -> None:
+    """An option passed by its old name (before the groups of tracking.options) or unknown:
+    one line naming the group that holds it now."""
+    from .options import GROUPS, group_of
+    for name in moved:
+        arg = group_of(name)
+        if arg is not None:
+            group = GROUPS[arg].__name__
+            raise InputError(f"Tracker.{name}: is an option of {group} now (tracking.options). "
+                             f"Fix: pass {arg}={group}({name}=...)")
+        raise InputError(f"Tracker.{name}: is not an option. Fix: pass estimator, motion, h_s, "
+                         "background, max_tracks, frame_interval_s, backend, noise, rules or "
+                         "plan (tracking.options)")
 
 
 def _check_options(max_tracks, gate_probability, fallback_sigma_m, min_sigma_m, max_misses,

@@ -5,13 +5,13 @@ cells, scored by the same kernel); a window whose best cell lies on its inner fa
 the whole region; a tracker with the gated search tracks as the ungated one does."""
 import numpy as np
 import pytest
+from test_search import histograms
 
 import nlos_cl as nl
 from nlos_cl.localization.locator import Locator
 from nlos_cl.localization.window import on_inner_face, sub_grid
 from nlos_cl.tracking import gated
-
-from test_search import histograms
+from nlos_cl.tracking.options import MeasurementNoise, SearchPlan
 
 VOLUME = nl.Grid((2.0, 0.5, -0.6), (0.03, 0.03, 0.03), (120, 110, 40))
 
@@ -119,8 +119,8 @@ def test_the_gated_tracker_tracks_as_the_ungated_one(runtime):
     grid = nl.Grid((2.0, 0.8, -0.6), (0.02, 0.02, 0.04), (120, 120, 31))
     measured, windows = {}, 0
     for gate in (False, True):
-        tracker = Tracker(frames[0].signals, grid, backend=runtime, gated_search=gate,
-                          fallback_sigma_m=0.02)
+        tracker = Tracker(frames[0].signals, grid, backend=runtime, plan=SearchPlan(gated_search=gate),
+                          noise=MeasurementNoise(fallback_sigma_m=0.02))
         measured[gate] = []
         for frame in frames:
             tracker.update(frame.signals, frame.t_s)

@@ -12,6 +12,7 @@ import pytest
 import nlos_cl as nl
 from nlos_cl.core.errors import InputError
 from nlos_cl.localization.estimate import Capabilities
+from nlos_cl.tracking.options import SearchPlan
 
 TARGET = (3.0, 2.0, 0.0)
 AXIS = nl.default_time_axis(nl.paper_setup(), 1e-11, max_hidden_path_m=9.0)  # every leg here
@@ -133,7 +134,7 @@ def test_the_tracker_follows_a_target_in_a_paired_layout(runtime):
     """N lasers + one detector, three noisy frames of a still target: one confirmed track."""
     from nlos_cl.tracking import Tracker
     h = _paired(SCAN, [(-1.0, 0.0, 0.1)] * len(SCAN), runtime)
-    tracker = Tracker(h, GRID, estimator="paper", log_mode=True)
+    tracker = Tracker(h, GRID, estimator="paper", plan=SearchPlan(log_mode=True))
     for k in range(3):
         tracks = tracker.update(nl.add_noise(nl.upload(h, runtime), 20.0, seed=k), 0.1 * k)
     assert len(tracks) == 1 and tracks[0].status == "confirmed"

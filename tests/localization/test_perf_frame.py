@@ -5,13 +5,13 @@ frame's upload and the Gauss filter."""
 import numpy as np
 import pyopencl as cl
 import pytest
+from test_search import histograms
 
 import nlos_cl as nl
 from nlos_cl.localization.filter import GaussFilter
 from nlos_cl.localization.locator import Locator
 from nlos_cl.tracking import Tracker
-
-from test_search import histograms
+from nlos_cl.tracking.options import SearchPlan
 
 
 class Counter:
@@ -58,8 +58,8 @@ def test_a_tracked_frame_is_one_upload_and_one_read(runtime, monkeypatch, gated)
     # inside the 9 m record (the (4, 2) target's peak lies beyond it: too faint to detect)
     hist = histograms([(3.0, 1.5, 0.0)], [1.0], 3, 0.065, 0.05, 7)
     grid = nl.Grid.from_ranges(x=(2.0, 6.0), y=(0.5, 4.0), step_m=0.01)
-    tracker = Tracker(hist.layout, grid, search="coarse_to_fine", backend=runtime,
-                      gated_search=gated)
+    tracker = Tracker(hist.layout, grid, backend=runtime,
+                      plan=SearchPlan(search="coarse_to_fine", gated_search=gated))
     for _ in range(3):  # until the track is confirmed: detection (gating births) then stops
         tracker.update(hist)
     assert [t.status for t in tracker.tracks] == ["confirmed"]

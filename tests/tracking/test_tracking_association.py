@@ -9,6 +9,7 @@ from nlos_cl.localization.fit_result import ModelFit
 from nlos_cl.tracking import ConstantVelocity, SensorNoise, Tracker
 from nlos_cl.tracking.association import screen
 from nlos_cl.tracking.kalman import measurement
+from nlos_cl.tracking.options import MeasurementNoise
 
 C = nl.SPEED_OF_LIGHT
 
@@ -152,6 +153,6 @@ def test_bad_sensor_noise_and_screening_options():
     with pytest.raises(nl.InputError, match="sigma_w"):
         SensorNoise("loud")
     with pytest.raises(nl.InputError, match="max_birge_ratio"):
-        Tracker(_layout(), estimator="paper", max_birge_ratio=0)
+        Tracker(_layout(), estimator="paper", noise=MeasurementNoise(max_birge_ratio=0))
     with pytest.raises(nl.InputError, match="max_sigma_m"):
-        Tracker(_layout(), estimator="paper", max_sigma_m=-0.5)
+        Tracker(_layout(), estimator="paper", noise=MeasurementNoise(max_sigma_m=-0.5))

@@ -5,7 +5,17 @@ import warnings
 import numpy as np
 
 import nlos_cl as nl
-from nlos_cl.tracking import BackgroundRemover, ConstantVelocity, MovingTarget, Tracker, Trajectory, read_sequence, simulate_sequence, write_sequence
+from nlos_cl.tracking import (
+    BackgroundRemover,
+    ConstantVelocity,
+    MovingTarget,
+    Tracker,
+    Trajectory,
+    read_sequence,
+    simulate_sequence,
+    write_sequence,
+)
+from nlos_cl.tracking.options import MeasurementNoise, TrackRules
 
 FACET = 0.03
 
@@ -70,8 +80,8 @@ def test_two_targets_keep_their_identities_through_a_crossing():
     wrong on most frames near the crossing (plates merged midway, Birge ratio >> 1); the
     screening and the one-blob rule let both tracks coast through, and the ids come out on the
     right targets (`nlos-cl reproduce tracking` runs 10 seeds)."""
-    from nlos_cl.physics.layouts import circle
     from nlos_cl.localization.model import ModelEstimator
+    from nlos_cl.physics.layouts import circle
     setup = nl.Setup(detector_spots=circle((-1.0, 0, 0), 0.5, 8))
     paths = [Trajectory([0, 2], [[2.5, 2.0, 0], [3.5, 3.0, 0]]),
              Trajectory([0, 2], [[2.5, 3.0, 0], [3.5, 2.0, 0]])]
@@ -85,7 +95,8 @@ def test_two_targets_keep_their_identities_through_a_crossing():
     for frame in frames:
         tracker = tracker or Tracker(frame.signals, grid, estimator=ModelEstimator(targets=2),
                                      motion=ConstantVelocity(accel_sigma=0.047), max_tracks=2,
-                                     max_birge_ratio=2.0, max_misses=20)
+                                     noise=MeasurementNoise(max_birge_ratio=2.0),
+                                     rules=TrackRules(max_misses=20))
         tracks = tracker.update(frame.signals, frame.t_s)
         warm += any((m.source.details or {}).get("warm_start", {}).get("used")
                     for m in tracker.last_measurements)

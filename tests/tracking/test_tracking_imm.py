@@ -3,13 +3,11 @@ its mixing against a loop-by-loop reference, the single-model limit, and what it
 smooth as a quiet model on a straight path, as quick as a loud one after a turn."""
 import numpy as np
 import pytest
+from test_tracking_kalman import _layout
 
 import nlos_cl as nl
 from nlos_cl.localization.estimate import LocatedTarget
-from nlos_cl.tracking import ConstantVelocity, Interacting, Tracker
-from nlos_cl.tracking import kalman
-
-from test_tracking_kalman import _layout
+from nlos_cl.tracking import ConstantVelocity, Interacting, Tracker, kalman
 
 
 def _step_all(motion, positions, sigma, dt=0.1):

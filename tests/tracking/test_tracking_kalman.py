@@ -7,6 +7,7 @@ import nlos_cl as nl
 from nlos_cl.localization.estimate import LocatedTarget
 from nlos_cl.tracking import ConstantVelocity, Tracker
 from nlos_cl.tracking.kalman import measurement
+from nlos_cl.tracking.options import TrackRules
 
 C = nl.SPEED_OF_LIGHT
 
@@ -70,7 +71,7 @@ def test_the_axis_a_vertical_line_cannot_see_is_not_measured():
 
 
 def test_gate_rejects_an_outlier_and_tracks_are_deleted():
-    tr = Tracker(_layout(), estimator="paper", max_misses=3)
+    tr = Tracker(_layout(), estimator="paper", rules=TrackRules(max_misses=3))
     for k in range(10):
         tr.step([_target([3, 2, 0], 0.01)], 0.1 * k)
     (track,) = tr.step([_target([5, 5, 0], 0.01)], 1.0)  # 3.6 m away: outside the gate
@@ -116,7 +117,7 @@ def test_bad_options():
     with pytest.raises(nl.InputError, match="max_tracks"):
         Tracker(_layout(), estimator="paper", max_tracks=0)
     with pytest.raises(nl.InputError, match="confirm"):
-        Tracker(_layout(), estimator="paper", confirm=(3, 2))
+        Tracker(_layout(), estimator="paper", rules=TrackRules(confirm=(3, 2)))
     tr = Tracker(_layout(), estimator="paper")
     tr.step([], 1.0)
     with pytest.raises(nl.InputError, match="t_s"):

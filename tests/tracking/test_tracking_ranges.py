@@ -9,8 +9,8 @@ import pytest
 
 import nlos_cl as nl
 from nlos_cl.apps.cli import main as cli
-from nlos_cl.tracking import ConstantVelocity, read_sequence, write_sequence
 from nlos_cl.localization.ranges import is_single_confocal
+from nlos_cl.tracking import ConstantVelocity, read_sequence, write_sequence
 from nlos_cl.tracking.ranges import range_sigma, track_ranges
 
 C = nl.SPEED_OF_LIGHT

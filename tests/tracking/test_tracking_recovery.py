@@ -4,10 +4,11 @@ a measurement the track could not have reached does not take it over."""
 import numpy as np
 
 import nlos_cl as nl
+from nlos_cl.localization.estimate import LocatedTarget
 from nlos_cl.localization.fit_result import ModelFit, WarmStart
 from nlos_cl.tracking import ConstantVelocity, Tracker, kalman, warm
-from nlos_cl.localization.estimate import LocatedTarget
 from nlos_cl.tracking.association import screen
+from nlos_cl.tracking.options import TrackRules
 
 C = nl.SPEED_OF_LIGHT
 
@@ -33,7 +34,7 @@ def _run(reacquire, b_first=(4.6, 3.0, 0), frames=20):
     """Target b's first fit is 0.6 m off and its second is missing: the track's first update
     (frame 2) gives it ~3 m/s towards a, and it coasts away from b's right measurements (the
     crossings draws 5, 8, 18's failure)."""
-    tr = Tracker(_layout(), estimator="paper", max_tracks=2, reacquire=reacquire,
+    tr = Tracker(_layout(), estimator="paper", max_tracks=2, rules=TrackRules(reacquire=reacquire),
                  motion=ConstantVelocity(accel_sigma=0.5))
     seen = {"a": set(), "b": set()}
     for k in range(frames):

@@ -7,8 +7,12 @@ import numpy as np
 import pytest
 
 import nlos_cl as nl
-from nlos_cl.localization.estimators import (PAIRED_LOCATE_NOTE, PAIRED_TRACK_NOTES,
-                                             choose_estimator, estimator_names)
+from nlos_cl.localization.estimators import (
+    PAIRED_LOCATE_NOTE,
+    PAIRED_TRACK_NOTES,
+    choose_estimator,
+    estimator_names,
+)
 from nlos_cl.tracking import ConstantVelocity, Interacting, read_sequence
 from nlos_cl.tracking.sequences import motion_for
 
@@ -59,8 +63,9 @@ def test_the_default_estimator_follows_the_capture():
 
 def test_the_tracker_warns_where_the_default_is_not_the_model_fit(tmp_path):
     """A paired capture's sequence is tracked with the likelihood's mean, and says so."""
-    from nlos_cl.tracking import write_sequence
     from test_tracking_sequence import _hist
+
+    from nlos_cl.tracking import write_sequence
     frames = []
     for k in range(3):
         h = _hist(k, truth=False)

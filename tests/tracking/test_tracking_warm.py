@@ -5,6 +5,7 @@ import warnings
 
 import numpy as np
 import pytest
+from conftest import paper_frame
 
 import nlos_cl as nl
 from nlos_cl.localization.estimate import Prior, Scored
@@ -13,8 +14,7 @@ from nlos_cl.localization.model import ModelEstimator
 from nlos_cl.localization.model.forward.batch import CHUNK_ROWS, HostProblem
 from nlos_cl.localization.model.forward.likelihood import Problem
 from nlos_cl.tracking import Tracker, kalman, warm
-
-from conftest import paper_frame
+from nlos_cl.tracking.options import SearchPlan
 
 GRID = nl.Grid.from_ranges(x=(2, 6), y=(0.5, 4), step_m=0.02)
 TRUTH = (4.0, 2.0, 0.0)
@@ -159,7 +159,7 @@ def test_tracker_warm_starts_confirmed_tracks(runtime):
     _, used = _track(runtime, 5)
     assert used[:2] == [None, None]  # no confirmed track yet: cold, no start given
     assert all(used[2:])  # then each frame from the track's last plate, moved
-    _, cold = _track(runtime, 3, {"warm_start": False})
+    _, cold = _track(runtime, 3, {"plan": SearchPlan(warm_start=False)})
     assert cold == [None] * 3
 
 
@@ -211,6 +211,7 @@ def test_a_misfit_warm_fit_is_kept_where_the_cold_fit_costs_more(monkeypatch):
     """estimator._warm_or_cold: the warm fit misses the data, the cold fit runs, and the one of
     lower cost is the answer (with the cold fit's work counted and the reason said)."""
     from types import SimpleNamespace as NS
+
     from nlos_cl.localization.model import estimator
     from nlos_cl.localization.model.policy import warm
     from nlos_cl.localization.model.solve.records import Chosen, Fitted

@@ -40,11 +40,13 @@ def _cases(rt, clean, frames, grid, smoke):
     from ...localization.locator import Locator
     from ...ops.signals import upload
     from ...tracking import Tracker
+    from ...tracking.options import SearchPlan
     n = 20 if smoke else 200
     gauss, locator = GaussFilter(time_axis=clean.time_axis), Locator(clean.layout, grid, estimator="paper")
     paper = Tracker(clean.layout, grid, estimator="paper", backend=rt)
     model = Tracker(clean.layout, grid, estimator="model", backend=rt)
-    cold = Tracker(clean.layout, grid, estimator="model", backend=rt, warm_start=False)
+    cold = Tracker(clean.layout, grid, estimator="model", backend=rt,
+                   plan=SearchPlan(warm_start=False))
     from ...localization.model import ModelEstimator
     kernel = Tracker(clean.layout, grid, estimator=ModelEstimator(model_on="kernel"), backend=rt)
     k = len(frames)

@@ -8,8 +8,9 @@ See docs/model-estimator.md. No SciPy on this path (a one-shot `nlos-cl locate` 
 ~0.5 s to import it): the least squares are nlos_cl.localization.model.solve.lm.
 """
 from .estimator import HEIGHT_WARNING, ModelEstimator
+from .options import FitBudget, Instrument
 from .shapes.box import box_facets
 from .shapes.plate import height_observable, plate_facets
 
-__all__ = ["HEIGHT_WARNING", "ModelEstimator", "box_facets", "height_observable",
-           "plate_facets"]
+__all__ = ["FitBudget", "HEIGHT_WARNING", "Instrument", "ModelEstimator", "box_facets",
+           "height_observable", "plate_facets"]

@@ -11,7 +11,7 @@ import warnings
 import numpy as np
 
 from ...core.blas_threads import serial_blas
-from ...core.constants import DEFAULT_JITTER_S, FWHM_PER_SIGMA, PAPER_H_S, PAPER_PULSE_FWHM_S
+from ...core.constants import FWHM_PER_SIGMA, PAPER_H_S
 from ...core.errors import require
 from ...core.limits import require_targets
 from ...core.tuning import SEARCH_DETECTORS
@@ -21,6 +21,8 @@ from ..paper import PaperArgmax
 from ..region import unseen_axis
 from .forward import data
 from .forward.likelihood import Problem
+from .options import (FitBudget, Instrument, check_options, model_reflectance,
+                      refuse_moved)
 from .policy.depth import unseen_note
 from .policy.filtered_search import searched, smooth_observation
 from .policy.sanity import checked, fit_checks, unfittable_line
@@ -41,8 +43,6 @@ X_WARNING = ("x is unobservable with wall spots on a vertical line (rotating the
              "about their line changes no path): x is held at {v:.3f} m; use spots off one "
              "line to measure it")
 HELD_WARNINGS = {2: HEIGHT_WARNING, 0: X_WARNING}
-# Residual evaluations of a warm-started fit (model.warm; Jacobians not counted).
-WARM_NFEV = 10
 # model_on="auto": plate fits with up to this many detectors evaluate the model on the host
 # (model.batch, a Jacobian's plates in one call), larger ones with the forward op on
 # the device. On the paper's scene a forward call costs ~2 ms of launches and read-backs for
@@ -51,7 +51,6 @@ WARM_NFEV = 10
 # (model.host_shapes; any laser layout): a Jacobian's 8 columns 40-70 -> 10-13 ms on 6 spots,
 # 140-220 -> 40-65 ms on 42 (one-target draws 1 and 173).
 HOST_DETECTORS = 64
-MODEL_ON = ("auto", "host", "kernel", "device")
 
 
 def _host_problem(obs, lattice, backend, refl, model_on):
@@ -76,8 +75,9 @@ class ModelEstimator:
     (default: the scored frame's backend). model_on: 'device' (the forward op on `backend`),
     'host' (plates in float64 NumPy, many per call: model.batch), 'kernel' (as host, its
     unshadowed plates by the plate_model op on `backend`) or 'auto' (host for up to
-    HOST_DETECTORS detectors, plates and closed shapes). warm_nfev: the evaluation budget of a
-    warm-started fit (`estimate(scored, start=...)`). sanity: check each fit's size, misfit and
+    HOST_DETECTORS detectors, plates and closed shapes). instrument: the pulse and jitter the
+    model assumes (forward.data.Instrument); budget: the fits' evaluations (solve.fit.FitBudget:
+    final_nfev, and warm_nfev for a warm-started fit, `estimate(scored, start=...)`). sanity: check each fit's size, misfit and
     place against the paper's argmax and, for one target, report the argmax instead of a fit
     that fails (model.sanity; False: report every fit as is). reflectance: the targets'
     reflectance model (nlos_cl.physics.reflectance: None or a Lambertian BRDF, GGX,
@@ -92,26 +92,19 @@ class ModelEstimator:
         return Capabilities(from_paper=True, needs_raw=True, paired=True,
                             warm_start=isinstance(self.targets, int) and self.closed is not True)
 
-    def __init__(self, targets=1, *, likelihood="auto", h_s=PAPER_H_S, pulse_fwhm_s=PAPER_PULSE_FWHM_S,
-                 jitter_s=DEFAULT_JITTER_S, lattice=None, max_targets=3, backend=None, final_nfev=30,
-                 closed="auto", warm_nfev=WARM_NFEV, model_on="auto", sanity=True,
-                 reflectance=None):
-        require(targets == "auto" or (isinstance(targets, int) and targets >= 1), "targets",
-                f"must be a positive integer or 'auto', got {targets!r}", "pass e.g. 1 or 'auto'")
-        require(likelihood in ("auto", "gauss", "poisson"), "likelihood",
-                f"must be 'auto', 'gauss' or 'poisson', got {likelihood!r}", "pick one")
-        require(closed in ("auto", True, False), "closed", f"must be 'auto', True or False, got "
-                f"{closed!r}", "pass 'auto' (a box where one plate misses the data), True or "
-                "False")
-        require(model_on in MODEL_ON, "model_on", f"must be one of {MODEL_ON}, got "
-                f"{model_on!r}", "pass 'auto' (host for small problems), 'host', 'kernel' or 'device'")
+    def __init__(self, targets=1, *, likelihood="auto", h_s=PAPER_H_S,
+                 instrument: Instrument = Instrument(), lattice=None, max_targets=3, backend=None,
+                 budget: FitBudget = FitBudget(), closed="auto", model_on="auto", sanity=True,
+                 reflectance=None, **moved):
+        refuse_moved(moved)
+        check_options(targets, likelihood, closed, model_on)
         self.closed, self.model_on, self.sanity = closed, model_on, bool(sanity)
         self.targets, self.likelihood, self.h_s = targets, likelihood, float(h_s)
-        self.pulse_sigma_s = float(pulse_fwhm_s) / FWHM_PER_SIGMA
-        self.jitter_s, self.lattice = float(jitter_s), lattice
-        self.max_targets, self.backend, self.final_nfev = int(max_targets), backend, final_nfev
-        self.warm_nfev = int(warm_nfev)
-        self.reflectance = _model_reflectance(reflectance)
+        self.pulse_sigma_s = float(instrument.pulse_fwhm_s) / FWHM_PER_SIGMA
+        self.jitter_s, self.lattice = float(instrument.jitter_s), lattice
+        self.max_targets, self.backend = int(max_targets), backend
+        self.final_nfev, self.warm_nfev = budget.final_nfev, int(budget.warm_nfev)
+        self.reflectance = model_reflectance(reflectance)
         self.timings: dict = {}
 
     def observation(self, scored):
@@ -217,18 +210,6 @@ class ModelEstimator:
                          self.timings)
         return LocatedTarget(p[:3].copy(), centre_covariance(cov_all, k, shape),
                              shape.extent(p), fit=fit)
-
-
-def _model_reflectance(value):
-    """None for Lambertian (any BRDF value: the amplitude absorbs it), else the model."""
-    if value is None:
-        return None
-    from ...physics.reflectance import Lambertian, as_reflectance
-    require(isinstance(value, (int, float)) or hasattr(value, "scale"), "reflectance",
-            f"must be None, a Lambertian BRDF number or a reflectance model, got {value!r}",
-            "pass e.g. nl.Retroreflective(retro=0.7, width_rad=0.005, diffuse=0.2)")
-    model = as_reflectance(value)
-    return None if isinstance(model, Lambertian) else model
 
 
 def start_rows(est, start) -> np.ndarray:

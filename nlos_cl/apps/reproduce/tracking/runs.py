@@ -10,6 +10,7 @@ import numpy as np
 
 import nlos_cl as nl
 from nlos_cl.tracking import Tracker, bounds, simulate_sequence
+from nlos_cl.tracking.options import grouped
 
 from .cases import Common
 
@@ -28,7 +29,8 @@ def run(c: Common, setup, moving, estimator, *, n_frames, seed=0, static=(), bac
         if tracker is None:
             tracker = Tracker(fr.signals, c.grid, estimator=estimator, motion=c.motion,
                               background=background() if background else None,
-                              max_tracks=max_tracks, frame_interval_s=1 / c.fps, **c.tracker)
+                              max_tracks=max_tracks, frame_interval_s=1 / c.fps,
+                              **grouped(**c.tracker))
         tracks = tracker.update(fr.signals, fr.t_s)
         out.append((fr, [m.position for m in tracker.last_measurements],
                     {t.id: t.position for t in tracks},

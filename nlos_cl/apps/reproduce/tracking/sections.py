@@ -14,6 +14,7 @@ from nlos_cl.localization.model import ModelEstimator
 from nlos_cl.tracking import (BackgroundRemover, ConstantVelocity, Interacting, MovingTarget,
                               SensorNoise, Tracker, Trajectory, kalman, read_sequence,
                               simulate_sequence, write_sequence)
+from nlos_cl.tracking.options import TrackRules
 
 from . import cases as tc
 from . import report
@@ -189,7 +190,7 @@ def memory(cfg, c):
         for history in (n // 10, None):
             seq = read_sequence(path)
             tracker = Tracker(seq, _square_grid(sec["grid_cells"]), estimator="paper",
-                              motion=c.motion, max_history=history)
+                              motion=c.motion, rules=TrackRules(max_history=history))
             marks, t0 = {}, time.perf_counter()
             for frame in seq:
                 tracker.update(frame.histograms, frame.t_s)

@@ -67,6 +67,7 @@ class HostProblem(Problem):
     pull-in, half the work of a column; residuals use each plate's own."""
 
     batched = True  # column_batch: one host call (or one launch) for all rows
+    plates_on_host = True
 
     def __init__(self, obs, lattice=(16, 24), backend=None, reflectance=None, kernel=False):
         # backend: for the closed shapes' Problems. reflectance: None (Lambertian) or a model

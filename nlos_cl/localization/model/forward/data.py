@@ -24,6 +24,8 @@ from ....ops.gauss_filter import gauss_taps
 MAD = 1.4826  # MAD -> standard deviation for Gaussian noise
 
 
+
+
 @dataclass(frozen=True)
 class Observation:
     mode: str  # "gauss" (AWGN, filtered samples) or "poisson" (photon counts per bin)

@@ -80,6 +80,7 @@ class Problem:
     smoothly (model.shadow) and is the problem to use where K >= 2 plates may shadow."""
 
     shadows = False  # HostProblem: True
+    plates_on_host = False  # HostProblem: True (coarser lattices, analytic derivatives)
     # column_batch evaluates its rows in one call (the host's models): model.fit speculates
     batched = False
     # the closed shapes' model on the host (model.host_shapes.shape_problem): the estimator

@@ -50,7 +50,7 @@ def probe(problem, plate_result, kappa: float) -> dict:
         return {"box_better": False, "depth_sd_m": math.inf, "depth_probe_m": width,
                 "probe_box_cost": plate_result.cost}
     boxes = shape_problem(problem, box)
-    on_host = hasattr(problem, "coarser") and all(abs(f[3][2]) < 1e-12 for f in faces)
+    on_host = problem.plates_on_host and all(abs(f[3][2]) < 1e-12 for f in faces)
     # the plate and the boxes through one model (host plates, or the device's box model, whose
     # depth-0 box is the plate): the comparison must not carry the two models' difference
     depths = [0.0] + [share * width for share in PROBE_DEPTHS]

@@ -169,7 +169,7 @@ def fit_targets(problem, est, argmax_position, free, held):
     (batch.HostProblem) and one of K >= 2 plates can shadow another, a final fit with shadows
     starts from its answer. (Searching with shadows found worse minima: on 40 multi draws the
     K-given p90 went 0.17 -> 0.43 m, two draws' answers costing 4-9x the unshadowed ones'.)"""
-    shadows = bool(getattr(problem, "shadows", False))
+    shadows = bool(problem.shadows)
     problem.shadows = False
     try:
         current, history = _search(problem, est, argmax_position, free, held, shadows)

@@ -108,7 +108,7 @@ def best_starts(problem, rows, fixed=None, keep=3) -> list[np.ndarray]:
     return the `keep` best, distinct in centre or yaw. (The rows go to column_batch
     SCORE_ROWS at a time: the host model evaluates each group in one call, in bounded memory.)"""
     scorer, lattice = problem, start_lattice(problem.lattice)
-    if fixed is None and hasattr(problem, "coarser") and tuple(lattice) != tuple(problem.lattice):
+    if fixed is None and problem.plates_on_host and tuple(lattice) != tuple(problem.lattice):
         scorer = problem.coarser(lattice)  # see START_LATTICE
     calls, model_s = scorer.calls, scorer.model_s
     chosen = _best(scorer, rows, fixed, keep)
@@ -132,7 +132,7 @@ def _best(problem, rows, fixed, keep):
             lin = problem.linear(cols)
             r = problem.residual(cols, lin)
             costs.append(float(r @ r) if plausible(lin, len(cols)) else np.inf)
-    chosen, yaw = [], getattr(problem, "shape", plate).YAW
+    chosen, yaw = [], problem.shape.YAW
     for i in np.argsort(costs):
         p = rows[i]
         if all(np.linalg.norm(p[:3] - q[:3]) > 0.05 or abs(p[yaw] - q[yaw]) > 0.3

@@ -118,7 +118,7 @@ def size_prior(problem, rows, sizes):
     too: the fit is joint). The cold fit the estimator falls back to has no prior, and the
     warm/cold comparisons (estimator._warm_or_cold, tracking.warm.better) weigh data costs
     alone: where a narrow plate costs less, a fallback takes it."""
-    if sizes is None or not getattr(problem, "shadows", False) or len(rows) < 2:
+    if sizes is None or not problem.shadows or len(rows) < 2:
         return None
     from ..forward.shadow import hidden_shares
     size, size_sd = (np.asarray(v, float).reshape(len(rows), 2) for v in sizes)
@@ -172,7 +172,7 @@ def hidden_diagnostics(problem, result, prior=None) -> list[dict]:
     params = np.array(result.params, float)
     held = np.zeros(len(params), bool) if result.prior is None else \
         np.isfinite(np.asarray(result.prior[1])[:, [plate.WIDTH, plate.HEIGHT]]).any(axis=1)
-    if len(params) < 2 or not getattr(problem, "shadows", False):
+    if len(params) < 2 or not problem.shadows:
         share = [0.0 if len(params) < 2 else None] * len(params)
         sd = share
     else:

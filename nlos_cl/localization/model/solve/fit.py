@@ -22,7 +22,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..shapes import plate
 from .lm import drive, solve
 from .width_vectors import WidthVectors
 
@@ -47,8 +46,8 @@ class FitResult:
 
 
 def shape_of(problem):
-    """The target model's module: the problem's `shape`, else the plate."""
-    return getattr(problem, "shape", plate)
+    """The target model's module (the problem's `shape`)."""
+    return problem.shape
 
 
 class _Objective:
@@ -61,7 +60,7 @@ class _Objective:
         self.steps = np.tile(self.shape.STEPS, len(self.base))[self.free]
         self._key, self._cols, self._lin = None, None, None
         # fit's `speculate`: one target on a problem that evaluates a batch of rows in one call
-        self.speculate = speculate and len(self.base) == 1 and getattr(problem, "batched", False)
+        self.speculate = speculate and len(self.base) == 1 and problem.batched
         self._stepped = None  # (theta's key, its stepped columns) from the last such call
         # the prior's residuals (theta[at] - mean) / sd, over the free parameters it bounds
         self.at, self.mean, self.sd = _prior_terms(prior, self.base.shape, self.free)
@@ -187,8 +186,7 @@ def analytic_derivatives(problem, params):
     (model.derivatives, host plates only), or None: another problem, targets that can shadow
     each other (their derivatives are finite differences, `stepped_columns`), or ANALYTIC
     off."""
-    from ..forward.batch import HostProblem
-    if not ANALYTIC or type(problem) is not HostProblem or problem.paired or \
+    if not ANALYTIC or not problem.plates_on_host or problem.paired or \
             shadowed_by(problem, params) is not None:
         return None
     from ..forward.derivatives import column_derivatives
@@ -209,7 +207,7 @@ def shadowed_by(problem, params):
     """Per target of params (K, N), the indices of the targets that can shadow it
     (model.shadow's bounding test), or None: one target, a problem without shadows
     (likelihood.Problem.shadows), or targets that cannot shadow each other."""
-    if not getattr(problem, "shadows", False) or len(params) < 2:
+    if not problem.shadows or len(params) < 2:
         return None
     from ..forward.shadow import occluders_of
     which = occluders_of(params, problem.obs.laser, problem.obs.spots, problem.lattice)

@@ -22,7 +22,7 @@ def fit_together(problem, starts, free, max_nfev=30) -> list[FitResult]:
     widest pulse), and the Poisson fit magnifies that (K = 2: 3.9 mm apart)."""
     objs = [_Objective(problem, p, free) for p in starts]
     if len(objs) < 2 or problem.obs.mode != "gauss" or (
-            getattr(problem, "shadows", False) and len(objs[0].base) > 1):
+            problem.shadows and len(objs[0].base) > 1):
         return [fit(problem, p, free, max_nfev) for p in starts]
     results = drive_together([o.solver(max_nfev) for o in objs],
                              lambda asked: _answers(problem, objs, asked))

@@ -6,11 +6,14 @@ tuples they replace."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
 from .fit import FitResult
+
+if TYPE_CHECKING:  # (a type only: the records load no forward model)
+    from ..forward.problem import ForwardProblem
 
 
 class Covariance(NamedTuple):
@@ -22,14 +25,14 @@ class Covariance(NamedTuple):
 
 class ShapeFit(NamedTuple):
     """One shape's fit: the problem of that shape, the result, the free mask."""
-    problem: Any
+    problem: "ForwardProblem"
     result: FitResult
     free: np.ndarray
 
 
 class Chosen(NamedTuple):
     """A fit with its covariance: the plate, or the closed shape chosen for the target."""
-    problem: Any
+    problem: "ForwardProblem"
     result: FitResult
     free: np.ndarray
     cov: Covariance
@@ -40,7 +43,7 @@ class Fitted:
     """A frame's fit: `problem` (the plates' Problem, which counts every forward call made for
     the frame), the chosen fit (`chosen`: a closed shape's problem where one was chosen, and its
     result, free mask and covariance) and the short fits' history."""
-    problem: Any
+    problem: "ForwardProblem"
     chosen: Chosen
     history: list
 
@@ -52,5 +55,5 @@ class Fitted:
 class SubsetChoice(NamedTuple):
     """The plate-or-closed choice made on a spread subset of many detectors (policy.subset):
     the subset's problem and the fit chosen there."""
-    problem: Any
+    problem: "ForwardProblem"
     chosen: Chosen
