@@ -42,13 +42,9 @@ from .likelihood import Problem
 from .shadow import occluders_of, shade
 
 # Rows per NumPy pass: at least CHUNK_ROWS, and as many as keep a pass within PASS_PAIRS
-# point-detector pairs (its temporaries grow with them: bounded memory). Before
-# core.allocator kept freed memory, glibc mapped and unmapped a pass's temporaries past ~6
-# plates (3 spots, 1,536 points each): 11 rows took 6.2 ms in one pass, 3.8 ms as 6 + 5. With
-# it, one pass of up to 16 such plates is the faster: the stream bench's cold frames 42.5 ->
-# 39 ms (the starts' 20 candidates and the short fits' 15 stepped plates a call; 32 and 64
-# rows the same as 16), the same answers; two crossing plates seen by 8 spots (6 rows a pass
-# either way) unchanged.
+# point-detector pairs (its temporaries grow with them: bounded memory). With core.allocator
+# keeping freed memory, one pass of up to 16 plates (3 spots, 1,536 points each) is the faster:
+# the stream bench's cold frames 39 ms (32 and 64 rows the same as 16).
 CHUNK_ROWS = 6
 PASS_PAIRS = 16 * 1536 * 3
 HISTS_BYTES = 32 * 2 ** 20  # the remembered histograms at most (HostProblem._hists)

@@ -19,10 +19,8 @@ MAX_ENUMERATED = 6  # targets; beyond, projected coordinate descent
 # The counts' amplitudes are iterated to convergence (1e-9 relative), so that a fit's cost is
 # a function of its parameters alone. A background started below its best level (a row whose
 # first and last bins are gated zeros starts at the 1e-3 floor) climbs by Newton's doubling,
-# 20-35 iterations to CC-SOCR's levels; with the former cap of 12, a tenth of the calls
-# returned amplitudes still climbing, each fit's first costs depended on the calls before it,
-# and which closed shape won (an ellipsoid kept 0.3 m behind the "4", or the argmax) turned on
-# that (stop 50).
+# 20-35 iterations to CC-SOCR's levels; at 12 a tenth of the calls returned amplitudes still
+# climbing, and which closed shape won turned on the calls made before.
 NEWTON_ITERS = 40
 BOUND_SHARE = 0.1  # of its value, where a parameter's Newton step would cross 0
 
@@ -219,8 +217,8 @@ def _poisson_newton(y, valid, cols, phi, iters):
     sum: w >= 0, r >= -1); the same numbers as the straightforward form, bit for bit, in 0.6
     of its time (tests/localization/model/test_model_poisson.py). A step past zero stops at BOUND_SHARE of
     the value; an entry converges relatively (1e-9) or once its step moves the expected counts by
-    under 1e-9 of those observed (stop 50: the calls that ran to the cap, 43 iterations, now
-    converge in 7-11, to the same counts within 1e-16 of the total)."""
+    under 1e-9 of those observed (calls that ran to a cap of 43 iterations converge so in 7-11,
+    to the same counts within 1e-16 of the total)."""
     k = len(cols)
     flat = cols.reshape(k, -1)
     yv = y * valid
@@ -270,9 +268,9 @@ def _ridge(diagonal) -> np.ndarray:
     """The Newton step's damping on one block's diagonal: 1e-9 of each entry (so of each
     parameter's own scale), or of a thousandth of the block's mean where an entry is ~0 (a
     detector that counted nothing, a column all zero). One ridge common to both blocks (1e-9
-    of the mean diagonal, stop 49) was 18 times a plate's amplitude entry where its columns
-    are small numbers against the backgrounds' (1e-9 against 35): its step was damped as much,
-    the amplitude crept 5 % an iteration and 12 iterations left it unconverged (stop 50)."""
+    of the mean diagonal) is 18 times a plate's amplitude entry where its columns are small
+    numbers against the backgrounds' (1e-9 against 35): the amplitude creeps 5 % an
+    iteration."""
     return 1e-9 * np.maximum(diagonal, 1e-3 * float(np.mean(diagonal))) + TINY
 
 

@@ -111,7 +111,7 @@ def rounded(fits, final_nfev):
     0.58 m across (Birge ratio 8.3, centre 0.15 m off, no warning) and a 0.92 m sphere as a
     1.07 x 1.04 x 0.75 m ellipsoid (Birge 34, 0.08 m off), where a refit from the truth costs
     1/8 and 1/55 of theirs; from these rounder starts the fits reach those costs, 5 and 3 mm
-    off (one-target draws 160, 190, 140, 110)."""
+    off."""
     best = min(fits, key=lambda f: f.result.cost).result.params[0]
     out = []
     for closed_fit in fits:
@@ -137,10 +137,8 @@ def depth_profile(closed_problem, result, free_closed, final_nfev, unit) -> dict
     side is not: a box fitted 0.44 m deep (truth 0.66, Laplace sd 0.07, centre 0.11 m off)
     costs 1.6 units more at 0.74 m (secant sd 0.24 m), and a cylinder seen by a vertical line
     of spots, fitted 0.20 m deep (sd 0.06, 0.16 m off, unwarned), 0.2 units more at 0.50 m.
-    The answer keeps the fit: refitting from a cheaper profile point helped one-target draws
-    116 and 108 (0.10 -> 0.05, 0.06 -> 0.01 m) but made closed draws 97, 73 and 92 worse
-    (0.01 -> 0.32, 0.29 -> 0.47, 0.06 -> 0.09 m) and none of closed 60-99 better: where the
-    profile is this flat, its minimum is the noise's."""
+    The answer keeps the fit (not refitted from a cheaper profile point): where the profile is
+    this flat, its minimum is the noise's."""
     p = result.params[0]
     fitted = float(p[box.DEPTH])
     lowest = max(float(closed_problem.shape.LOWER[box.DEPTH]), MIN_CROSS_DEPTH_M)
@@ -212,12 +210,8 @@ def worth_racing(closed_problem, result, free_closed) -> bool:
     misses the counts (criteria.misfit: the deviance per degree of freedom above its 99.9 %
     point), but by at most MISFIT_BIRGE (above it no closed shape is the data's model, and the
     sanity check treats it so: CC-SOCR's one-laser readings, ~400, where the race took 4 -> 9 s
-    for the same rejected box). Measured on the 200 counts draws (stop 52): the race always
-    took +54 % of the time for failures 47 -> 43 (p90 0.332 -> 0.294 m), the filtered frame's
-    search alone -22 % for 48 and 0.346 (draws 49 and 162 each ~0.5 m worse); raced only where
-    the counts' fit misses them, 44 failures (p90 0.302, median 0.0246 -> 0.0233 m) at +5 %,
-    six draws moved by > 1 cm, all closer (165: a cylinder 0.39 m off -> the box 0.018 m; 178,
-    2, 112, 18, 65), their Birge ratios 1.1-6.4."""
+    for the same rejected box). On the 200 counts draws, raced only there: 44 failures (p90
+    0.302 m) at +5 % of the time."""
     inadequate, birge = misfit(closed_problem, result, free_closed, {})
     return inadequate and birge <= MISFIT_BIRGE
 

@@ -1,4 +1,4 @@
-"""Photon counts searched on their Gauss-filtered frame (coarse in time: issue 23 item 3): the
+"""Photon counts searched on their Gauss-filtered frame (coarse in time): the
 starts, short fits and K of `select.fit_targets` run on the filtered samples, as for Gaussian
 data, and the counts' Poisson likelihood then refits that answer (the final fit).
 
@@ -11,10 +11,8 @@ off at cost 18,598 where a fit from the truth reaches 3,777, and the closed shap
 next, beat that plate with a cylinder 0.5 m off. The filtered frame's landscape is the one the
 Gaussian draws validated; its answer only has to land in the right basin.
 
-Measured on counts draws 0-79 (stop 51): the counts search alone 27 failures (> 0.15 m), p90
-0.396 m; both searches, the lower Poisson cost kept, 24 and 0.354 m, 16 % more time (CC-SOCR's
-4,096 points as one laser 7.6 -> 11.8 s); the filtered search alone 22 and 0.373 m, and the
-time of the counts search (7.8 s there). For one target (targets=1).
+On counts draws 0-79 the filtered search alone fails 22 (> 0.15 m), p90 0.373 m, where the
+counts search alone failed 27, in the counts search's time. For one target (targets=1).
 """
 from __future__ import annotations
 

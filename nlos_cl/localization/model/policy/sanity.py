@@ -1,4 +1,4 @@
-"""A model fit checked against what it claims, before it is reported (issue 22: "a misfit
+"""A model fit checked against what it claims, before it is reported (the rule: "a misfit
 reported in warnings with a fallback to the paper's estimate, never a silent 0.5 m answer").
 
 Checks, each a claim the fit makes about itself that the data or the paper's argmax can

@@ -26,13 +26,9 @@ RESIDUAL_STARTS = 8  # centres from the residual backprojection; the fit picks b
 # shapes' model.closed.fit_closed) stops on model.lm's atol (with its best-gain test, as a
 # warm fit: model.warm.WARM_ATOL): the relative ftol waited through rejected steps for the
 # last ~1e-4 of cost, which forward differences cannot find. The stream bench's 15 cold
-# frames: 49.3 -> 42.0 ms, 137 -> 119 model columns, positions 0.2 mm apart (median; at most
-# 1.1, against ~11 mm of noise). Draws (seed 2201, each frame located both ways): 'one' 0-59
-# median / p90 / worst / failures unchanged (0.0021 / 0.0462 / 0.3325 m / 3), 248 -> 211 s in
-# all, one draw moved > 5 mm (a cylinder 0.005 -> 0.027 m); 'closed' 0-39 median 0.0047 ->
-# 0.0042, p90 0.0752 -> 0.0717, worst and failures unchanged, 213 -> 183 s, four draws moved
-# > 5 mm (two closer, two farther). A search for several targets (targets=K or 'auto', whose
-# first plate starts the next) keeps the plain test: its draws were not re-run for it.
+# frames: 42.0 ms, positions 0.2 mm (median) from the ftol stop's, against ~11 mm of noise.
+# A search for several targets (targets=K or 'auto', whose first plate starts the next) keeps
+# the plain test.
 FINAL_ATOL = 0.05
 
 
@@ -41,9 +37,8 @@ def best_of(problem, rows, free, final_nfev, fixed=None, keep=3, atol=None):
     (atol: model.lm's, e.g. FINAL_ATOL for a one-target estimate's fit; None: off)."""
     prefix = [] if fixed is None else list(fixed)
     chosen = starts.best_starts(problem, rows, fixed, keep=keep)
-    # (on the starts' coarser lattice the short fits saved 5 of 42 ms a paper's-scene frame
-    # but moved 'mismatch' draws 19 and 4, ambient background, 0.084 -> 0.291 and
-    # 0.053 -> 0.069 m: they stay on the fit's lattice)
+    # (the short fits stay on the fit's lattice: on the starts' coarser one, 'mismatch' draw
+    # 19, ambient background, went 0.084 -> 0.291 m)
     short = fit_together(problem, [np.array(prefix + [p]) for p in chosen], free, SHORT_NFEV)
     short.sort(key=lambda r: (not _plausible(r), r.cost))
     final = fit(problem, short[0].params, free, final_nfev, atol=atol)
@@ -85,7 +80,7 @@ def add_plate(problem, current, free, held, final_nfev, passes):
 # Passes of reseat_each, with K given and in 'auto' alike. 'auto' weighs each larger model
 # with the plates' shadows (`weigh`): weighed on the unshadowed search's costs, a spare
 # plate re-seated near the wall absorbed two squares' unmodelled shadow well enough to pass
-# the BIC test (tests/localization/model/test_model_selection.py), so 'auto' had run no passes at all.
+# the BIC test (tests/localization/model/test_model_selection.py).
 RESEAT_PASSES = 3
 AUTO_RESEAT_PASSES = RESEAT_PASSES
 

@@ -15,12 +15,9 @@ all of them.
   subset: the answer is the paper's argmax with the reason, and nothing is fitted on every
   detector. On CC-SOCR's 4,096 points as one laser the ellipsoid refitted on all of them was
   rejected for the same reasons as on the subset (residual 374 times the noise's, depth sd
-  0.30 m), after 113 s.
-Measured (core/tuning.py's CHOICE_DETECTORS): that capture 113 s (stop 48's path, after the
-Poisson Newton fix) -> 35 s (the choice on 64, ended there) -> 10.3 s (on 16) -> 7.8 s (on
-8, stop 50), depth 0.955 m each time. The SPAD patch of the bench (1,024 spots, an adequate
-plate: no closed fits) was unchanged by the choice on 16 instead of 64 (2.5-2.9 s,
-interleaved, stop 49).
+  0.30 m).
+On 8 spread detectors (core/tuning.py's CHOICE_DETECTORS) that capture takes 7.8 s, the same
+depth (0.955 m) as on all (history: docs/model-estimator.md, "How the rules got here").
 """
 from __future__ import annotations
 
@@ -126,7 +123,7 @@ def plate_or_closed(est, problem, result, free, cov, choice=None, smooth=None):
             # a plate that fits: closed shapes only where the depth probe on every detector
             # says a box behind it does better (as closed_or_plate), and then they too are
             # chosen on the subset (a 48-spot SPAD patch of counts spent 371 s fitting them
-            # on all 48: stop 50)
+            # on all 48)
             cov.info.update(plate_birge_ratio=birge, closed_tried=False)
             if not box_behind(problem, result, cov):
                 return Chosen(problem, result, free, cov)

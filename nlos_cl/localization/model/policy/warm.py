@@ -36,35 +36,29 @@ from ..solve.records import Chosen, Fitted
 # finite-difference Jacobians cannot find.
 WARM_ATOL = 0.05
 # Initial LM damping (x max diag J'J) of a warm fit: the start is in the basin, so nearly
-# Gauss-Newton steps are taken at once. Stream bench frames: 30.5 -> 25.9 ms a frame, 6.0 -> 5.3
-# evaluations, positions within 0.08 mm of the cold fit's default damping (1e-4); 1e-8 moved
-# them by up to 8.7 mm. (Cold fits keep 1e-4: from far starts 1e-6 jumped basins.)
+# Gauss-Newton steps are taken at once. Stream bench frames: 25.9 ms a frame, positions within
+# 0.08 mm of the cold fit's default damping (1e-4). (Cold fits keep 1e-4: from far starts 1e-6
+# jumped basins.)
 WARM_TAU = 1e-6
 # The warm fit's covariance from the solver's last Jacobian (model.covariance's `reuse`)
-# instead of new derivatives: paper-scene tracker 12.65 -> 10.59 ms a frame, crossing draw 1
-# 38.3 -> 28.9 ms; sds within the forward differences' ~2-5 % of the analytic ones
-# (docs/model-estimator.md, "Uncertainty").
+# instead of new derivatives: paper-scene tracker 10.59 ms a frame (12.65 with new ones); sds
+# within the forward differences' ~2-5 % of the analytic ones (docs/model-estimator.md,
+# "Uncertainty").
 REUSE_JACOBIAN = True
 # The warm fit steps each plate's width and yaw as its width vector (model.width_vectors:
-# the data's width-yaw valley is straight there). Stream bench, interleaved: 12.95 -> 11.73 ms
-# a frame; the two noise draws that crawled along the valley 34-35 -> 25-31 model calls, to a
-# lower cost. Cold fits keep (width, yaw): their frames' median moved < 2 % (51.3 -> 49.8 ms,
-# the same answers), so the accuracy draws were not re-run for it.
+# the data's width-yaw valley is straight there): stream bench 11.73 ms a frame against
+# 12.95 in (width, yaw). Cold fits keep (width, yaw): their frames' median moved < 2 %.
 WIDTH_VECTORS = True
 # model.lm's best-gain stop (atol on the Jacobian's Gauss-Newton step: no trial step, no
 # Jacobian made only to learn that the fit is done) for one plate; plates that may shadow
-# each other keep the plain test (the step just tried). Stream bench: 19.0 -> 16.7 model
-# calls, 10.3 -> 9.2-9.8 ms a frame. Two plates: crossing draw 15 (seed 2201), a half-hidden
-# 0.52 m plate whose fits run to warm_nfev with the size prior, went 0.011 -> 0.174 m RMS with
-# it: past a shadow's edge the quadratic model is no guide, and that draw flips on any change
-# of its fits' paths (seed 777's 20 draws kept 100 % within 0.05 m with it on two plates).
+# each other keep the plain test (the step just tried): past a shadow's edge the quadratic
+# model is no guide (crossing draw 15, seed 2201, a half-hidden plate: 0.011 -> 0.174 m RMS
+# with it). Stream bench, one plate: 16.7 model calls a frame against 19.0.
 BEST_GAIN_PLATES = 1
 # model.fit's `speculate` (a residual's plate and its Jacobian's stepped plates in one host
 # call) for one plate: 91 % of a warm fit's residual points are asked for a Jacobian next
-# (stream bench: 219 of 240). Warm tracker, whole processes interleaved: 10.06 / 9.65 ->
-# 9.29 / 9.02 ms a frame, the same track. Cold fits do without it: their short fits' last
-# point and rejected trials left 34 % of it unused, and 137 -> 182 model columns made a
-# paper-scene locate 49-51 -> 58 ms (lockstep already pairs the fits' calls).
+# (stream bench: 219 of 240). Cold fits do without it: their short fits' last point and
+# rejected trials left 34 % of it unused (lockstep already pairs the fits' calls).
 SPECULATE = True
 
 

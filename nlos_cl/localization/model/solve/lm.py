@@ -1,6 +1,6 @@
 """A small bounded Levenberg-Marquardt least-squares solver: SciPy's `least_squares` minus
-its import (scipy.optimize: ~0.25 s, a quarter of the one-shot `nlos-cl locate` budget of
-issue 13) and minus the Jacobian SciPy evaluates after its last step (n forward calls).
+its import (scipy.optimize: ~0.25 s, a quarter of the one-shot `nlos-cl locate` 1 s
+budget) and minus the Jacobian SciPy evaluates after its last step (n forward calls).
 
     sol = least_squares(fun, x0, jac=jac, bounds=(lo, hi), x_scale=s, ftol=1e-7, xtol=1e-5,
                         max_nfev=30)
@@ -16,8 +16,8 @@ The method (Madsen, Nielsen & Tingleff, "Methods for non-linear least squares pr
 variables, mu updated from the gain ratio (Nielsen's rule); bounds by projection: the step is
 clipped into the box and a variable held at a bound by its gradient is left out of the solve
 (projected LM, Kanzow, Yamashita & Fukushima 2004). A new Jacobian after every accepted step:
-rank-one (Broyden) updates (MNT Alg. 3.15) took more forward calls on the model fit (the
-one-shot capture's fits 105-115 against 85-86) and were removed.
+rank-one (Broyden) updates (MNT Alg. 3.15) take more forward calls on the model fit (the
+one-shot capture's fits 105-115 against 85-86).
 """
 from __future__ import annotations
 
@@ -30,12 +30,9 @@ from ....core.errors import require
 
 EPS = np.finfo(np.float64).eps
 ACCEPT = 1e-3  # gain ratio above which a step is taken (MNT: any gain; a little more is safer)
-# Initial damping relative to max diag(J'J). MNT suggest 1e-6 for a start believed to be good,
-# and 1e-6 took the fewest forward calls (the one-shot capture's four fits: 85, SciPy 160), but
-# its near-Gauss-Newton first step jumped into another basin on 4 of 8 frames tried (0.3 x 1.6 m
-# plates at y = 1 m, 3 non-collinear or 8 spots, 10 dB: 0.19-0.50 m off where SciPy's trf gave
-# 0.006-0.012 m). 1e-5 and 1e-4 found SciPy's answers on all 8 (1e-4: 126-271 calls per frame,
-# SciPy 151-301, 1e-6 116-239); 1e-4 keeps a decade of margin from the smallest value that did.
+# Initial damping relative to max diag(J'J). 1e-4 finds SciPy's trf answers on 8 frames (0.3 x
+# 1.6 m plates at y = 1 m, 10 dB) where MNT's 1e-6's near-Gauss-Newton first step jumped basins
+# on 4 (0.19-0.50 m off); a decade of margin from 1e-5, the smallest value that found all 8.
 TAU = 1e-4
 MESSAGES = {0: "the maximum number of function evaluations is exceeded",
             1: "gtol termination condition is satisfied",
