@@ -102,18 +102,26 @@ def test_diffuse_only_ggx_simulates_as_lambertian(reference):
     np.testing.assert_allclose(ha, hb, rtol=1e-12, atol=1e-12 * hb.max())
 
 
-def test_glossy_target_from_a_scene_file():
+LOBES_FROM_FILES = [  # (the scene file's reflectance, the model, bad entries: (spec, field))
+    ({"model": "ggx", "specular": 0.5, "roughness": 0.2, "diffuse": 0.1}, GGX(0.5, 0.2, 0.1),
+     [({"roughness": 0.0}, "roughness"), ({"shininess": 3}, "unknown key"),
+      ({"specular": 0.8, "diffuse": 0.5}, "exceeds 1")]),
+    ({"model": "retroreflective", "retro": 0.6, "width_rad": 0.01, "diffuse": 0.3},
+     Retroreflective(0.6, 0.01, 0.3),
+     [({"width_rad": 0.0}, "width_rad"), ({"retro": -0.1}, "retro"),
+      ({"width_deg": 1}, "unknown key"), ({"retro": 0.9, "diffuse": 0.2}, "exceeds 1"),
+      ({"retro": 0.0, "diffuse": 0.0}, "reflects nothing")])]
+
+
+@pytest.mark.parametrize("spec, model, bad", LOBES_FROM_FILES, ids=["ggx", "retroreflective"])
+def test_a_lobed_target_from_a_scene_file(spec, model, bad):
     from nlos_cl.io.scenefile import load_scene
-    spec = load_scene({"targets": [{"shape": "rectangle", "position": [3, 1, 0],
-                                    "reflectance": {"model": "ggx", "specular": 0.5,
-                                                    "roughness": 0.2, "diffuse": 0.1}}]})
-    assert spec.scene.target.reflectance == GGX(0.5, 0.2, 0.1)
-    with pytest.raises(InputError, match="roughness"):
-        from_spec({"model": "ggx", "roughness": 0.0})
-    with pytest.raises(InputError, match="unknown key"):
-        from_spec({"model": "ggx", "shininess": 3})
-    with pytest.raises(InputError, match="exceeds 1"):
-        GGX(specular=0.8, diffuse=0.5)
+    loaded = load_scene({"targets": [{"shape": "rectangle", "position": [3, 1, 0],
+                                      "reflectance": spec}]})
+    assert loaded.scene.target.reflectance == model
+    for entries, field in bad:
+        with pytest.raises(InputError, match=field):
+            from_spec({"model": spec["model"], **entries})
     with pytest.raises(InputError, match="together with brdf"):
         load_scene({"targets": [{"shape": "rectangle", "brdf": 0.1,
                                  "reflectance": {"model": "lambertian"}}]})
@@ -277,19 +285,3 @@ def test_retro_confocal_return_over_wide_baseline_is_the_predicted_ratio(runtime
     assert expected > 100
 
 
-def test_retroreflective_target_from_a_scene_file():
-    from nlos_cl.io.scenefile import load_scene
-    spec = load_scene({"targets": [{"shape": "rectangle", "position": [3, 1, 0],
-                                    "reflectance": {"model": "retroreflective", "retro": 0.6,
-                                                    "width_rad": 0.01, "diffuse": 0.3}}]})
-    assert spec.scene.target.reflectance == Retroreflective(0.6, 0.01, 0.3)
-    with pytest.raises(InputError, match="width_rad"):
-        from_spec({"model": "retroreflective", "width_rad": 0.0})
-    with pytest.raises(InputError, match="retro"):
-        from_spec({"model": "retroreflective", "retro": -0.1})
-    with pytest.raises(InputError, match="unknown key"):
-        from_spec({"model": "retroreflective", "width_deg": 1})
-    with pytest.raises(InputError, match="exceeds 1"):
-        Retroreflective(retro=0.9, diffuse=0.2)
-    with pytest.raises(InputError, match="reflects nothing"):
-        Retroreflective(retro=0.0, diffuse=0.0)
