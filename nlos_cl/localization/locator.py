@@ -160,8 +160,8 @@ class Locator:
             self._window = reachable_bins(self.layout, self.grid)
         rows, detection = detected_in(sig, self._window, self._kept) if detect else (None, None)
         if detection is not None and not detection.detected and not return_map:
-            return Location.undetected(self._fused(sig, mode), self.grid, sig.layout.truth,
-                                       detection, self.estimator.name)
+            return Location.undetected(self._paper(sig, mode, rows), self.grid,
+                                       sig.layout.truth, detection, self.estimator.name)
         start = time.perf_counter()
         fusable = not return_map and (mode == "exhaustive"
                                       or self._search.fusable(sig.n_detectors))
@@ -186,6 +186,15 @@ class Locator:
                                        self.estimator.name, full)
         return Location.of(estimate, self.grid, sig.layout.truth, full, self.estimator.name,
                            detection)
+
+    def _paper(self, sig: Signals, mode: str, rows=None):
+        """The paper's estimate for any number of detectors: fused (one read) where the search
+        takes them (fused_search scores up to DET_TILE in one pass), else from the scored
+        neighbourhood, as a frame with a target of that many detectors is located."""
+        if mode == "exhaustive" or self._search.fusable(sig.n_detectors):
+            return self._fused(sig, mode)
+        scored = self._scored(sig, None, False, mode, rows)
+        return _in_grid(PaperArgmax().estimate(scored), self.grid, self.last_search)
 
     # ------------------------------------------------------------ the paper's argmax, fused
     def _fused(self, sig: Signals, mode: str, box=None):

@@ -123,6 +123,36 @@ def test_locate_capture_and_the_cli_say_no_target(tmp_path, capsys):
         printed["detection"]["threshold"]
 
 
+def _noise_capture(n: int, confocal: bool, seed: int = 0) -> nl.HistogramSet:
+    """n histograms of noise alone: n wall spots on a circle around one laser spot, or a
+    confocal square scan (each spot its own laser spot) of photon counts."""
+    axis = nl.default_time_axis(nl.paper_setup(), 16e-12)
+    rng = np.random.default_rng(seed)
+    cal = nl.PathCalibration(nl.SPEED_OF_LIGHT, [-40.0] * n)
+    if confocal:
+        side = np.linspace(-0.5, 0.5, int(round(np.sqrt(n))))
+        x, z = np.meshgrid(side, side)
+        spots = np.stack([x.ravel(), np.zeros(n), z.ravel()], 1)
+        return nl.HistogramSet(rng.poisson(0.5, (n, axis.n_bins)).astype(float), axis, spots,
+                               spots, cal)
+    angle = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    spots = np.stack([-1 + 0.5 * np.cos(angle), np.zeros(n), 0.5 * np.sin(angle)], 1)
+    return nl.HistogramSet(rng.standard_normal((n, axis.n_bins)) * 1e-12, axis, spots,
+                           [0, 0, 0], cal)
+
+
+@pytest.mark.parametrize("n, confocal", [(3, False), (16, False), (17, False), (40, False),
+                                         (9, True), (36, True)])
+def test_no_target_on_any_number_of_histograms(n, confocal):
+    """Issue 59 item 3: the no-target answer on every path. Above the fused search's 16
+    detectors (ops.fused_search: DET_TILE) the paper's argmax of an empty frame comes from
+    the scored neighbourhood, as a frame with a target is located (it raised before)."""
+    point = nl.locate_capture([_noise_capture(n, confocal)]).points[0]
+    assert not point.location.detected and point.location.targets == []
+    assert "no target signal" in point.warnings[-1]
+    assert np.all(np.isfinite(point.location.position))
+
+
 @pytest.mark.parametrize("shape", [(3, 5000), (100, 40), (100, 3000)],
                          ids=["few long rows", "many short rows", "many long rows"])
 def test_window_peaks_is_each_rows_maximum_over_its_window(shape):
