@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from typing import Callable, Mapping
 
-from ..core.errors import InputError, require
+from ..core.errors import InputError, require, spelled
 from .estimate import Estimator
 from .paper import PaperArgmax
 from .posterior import PosteriorMean
@@ -78,17 +78,12 @@ def choose_estimator(estimator=None, *, targets=1, reflectance=None, paired: boo
         flag = names["estimator"]
         require(estimator != "mean" or targets == 1, flag, "mean gives one position a frame, "
                 "the likelihood's mean over the region, which lies between two targets",
-                f"pass {_value(flag, 'paper')} or model with {names['targets']} above 1")
+                f"pass {spelled(flag, 'paper')} or model with {names['targets']} above 1")
     if reflectance is not None:
         require(estimator in (None, "model"), names["reflectance"], "is for the model fit; the "
                 "paper's likelihood has no reflectance", f"leave out "
-                f"{_value(names['estimator'], estimator)}, or {names['reflectance']}")
+                f"{spelled(names['estimator'], estimator)}, or {names['reflectance']}")
     if estimator is None or (isinstance(estimator, str) and estimator == "model"):
         from .model import ModelEstimator  # loaded only when chosen (a one-shot locate's start-up)
         return ModelEstimator(targets=targets, reflectance=reflectance), note
     return as_estimator(estimator), note
-
-
-def _value(name: str, value) -> str:
-    """How a user writes `name` = `value`: a flag and its value, or a keyword."""
-    return f"{name} {value}" if name.startswith("--") else f"{name}={value!r}"

@@ -50,20 +50,14 @@ class SearchPlan:
 GROUPS = {"noise": MeasurementNoise, "rules": TrackRules, "plan": SearchPlan}
 
 
-def group_of(option: str) -> str | None:
-    """The Tracker argument whose group holds `option` ('noise', 'rules', 'plan'), or None."""
-    return next((arg for arg, group in GROUPS.items()
-                 if option in {f.name for f in fields(group)}), None)
-
-
 def grouped(**flat) -> dict:
     """Flat option names (a config file's: max_birge_ratio, max_misses, warm_start, ...) as the
     Tracker's groups: {'noise': MeasurementNoise(...), 'rules': ..., 'plan': ...}, only the
     groups named."""
-    from ..core.errors import require
+    from ..core.errors import group_holding, require
     by_group: dict = {}
     for name, value in flat.items():
-        arg = group_of(name)
+        arg = group_holding(name, GROUPS)
         require(arg is not None, f"tracker.{name}", "is not a tracker option",
                 f"use one of {sorted(f.name for g in GROUPS.values() for f in fields(g))}")
         by_group.setdefault(arg, {})[name] = value

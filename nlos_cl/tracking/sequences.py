@@ -24,14 +24,14 @@ from typing import Iterator, Mapping
 import numpy as np
 
 from ..core.constants import PAPER_H_S
-from ..core.errors import require
+from ..core.errors import require, spelled
 from ..core.stats import unique_sorted
 from ..localization.estimators import choose_estimator
 from .motion import ConstantVelocity, Interacting, MotionModel
 from .options import MeasurementNoise, SearchPlan
 from .tracker import Tracker
 
-# How errors name the options: the keywords here; the CLI passes its flags (TRACK_FLAGS).
+# How errors name the options: the keywords here; the CLI passes its flags (OPTION_FLAGS).
 OPTION_NAMES = {"region": "region", "step_m": "step_m", "estimator": "estimator",
                 "targets": "targets", "reflectance": "reflectance", "accel": "accel",
                 "steady_accel": "steady_accel", "motion": "motion"}
@@ -48,7 +48,7 @@ def motion_for(kind: str = "imm", *, accel: float = 0.5, steady_accel: float = 0
         return ConstantVelocity(accel_sigma=accel)
     require(steady_accel < accel, names["steady_accel"], f"must be below {names['accel']} "
             f"({accel}), got {steady_accel}", f"pass e.g. {_pair(names)}, or "
-            f"{_flag_or_kw(names['motion'], 'cv')}")
+            f"{spelled(names['motion'], 'cv')}")
     return Interacting(accel_sigmas=(steady_accel, accel))
 
 
@@ -56,10 +56,6 @@ def _pair(names) -> str:
     if names["accel"].startswith("--"):
         return f"{names['steady_accel']} 0.05 {names['accel']} 0.5"
     return f"{names['steady_accel']}=0.05, {names['accel']}=0.5"
-
-
-def _flag_or_kw(name: str, value: str) -> str:
-    return f"{name} {value}" if name.startswith("--") else f"{name}={value!r}"
 
 
 def sampled_frames(seq) -> list:

@@ -28,13 +28,13 @@ import math
 import numpy as np
 
 from ..core.constants import PAPER_H_S
-from ..core.errors import InputError, require
+from ..core.errors import InputError, refuse_moved, require
 from ..core.tuning import auto_log_mode
 from . import association, gated, kalman, warm
 from .lifecycle import Lifecycle
 from .recovery import Recovery
 from .motion import MEMBERS as MOTION_MEMBERS, Interacting
-from .options import MeasurementNoise, SearchPlan, TrackRules
+from .options import GROUPS, MeasurementNoise, SearchPlan, TrackRules
 from .track import Smoothed, Track  # noqa: F401  (Smoothed: what Track.smoothed() returns)
 
 NO_SIGNAL = "no cell has a non-zero likelihood"
@@ -58,7 +58,8 @@ class Tracker:
                  frame_interval_s: float = 0.1, backend=None,
                  noise: MeasurementNoise = MeasurementNoise(), rules: TrackRules = TrackRules(),
                  plan: SearchPlan = SearchPlan(), **moved):
-        _refuse_moved(moved)
+        refuse_moved("Tracker", moved, GROUPS, "estimator, motion, h_s, background, max_tracks, "
+                     "frame_interval_s, backend, noise, rules or plan (tracking.options)")
         from ..core.grid import Grid
         from ..localization.estimators import as_estimator
         from ..localization.filter import GaussFilter
@@ -211,21 +212,6 @@ def _next_time(previous, t_s, interval):
             f"must be a finite time after the previous frame's ({previous}), got {t_s!r}",
             "pass increasing frame timestamps in seconds")
     return float(t_s)
-
-
-def _refuse_moved(moved: dict) -> None:
-    """An option passed by its old name (before the groups of tracking.options) or unknown:
-    one line naming the group that holds it now."""
-    from .options import GROUPS, group_of
-    for name in moved:
-        arg = group_of(name)
-        if arg is not None:
-            group = GROUPS[arg].__name__
-            raise InputError(f"Tracker.{name}: is an option of {group} now (tracking.options). "
-                             f"Fix: pass {arg}={group}({name}=...)")
-        raise InputError(f"Tracker.{name}: is not an option. Fix: pass estimator, motion, h_s, "
-                         "background, max_tracks, frame_interval_s, backend, noise, rules or "
-                         "plan (tracking.options)")
 
 
 def _check_options(max_tracks, gate_probability, fallback_sigma_m, min_sigma_m, max_misses,

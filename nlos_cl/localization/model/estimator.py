@@ -12,7 +12,7 @@ import numpy as np
 
 from ...core.blas_threads import serial_blas
 from ...core.constants import FWHM_PER_SIGMA, PAPER_H_S
-from ...core.errors import require
+from ...core.errors import refuse_moved, require
 from ...core.limits import require_targets
 from ...core.tuning import SEARCH_DETECTORS
 from ..estimate import Capabilities, Estimate, LocatedTarget, Prior
@@ -21,8 +21,7 @@ from ..paper import PaperArgmax
 from ..region import unseen_axis
 from .forward import data
 from .forward.likelihood import Problem
-from .options import (FitBudget, Instrument, check_options, model_reflectance,
-                      refuse_moved)
+from .options import GROUPS, FitBudget, Instrument, check_options, model_reflectance
 from .policy.depth import unseen_note
 from .policy.filtered_search import searched, smooth_observation
 from .policy.sanity import checked, fit_checks, unfittable_line
@@ -96,7 +95,8 @@ class ModelEstimator:
                  instrument: Instrument = Instrument(), lattice=None, max_targets=3, backend=None,
                  budget: FitBudget = FitBudget(), closed="auto", model_on="auto", sanity=True,
                  reflectance=None, **moved):
-        refuse_moved(moved)
+        refuse_moved("ModelEstimator", moved, GROUPS, "the options of ModelEstimator's "
+                     "docstring (docs/model-estimator.md)")
         check_options(targets, likelihood, closed, model_on)
         self.closed, self.model_on, self.sanity = closed, model_on, bool(sanity)
         self.targets, self.likelihood, self.h_s = targets, likelihood, float(h_s)

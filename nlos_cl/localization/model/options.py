@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ...core.constants import DEFAULT_JITTER_S, PAPER_PULSE_FWHM_S
-from ...core.errors import InputError, require
+from ...core.errors import require
 
 MODEL_ON = ("auto", "host", "kernel", "device")
 
@@ -41,16 +41,8 @@ def check_options(targets, likelihood, closed, model_on) -> None:
             f"{model_on!r}", "pass 'auto' (host for small problems), 'host', 'kernel' or 'device'")
 
 
-def refuse_moved(moved: dict) -> None:
-    """An option passed by its old name (pulse_fwhm_s, jitter_s: Instrument; final_nfev,
-    warm_nfev: FitBudget) or unknown: one line naming where it lives now."""
-    for name in moved:
-        for arg, group in (("instrument", Instrument), ("budget", FitBudget)):
-            require(name not in group.__dataclass_fields__, f"ModelEstimator.{name}",
-                    f"is an option of {group.__name__} now",
-                    f"pass {arg}={group.__name__}({name}=...)")
-        raise InputError(f"ModelEstimator.{name}: is not an option. Fix: see the "
-                         "ModelEstimator docstring (docs/model-estimator.md)")
+# Where the options grouped since live (ModelEstimator's **moved: refused with the fix).
+GROUPS = {"instrument": Instrument, "budget": FitBudget}
 
 
 def model_reflectance(value):
