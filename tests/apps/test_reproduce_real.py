@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 
+import nlos_cl as nl
 from nlos_cl.apps.reproduce import EXPERIMENTS, PAPER_EXPERIMENTS
 from nlos_cl.apps.reproduce.real import experiment as real
 from nlos_cl.core.errors import InputError
@@ -37,6 +38,16 @@ def test_a_missing_data_folder_is_one_line(tmp_path, monkeypatch):
     monkeypatch.setenv("NLOS_CL_REALDATA", str(tmp_path / "nowhere"))
     with pytest.raises(InputError, match=r"^NLOS_CL_REALDATA: "):
         real.data_root(None, real.config(True))
+
+
+def test_the_default_data_folder_is_beside_the_checkout(monkeypatch):
+    """real.yaml's default, ../shared/realdata, is read beside the checkout that holds the
+    package (the experiment module's own depth once put it inside the checkout)."""
+    monkeypatch.delenv("NLOS_CL_REALDATA", raising=False)
+    repo = Path(nl.__file__).resolve().parents[1]
+    assert real.REPO == repo and (repo / "nlos_cl" / "__init__.py").is_file()
+    if DATA.is_dir():
+        assert real.data_root(None, real.config(True)) == DATA.resolve()
 
 
 def _rows(path):

@@ -19,7 +19,9 @@ from . import report, runs
 
 NAME = "real"
 TITLE = "Measured data: nlos_cl on captures that other groups recorded"
-REPO = Path(__file__).resolve().parents[3]
+# the checkout holding the nlos_cl package (real.yaml's default is relative to it), found from
+# the package, not from this module's depth
+REPO = Path(nl.__file__).resolve().parents[1]
 
 
 def config(quick: bool) -> dict:
