@@ -8,6 +8,7 @@ is kept per worker process (`worker_cache`), so the seeds of one position simula
 """
 from __future__ import annotations
 
+from .registry import runner
 from .runner import worker_cache
 
 
@@ -23,6 +24,7 @@ def clean(x: float, y: float, facet_m: float, dt_s: float):
     return simulate(scene, default_time_axis(scene.setup, dt_s))
 
 
+@runner
 def paper_target(x: float, seed: int, y: float = 2.0, snr_db: float = 10.0,
                  facet_m: float = 0.02, dt_s: float = 1e-11, step_m: float = 0.02) -> dict:
     """One run: {'position': [x, y, z] located, 'error_m': distance to the truth}."""

@@ -24,12 +24,15 @@ from collections import OrderedDict
 from dataclasses import dataclass, field
 
 from ..core.errors import InputError, require
+from .bounds import shown
+from .registry import is_own, is_registered
 from .study import Axis, Study, assignments, axis_group, axis_values, check_scale, seed_values
 
 TOP = {"description", "runner", "axes", "seeds", "params", "batch_size"}
 COLUMNS = ("result", "t_run_s", "t_cpu_s")  # a runner study's measured columns, then failure
 RESERVED = {"run_id", "failure", *COLUMNS}
-_NAME = re.compile(r"[A-Za-z_][\w.]*:[A-Za-z_][\w.]*")
+MAX_NAME = 200  # characters of a runner's name (it is echoed in errors)
+_NAME = re.compile(r"[A-Za-z_][\w.]*:(?!__)[A-Za-z_]\w*(\.(?!__)[A-Za-z_]\w*)*")  # no dunders
 
 
 @dataclass(frozen=True)
@@ -61,21 +64,20 @@ def runner_name(runner) -> str:
     return f"{runner.__module__}:{getattr(runner, '__qualname__', type(runner).__name__)}"
 
 
-OWN = ("nlos_cl",)  # packages whose functions a study file may name without an opt-in
-
-
 def allowed(module: str, allow=()) -> bool:
-    """Whether a study file may name a function of `module`: one of nlos_cl's own packages, or
-    a module the user allowed (`allow`: module names; each allows its submodules too)."""
-    return any(module == m or module.startswith(m + ".") for m in (*OWN, *allow))
+    """Whether a study file may import `module`: nlos_cl's own (whose functions then run only
+    when registered: registry.py), or a module the user allowed (`allow`: module names; each
+    allows its submodules too)."""
+    return is_own(module) or any(module == m or module.startswith(m + ".") for m in allow)
 
 
 def resolve(runner, allow=()):
     """The function a `runner` value names ('package.module:function', or a callable).
 
     A study file is data, but a runner is code it runs: `runner: "os:system"` with an axis of
-    commands would run each one. So a name resolves only to a function defined in nlos_cl's
-    own packages, unless its module is in `allow` (nlos-cl sweep --allow-runner MODULE,
+    commands would run each one, and `nlos_cl.sweep.engine:sweep` would run any study. So a
+    name resolves only to a function nlos_cl registered as a study runner (registry.runner),
+    or to a function of a module in `allow` (nlos-cl sweep --allow-runner MODULE,
     nl.sweep(..., allow_runner=[MODULE])): the user's explicit word that the module is theirs
     to run. The module is checked before it is imported (an import runs its code), and the
     function found must be defined in an allowed module (not `os.system` reached through an
@@ -83,22 +85,27 @@ def resolve(runner, allow=()):
     fix = ("write runner: \"package.module:function\", a function the workers can import "
            "(from Python you may pass the function itself)")
     if not isinstance(runner, str):
-        require(callable(runner), "runner", f"expected a function, got {runner!r}", fix)
+        require(callable(runner), "runner", f"expected a function, got {shown(runner)}", fix)
         return runner
-    require(bool(_NAME.fullmatch(runner)), "runner", f"expected 'package.module:function', "
-            f"got {runner!r}", fix)
+    require(len(runner) <= MAX_NAME and bool(_NAME.fullmatch(runner)), "runner",
+            f"expected 'package.module:function' (at most {MAX_NAME} characters), got "
+            f"{shown(runner)}", fix)
     module, _, name = runner.partition(":")
     allow = (allow,) if isinstance(allow, str) else tuple(allow or ())
     require(allowed(module, allow), f"runner {runner!r}", f"cannot import {module!r} from a "
-            "study file: a runner is code the study runs, and only nlos_cl's own functions "
-            "run without your word", f"if you trust {module!r}, allow it: nlos-cl sweep "
-            f"--allow-runner {module} (nl.sweep(..., allow_runner=[{module!r}]))")
+            "study file: a runner is code the study runs, and only nlos_cl's registered "
+            "runners run without your word", f"if you trust {module!r}, allow it: nlos-cl "
+            f"sweep --allow-runner {module} (nl.sweep(..., allow_runner=[{module!r}]))")
     obj = _import(runner)
     home = getattr(inspect.unwrap(obj), "__module__", None) or ""
     require(allowed(home, allow), f"runner {runner!r}", f"is {home or 'a builtin'}'s "
             f"{getattr(obj, '__name__', name)}, not a function of {module!r}",
-            f"name the function where it is defined (and allow that module only if you trust "
-            "it)")
+            "name the function where it is defined (and allow that module only if you trust it)")
+    if is_own(home) or is_own(module):  # nlos_cl's: registered runners only, allowed or not
+        require(is_registered(obj), f"runner {runner!r}", "is not a registered study runner "
+                "(of nlos_cl's functions a study may name only those marked @runner in "
+                "nlos_cl.sweep.registry)", "name one, e.g. nlos_cl.sweep.examples:paper_target, "
+                "or a function of your own module with --allow-runner MODULE")
     return obj
 
 
@@ -108,8 +115,9 @@ def _import(runner: str):
     try:
         obj = importlib.import_module(module)
     except ImportError as exc:
-        raise InputError(f"runner {runner!r}: cannot import {module!r} ({exc}). Fix: install "
-                         "the module where the study runs, or correct the name") from None
+        raise InputError(f"runner {runner!r}: cannot import {module!r} ({shown(str(exc))}). "
+                         "Fix: install the module where the study runs, or correct the name"
+                         ) from None
     for part in name.split("."):
         require(hasattr(obj, part), f"runner {runner!r}", f"{module!r} has no {name!r}",
                 "check the function's name after the colon")
@@ -129,20 +137,21 @@ def _check_call(fn, runner, names) -> None:
         signature.bind(**dict.fromkeys(names))
     except TypeError as exc:
         raise InputError(f"runner {runner_name(runner)!r}: cannot be called with the study's "
-                         f"parameters {sorted(names)} ({exc}). Fix: rename the axes or params "
-                         "to the function's parameters, or add them to the function") from None
+                         f"parameters {shown(sorted(names))} ({shown(str(exc))}). Fix: rename "
+                         "the axes or params to the function's parameters, or add them to the "
+                         "function") from None
 
 
 def _axis(where: str, spec) -> Axis:
     require(isinstance(spec, dict) and "name" in spec and "path" not in spec, where,
-            f"expected {{name, values}} or {{name, range}}, got {spec!r}", "a runner study's "
+            f"expected {{name, values}} or {{name, range}}, got {shown(spec)}", "a runner study's "
             "axes are its function's parameters: write e.g. {name: case, values: [0, 1]}")
     unknown = sorted(set(spec) - {"name", "values", "range", "scale"})
     require(not unknown, f"{where}.{unknown[0] if unknown else ''}", "is not a known key",
             "use name, values, range or scale")
     name = spec["name"]
     require(isinstance(name, str) and name.isidentifier() and name not in RESERVED,
-            f"{where}.name", f"expected a parameter name, got {name!r}",
+            f"{where}.name", f"expected a parameter name, got {shown(name)}",
             f"write a Python identifier other than {sorted(RESERVED)}")
     values = axis_values(where, spec)
     if spec.get("scale") is not None:
@@ -166,15 +175,15 @@ def load_runner_study(raw: dict, base_dir=None, allow_runner=()) -> RunnerStudy:
             "write axes: [{name: case, values: [0, 1]}] or seeds: 10")
     params = raw.get("params") or {}
     require(isinstance(params, dict) and all(isinstance(k, str) for k in params), "params",
-            f"expected a mapping of keyword arguments, got {params!r}", "write params: {a: 1}")
+            f"expected a mapping of keyword arguments, got {shown(params)}", "write params: {a: 1}")
     names = [a.name for g in groups for a in g] + list(params)
     dup = sorted({n for n in names if names.count(n) > 1})
-    require(not dup, f"axes/params: name {dup[0] if dup else ''!r}", "is used twice",
+    require(not dup, f"axes/params: name {shown(dup[0] if dup else '')}", "is used twice",
             "give each parameter one source: an axis, seeds, or params")
     _check_call(fn, raw["runner"], names)
     batch = raw.get("batch_size")
     require(batch is None or (isinstance(batch, int) and batch >= 1), "batch_size",
-            f"must be a positive integer, got {batch!r}", "write e.g. batch_size: 16")
+            f"must be a positive integer, got {shown(batch)}", "write e.g. batch_size: 16")
     return RunnerStudy(str(raw.get("description", "")), {}, tuple(groups), {}, batch,
                        raw["runner"], dict(params))
 

@@ -12,6 +12,7 @@ import numpy as np
 
 import nlos_cl as nl
 from nlos_cl.sweep import worker_cache
+from nlos_cl.sweep.registry import runner
 
 from ..common import Settings
 from . import cases as bc
@@ -33,6 +34,7 @@ def counter_for(clean_signals, photons: float) -> nl.PhotonCounter:
     return nl.PhotonCounter(n_pulses=base.n_pulses * photons / signal)
 
 
+@runner  # the study's `runner` (registered: a study may name it)
 def run(case: dict, seed: int, layouts: dict, settings: dict) -> list[dict]:
     """One frame of `case` with noise seed `seed`: both estimators, the CSV rows (one per
     truth). The model may see another layout's signals (the SPAD subset)."""
