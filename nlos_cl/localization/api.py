@@ -16,7 +16,6 @@ from collections import OrderedDict
 
 import numpy as np
 
-from ..core.constants import PAPER_H_S
 from ..core.grid import Grid
 from ..core.tuning import PLAN_CACHE
 from ..ops.signals import Signals, as_signals
@@ -25,8 +24,9 @@ from .filter import GaussFilter, looks_unfiltered
 from .locator import Locator
 
 
-def gauss_filter(signals, h_s: float = PAPER_H_S, *, backend=None) -> Signals:
-    """Paper Eq. 24: a Gaussian of sigma = h / 3 over the window [t - h, t + h]."""
+def gauss_filter(signals, h_s: float | None = None, *, backend=None) -> Signals:
+    """Paper Eq. 24: a Gaussian of sigma = h / 3 over the window [t - h, t + h]; h_s None: the
+    paper's 0.65 ns, or 3 bins where the bins are coarser (ops.gauss_filter.filter_window)."""
     sig = as_signals(signals, backend)
     return GaussFilter(h_s, sig.layout.time_axis)(sig)
 

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.constants import PAPER_H_S
+from ..ops.gauss_filter import filter_window
 from ..core.errors import InputError, require
 from ..core.grid import Grid
 from ..core.histograms import HistogramSet
@@ -35,7 +35,7 @@ REGION_NAMES = ("region", "step_m")  # how errors name the region options (a CLI
 
 
 def search_region(histograms: HistogramSet, frame: CaptureFrame = INTERNAL, region=None,
-                  step_m: float | None = None, h_s: float = PAPER_H_S, *,
+                  step_m: float | None = None, h_s: float | None = None, *,
                   names=REGION_NAMES, reach_from=None) -> tuple[Grid, bool]:
     """(grid in our frame, was it derived): `region` None derives it (default_region, as far as
     the signal of `reach_from`, default the histograms, reaches); three (low, high) ranges are
@@ -191,7 +191,7 @@ def measured_processing(sets, background, *, negatives, pulses, h_s, calibrated,
     if backgrounds is not None:
         from .background import subtract_background
         sets = [subtract_background(h, b, negatives=negatives) for h, b in zip(sets, backgrounds)]
-    return sets, [None] * len(sets), PAPER_H_S if h_s is None else h_s
+    return sets, [None] * len(sets), filter_window(sets[0].time_axis.dt_s, h_s)
 
 
 def _calibrated(sets, calibration):
@@ -272,7 +272,7 @@ def locate_capture(capture, *, region=None, step_m: float | None = None,
     or a CalibrationFit. return_map: keep each final grid's score map (location.score_map).
     names: how errors and warnings name the region and step_m options (a CLI: its flags).
     h_s: the Gauss filter's window; None: from the direct return's width where the capture has
-    one, else the paper's 0.65 ns. preprocess: the measured-data steps (measured_processing;
+    one, else the paper's 0.65 ns or 3 bins, whichever is wider. preprocess: the measured-data steps (measured_processing;
     each point's `processing` says what they found); pulses: laser pulses per histogram for
     the pile-up correction (off without it). Warnings (e.g. an unobservable height) are
     collected in each point's `warnings`, not raised.

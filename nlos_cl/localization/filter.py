@@ -7,12 +7,11 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..core.constants import PAPER_H_S
 from ..core.errors import require
 from ..core.histograms import Layout
 from ..core.paths import TimeAxis
 from ..core.stats import median, row_median
-from ..ops.gauss_filter import gauss_taps
+from ..ops.gauss_filter import filter_window, gauss_taps
 from ..ops.signals import Signals, as_signals
 
 
@@ -22,28 +21,31 @@ def layout_of(value) -> Layout:
 
 class GaussFilter:
     """The paper's Gauss filter (Eq. 24) for one time axis: a Gaussian of sigma = h / 3 over
-    the window [t - h, t + h]. `plan(signals) -> Signals` on the signals' backend."""
+    the window [t - h, t + h]. `plan(signals) -> Signals` on the signals' backend. h_s: None
+    (default) follows the bins: the paper's 0.65 ns, or 3 bins where they are coarser
+    (ops.gauss_filter.filter_window); `window_s` is the one in use."""
 
-    def __init__(self, h_s: float = PAPER_H_S, time_axis: TimeAxis | None = None, *,
+    def __init__(self, h_s: float | None = None, time_axis: TimeAxis | None = None, *,
                  backend=None):
-        require(isinstance(h_s, (int, float)) and not isinstance(h_s, bool)
+        require(h_s is None or isinstance(h_s, (int, float)) and not isinstance(h_s, bool)
                 and math.isfinite(h_s) and h_s > 0, "h_s",
                 f"the filter window must be a positive time in seconds, got {h_s!r}",
-                "pass e.g. 0.65e-9 (the paper's h)")
-        self.h_s = float(h_s)
+                "pass e.g. 0.65e-9 (the paper's h), or leave it out to follow the bins")
+        self.h_s = None if h_s is None else float(h_s)
         self.backend = backend
-        self._axis, self._taps = None, None
+        self._axis, self._taps, self.window_s = None, None, None
         if time_axis is not None:
             self._prepare(time_axis)
 
     def _prepare(self, axis: TimeAxis):
-        require(self.h_s >= axis.dt_s, "h_s", f"window {self.h_s:.3e} s is narrower than one "
+        h = filter_window(axis.dt_s, self.h_s)
+        require(h >= axis.dt_s, "h_s", f"window {h:.3e} s is narrower than one "
                 f"bin ({axis.dt_s:.3e} s), so the filter would only rescale the data",
-                "use h_s of at least one bin width, typically 0.65e-9")
-        require(self.h_s < axis.n_bins * axis.dt_s, "h_s",
-                f"window {self.h_s:.3e} s is longer than the whole record "
+                "use h_s of at least one bin width, or leave it out to follow the bins")
+        require(h < axis.n_bins * axis.dt_s, "h_s",
+                f"window {h:.3e} s is longer than the whole record "
                 f"({axis.n_bins * axis.dt_s:.3e} s)", "use a smaller h_s or a longer time axis")
-        self._axis, self._taps = axis, gauss_taps(self.h_s, axis.dt_s)
+        self._axis, self._taps, self.window_s = axis, gauss_taps(h, axis.dt_s), h
 
     @property
     def taps(self) -> np.ndarray | None:
@@ -54,7 +56,7 @@ class GaussFilter:
         if sig.layout.time_axis != self._axis:
             self._prepare(sig.layout.time_axis)
         out = sig.derive(sig.backend.call("gauss_filter", sig.handle, self._taps))
-        return replace(out, filtered_h_s=self.h_s)
+        return replace(out, filtered_h_s=self.window_s)
 
 
 # Rows that still hold the bin-to-bin noise the paper's filter removes (`looks_unfiltered`):
@@ -69,12 +71,13 @@ UNFILTERED_MIN_SIGMA_BINS = 4.0
 UNFILTERED_SAMPLE_ROWS = 16  # rows read from the middle of the record: bounded work
 
 
-def looks_unfiltered(signals: Signals, h_s: float = PAPER_H_S) -> bool:
+def looks_unfiltered(signals: Signals, h_s: float | None = None) -> bool:
     """Do these signals still hold white, bin-to-bin noise that the Gauss filter of window
     h_s would have removed? (The median row of UNFILTERED_SAMPLE_ROWS; False for the Gauss
     filter's own output, where the filter's sigma spans under UNFILTERED_MIN_SIGMA_BINS bins,
     or where the rows are constant.)"""
-    sigma_bins = h_s / 3.0 / signals.layout.time_axis.dt_s
+    dt = signals.layout.time_axis.dt_s
+    sigma_bins = filter_window(dt, h_s) / 3.0 / dt
     if signals.filtered_h_s is not None or sigma_bins < UNFILTERED_MIN_SIGMA_BINS:
         return False
     n = signals.n_detectors

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..core.constants import PAPER_H_S
 from ..core.errors import require
 from ..core.histograms import HistogramSet
 from .api import gauss_filter
@@ -22,7 +21,7 @@ def is_single_confocal(histograms) -> bool:
         np.allclose(histograms.laser_spots, histograms.detector_spots))
 
 
-def confocal_range(histograms: HistogramSet, h_s: float = PAPER_H_S, *, backend=None) -> float:
+def confocal_range(histograms: HistogramSet, h_s: float | None = None, *, backend=None) -> float:
     """The range (m) from a single confocal spot to the middle of its strongest return."""
     require(is_single_confocal(histograms), "histograms",
             "range-only location needs one confocal histogram (laser spot = detection spot)",
@@ -33,13 +32,13 @@ def confocal_range(histograms: HistogramSet, h_s: float = PAPER_H_S, *, backend=
     return 0.5 * float(path)
 
 
-def confocal_ranges(frames, h_s: float = PAPER_H_S, *, backend=None) -> np.ndarray:
+def confocal_ranges(frames, h_s: float | None = None, *, backend=None) -> np.ndarray:
     """confocal_range of each frame: HistogramSets, or (t_s, HistogramSet, ...) tuples."""
     sets = [f[1] if isinstance(f, tuple) else f for f in frames]
     return np.array([confocal_range(h, h_s, backend=backend) for h in sets])
 
 
-def range_rules(frames, h_s: float = PAPER_H_S) -> dict:
+def range_rules(frames, h_s: float | None = None) -> dict:
     """A diagnosis: each frame's range (m) by other rules on the same Gauss-filtered return:
     its peak, and the half-height crossings of its main lobe (the near edge, `leading`, and
     the far one, `trailing`). A letter beside the grid's centre moves them apart: where each

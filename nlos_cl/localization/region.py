@@ -24,12 +24,12 @@ import math
 
 import numpy as np
 
-from ..core.constants import PAPER_H_S
 from ..core.errors import require
 from ..core.grid import Grid
 from ..core.stats import row_median
 from ..core.histograms import HistogramSet
 from ..io.ytal.frames import require_locatable
+from ..ops.gauss_filter import filter_window
 
 MAX_CELLS = 4_000_000
 ALONG_AXIS_COS = math.cos(math.radians(1))  # a line within 1 deg of an axis is along it
@@ -69,8 +69,10 @@ def _nice_step(step: float) -> float:
     return max(m * 10.0 ** k for m in (1, 2, 5) if m * 10.0 ** k <= step * (1 + 1e-9))
 
 
-def region_step(histograms: HistogramSet, h_s: float = PAPER_H_S) -> float:
-    """The fine cell size: a quarter of the filtered pulse's path width a max(h/3, dt)."""
+def region_step(histograms: HistogramSet, h_s: float | None = None) -> float:
+    """The fine cell size: a quarter of the filtered pulse's path width a max(h/3, dt) (h_s
+    None: the filter's default window for these bins)."""
+    h_s = filter_window(histograms.time_axis.dt_s, h_s)
     require(isinstance(h_s, (int, float)) and math.isfinite(h_s) and h_s > 0, "h_s",
             f"the filter window must be a positive time in seconds, got {h_s!r}",
             "pass e.g. 0.65e-9 (the paper's h)")
@@ -116,7 +118,7 @@ def visible_box(histograms: HistogramSet, reach=None) -> tuple[np.ndarray, np.nd
     return (centre - half).max(axis=0), (centre + half).min(axis=0)
 
 
-def default_region(histograms: HistogramSet, h_s: float = PAPER_H_S, *,
+def default_region(histograms: HistogramSet, h_s: float | None = None, *,
                    max_cells: int = MAX_CELLS, reach_from=None) -> Grid:
     """The search grid (internal frame) a capture can see; the rules are in the module doc.
     reach_from: HistogramSets of this layout whose signal bounds the region (signal_reach;
@@ -148,7 +150,7 @@ def default_region(histograms: HistogramSet, h_s: float = PAPER_H_S, *,
     return Grid(tuple(lo), (step,) * 3, tuple(shape))
 
 
-def zoom_region(position, grid: Grid, histograms: HistogramSet, h_s: float = PAPER_H_S, *,
+def zoom_region(position, grid: Grid, histograms: HistogramSet, h_s: float | None = None, *,
                 cells: int = 4) -> Grid:
     """A fine grid (the region_step) around `position`, `cells` coarse steps each way: search
     it after a coarse default_region whose step was coarsened to fit max_cells."""

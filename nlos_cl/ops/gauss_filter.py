@@ -18,10 +18,24 @@ import math
 
 import numpy as np
 
+from ..core.constants import PAPER_H_S
 from .base import Example, Operation
 
 OUTPUTS_PER_ITEM = 32  # two float16 accumulators per work item (gauss_filter.cl)
 FFT_MIN_TAPS = 400  # from here a CPU device filters by FFT (measured crossover: ~170-400)
+
+
+# The default window spans at least this many bins each side (sigma one bin): the paper's 0.65 ns
+# is narrower than one bin of a 1 ns TDC (the VL53L1X's bins are 1.33 ns), where it would only
+# rescale the data and was refused; the filter's job, noise averaged over the pulse's scale, then
+# falls to a few bins.
+MIN_WINDOW_BINS = 3
+
+
+def filter_window(dt_s: float, h_s: float | None = None) -> float:
+    """The Gauss filter's window h for bins of dt_s: `h_s` where given; by default the paper's
+    0.65 ns or MIN_WINDOW_BINS bins, whichever is wider."""
+    return float(h_s) if h_s is not None else max(PAPER_H_S, MIN_WINDOW_BINS * float(dt_s))
 
 
 def gauss_taps(h_s: float, dt_s: float) -> np.ndarray:

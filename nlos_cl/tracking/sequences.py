@@ -23,7 +23,6 @@ from typing import Iterator, Mapping
 
 import numpy as np
 
-from ..core.constants import PAPER_H_S
 from ..core.errors import require, spelled
 from ..core.stats import unique_sorted
 from ..localization.estimators import choose_estimator
@@ -67,7 +66,7 @@ def sampled_frames(seq) -> list:
 
 
 def tracker_for(seq, *, estimator=None, targets: int = 1, reflectance=None, region=None,
-                step_m: float | None = None, h_s: float = PAPER_H_S, background=None,
+                step_m: float | None = None, h_s: float | None = None, background=None,
                 running_mean: float | None = None, motion: MotionModel | None = None,
                 full_search: bool = False, backend=None,
                 names: Mapping[str, str] = OPTION_NAMES, on_note=None) -> Tracker:

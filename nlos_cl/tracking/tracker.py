@@ -27,7 +27,6 @@ import math
 
 import numpy as np
 
-from ..core.constants import PAPER_H_S
 from ..core.errors import InputError, refuse_moved, require
 from ..core.tuning import auto_log_mode
 from . import association, gated, kalman, warm
@@ -54,7 +53,7 @@ class Tracker:
     plan.gated_search searches near the tracks where that can do). See the module docstring."""
 
     def __init__(self, layout, grid=None, *, estimator="paper", motion=None,
-                 h_s: float = PAPER_H_S, background=None, max_tracks: int = 1,
+                 h_s: float | None = None, background=None, max_tracks: int = 1,
                  frame_interval_s: float = 0.1, backend=None,
                  noise: MeasurementNoise = MeasurementNoise(), rules: TrackRules = TrackRules(),
                  plan: SearchPlan = SearchPlan(), **moved):

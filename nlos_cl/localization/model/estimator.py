@@ -11,7 +11,8 @@ import warnings
 import numpy as np
 
 from ...core.blas_threads import serial_blas
-from ...core.constants import FWHM_PER_SIGMA, PAPER_H_S
+from ...core.constants import FWHM_PER_SIGMA
+from ...ops.gauss_filter import filter_window
 from ...core.errors import refuse_moved, require
 from ...core.limits import require_targets
 from ...core.tuning import SEARCH_DETECTORS
@@ -69,7 +70,7 @@ def _host_problem(obs, lattice, backend, refl, model_on):
 class ModelEstimator:
     """Fit `targets` plates (an int, or 'auto': add plates while they pass the test in
     model.select). `likelihood`: 'gauss' (AWGN; the data are compared after a Gauss
-    filter of window h_s), 'poisson' (photon counts in `raw`), or 'auto' (counts when `raw`
+    filter of window h_s: None for the one the rows passed), 'poisson' (photon counts in `raw`), or 'auto' (counts when `raw`
     holds non-negative whole numbers). `backend`: where the forward model runs while fitting
     (default: the scored frame's backend). model_on: 'device' (the forward op on `backend`),
     'host' (plates in float64 NumPy, many per call: model.batch), 'kernel' (as host, its
@@ -91,7 +92,7 @@ class ModelEstimator:
         return Capabilities(from_paper=True, needs_raw=True, paired=True,
                             warm_start=isinstance(self.targets, int) and self.closed is not True)
 
-    def __init__(self, targets=1, *, likelihood="auto", h_s=PAPER_H_S,
+    def __init__(self, targets=1, *, likelihood="auto", h_s=None,
                  instrument: Instrument = Instrument(), lattice=None, max_targets=3, backend=None,
                  budget: FitBudget = FitBudget(), closed="auto", model_on="auto", sanity=True,
                  reflectance=None, **moved):
@@ -99,7 +100,8 @@ class ModelEstimator:
                      "docstring (docs/model-estimator.md)")
         check_options(targets, likelihood, closed, model_on)
         self.closed, self.model_on, self.sanity = closed, model_on, bool(sanity)
-        self.targets, self.likelihood, self.h_s = targets, likelihood, float(h_s)
+        self.targets, self.likelihood = targets, likelihood
+        self.h_s = None if h_s is None else float(h_s)
         self.pulse_sigma_s = float(instrument.pulse_fwhm_s) / FWHM_PER_SIGMA
         self.jitter_s, self.lattice = float(instrument.jitter_s), lattice
         self.max_targets, self.backend = int(max_targets), backend
@@ -107,9 +109,17 @@ class ModelEstimator:
         self.reflectance = model_reflectance(reflectance)
         self.timings: dict = {}
 
+    def window_s(self, scored) -> float:
+        """The Gauss filter's window the scored rows passed: h_s where given, else the one the
+        filter used (Signals.filtered_h_s), else the default for the bins."""
+        if self.h_s is not None:
+            return self.h_s
+        sig = scored.signals
+        return sig.filtered_h_s or filter_window(sig.layout.time_axis.dt_s)
+
     def observation(self, scored):
         return data.observation(scored, self.likelihood, frac=data.window_frac(self.targets),
-                                h_s=self.h_s, pulse_sigma_s=self.pulse_sigma_s,
+                                h_s=self.window_s(scored), pulse_sigma_s=self.pulse_sigma_s,
                                 jitter_s=self.jitter_s)
 
     # ------------------------------------------------------------------ the estimate

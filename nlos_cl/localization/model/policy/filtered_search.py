@@ -27,7 +27,7 @@ def smooth_observation(est, scored, obs):
     counts fitted for one target; else None."""
     if obs.mode != "poisson" or est.targets != 1:
         return None
-    return data.observation(scored, "gauss", h_s=est.h_s, pulse_sigma_s=est.pulse_sigma_s,
+    return data.observation(scored, "gauss", h_s=est.window_s(scored), pulse_sigma_s=est.pulse_sigma_s,
                             jitter_s=est.jitter_s, frac=data.window_frac(est.targets))
 
 
