@@ -9,12 +9,22 @@ from __future__ import annotations
 
 import json
 import sys
+from dataclasses import replace
+
+import numpy as np
+
+from ..io.json_format import covariance_in, covariance_json, rounded, vector_json
+from ..localization.estimate import Capabilities, Estimate, LocatedTarget
+from ..localization.paper import PaperArgmax
+from ..localization.posterior import PosteriorMean
+
+# what --estimator model costs where the paper's argmax is the default (measured: see the note)
+MODEL_COST = "minutes on thousands of histograms"
 
 
 def is_map(path) -> bool:
     """A map `locate --map` wrote: an .npz whose arrays are exactly score, x, y, z (read with
     allow_pickle=False: nothing in the file runs)."""
-    import numpy as np
     try:
         with np.load(path, allow_pickle=False) as data:
             return sorted(data.files) == ["score", "x", "y", "z"]
@@ -24,8 +34,6 @@ def is_map(path) -> bool:
 
 def _save_map(args, i, n_sets, loc, grid):
     from pathlib import Path
-
-    import numpy as np
 
     from ..io.safe_write import atomic_write
     out = Path(args.map) if n_sets == 1 else Path(args.map).with_suffix(f".{i}.npz")
@@ -60,47 +68,193 @@ def _check_map_path(args) -> None:
 NO_TARGET_STATUS = 3  # `nlos-cl locate`: no laser point held target signal
 
 
-def _estimator(args):
-    """--estimator, or with --reflectance the model fit that knows it (estimators'
-    choose_estimator; without one, locate_capture applies the same policy per laser point)."""
-    if args.reflectance is None:
-        return args.estimator
+def _estimator(args, sets):
+    """(estimator, note): --estimator, or with --reflectance the model fit that knows it
+    (estimators' choose_estimator, the policy locate_capture applies); the paper's argmax, by
+    name or as the paired default, with its likelihood's spread as its covariance."""
     from ..localization.estimators import choose_estimator
     from .cli_types import OPTION_FLAGS
+    paired = any(h.paired for h in sets)
+    if args.reflectance is None and (args.estimator == "paper" or args.estimator is None
+                                     and paired):
+        return ArgmaxSpread(), None if args.estimator else _paired_note()
+    if args.reflectance is None:
+        return args.estimator, None
     return choose_estimator(args.estimator, targets=args.targets, reflectance=args.reflectance,
-                            names=OPTION_FLAGS)[0]
+                            names=OPTION_FLAGS)[0], None
+
+
+def _truths(hist):
+    """Every target's centre the capture holds (ours), or None."""
+    if hist.truths is not None:
+        return np.asarray(hist.truths)
+    return None if hist.truth is None else np.asarray(hist.truth).reshape(1, 3)
+
+
+def matched(positions, truths) -> list:
+    """Per found target, the index of the truth assigned to it (linear assignment on distance),
+    or None where there are more targets than truths."""
+    from scipy.optimize import linear_sum_assignment
+    out = [None] * len(positions)
+    if truths is None or not len(positions):
+        return out
+    dist = np.linalg.norm(np.asarray(positions)[:, None] - np.asarray(truths)[None], axis=2)
+    for r, c in zip(*linear_sum_assignment(dist)):
+        out[r] = int(c)
+    return out
+
+
+def _held(cov, grid):
+    """The covariance (ours) with an infinite variance along every axis the search grid holds
+    at one cell (a flat region: collinear wall spots, or --region so given): the answer's
+    coordinate there was held, not measured, whatever spread the estimator reports."""
+    if cov is None:
+        return None
+    cov = np.array(cov, dtype=np.float64)
+    for j, n in enumerate(grid.shape):
+        if n == 1:
+            cov[j, :] = cov[:, j] = 0.0
+            cov[j, j] = np.inf
+    return cov
+
+
+def target_json(t, frame, truth, grid) -> dict:
+    """One target as the JSON gives it: position, covariance, each axis's 1-sigma (None and
+    named in `unobservable` where the data hold no information on it), extent, shape, and its
+    own truth and error."""
+    own = _held(t.covariance, grid)
+    cov = covariance_in(own, frame)
+    var = np.full(3, np.inf) if cov is None else np.diag(cov)
+    fit = t.fit
+    out = {"position": vector_json(t.position, frame),
+           "covariance": covariance_json(own, frame),
+           "sd_m": [round(float(np.sqrt(v)), 5) if np.isfinite(v) else None for v in var],
+           "unobservable": [a for a, v in zip(frame.axes, var) if not np.isfinite(v)],
+           "extent_m": None if t.extent_m is None else rounded(t.extent_m),
+           "shape": None if fit is None else fit.model,
+           "truth": None if truth is None else vector_json(truth, frame),
+           "error_m": None if truth is None else
+           round(float(np.linalg.norm(np.asarray(t.position) - truth)), 5)}
+    if cov is None:
+        out["uncertainty"] = "the estimator gives no covariance"
+    elif out["unobservable"]:
+        out["uncertainty"] = (", ".join(out["unobservable"]) + " held, not measured: the "
+                              "wall spots (or the search region) give no information along it")
+    return out
+
+
+def targets_json(point, truths) -> dict:
+    """The point's targets, each matched to its own truth; `truth` and `error_m` the first
+    target's (against its nearest truth where none was assigned to it)."""
+    loc, frame = point.location, point.frame
+    if not loc.targets:
+        return {"truths": None if truths is None else [vector_json(t, frame) for t in truths]}
+    assigned = matched([t.position for t in loc.targets], truths)
+    targets = [target_json(t, frame, None if k is None else truths[k], point.grid)
+               for t, k in zip(loc.targets, assigned)]
+    out = {"targets": targets, "truths": None if truths is None else
+           [vector_json(t, frame) for t in truths]}
+    if truths is not None:
+        first = truths[assigned[0]] if assigned[0] is not None else truths[np.argmin(
+            np.linalg.norm(truths - loc.targets[0].position, axis=1))]
+        out["truth"] = vector_json(first, frame)
+        out["error_m"] = round(float(np.linalg.norm(loc.targets[0].position - first)), 5)
+    return out
+
+
+def _axis_text(name, value, sd) -> str:
+    return f"{name} {value:.4f} " + ("(unobservable)" if sd is None else f"± {sd:.4f}")
+
+
+def text_lines(r, frame) -> str:
+    """One laser point's answer as text: a line, then one line per target."""
+    head = f"laser point {r['laser_point']}: "
+    if not r["detected"]:
+        return head + f"no target (argmax of noise {r['argmax_cell']} m)"
+    n = len(r["targets"])
+    lines = [head + f"{n} target{'s' * (n != 1)} located by the {r['estimator']} estimator, "
+             f"in the file's frame ({frame.name}), m, ± 1 sd:"]
+    for i, t in enumerate(r["targets"], 1):
+        line = f"  target {i}: " + ", ".join(_axis_text(a, v, sd) for a, v, sd in
+                                              zip(frame.axes, t["position"], t["sd_m"]))
+        if t["extent_m"] is not None:
+            line += "; extent " + " x ".join(f"{v:.3f}" for v in t["extent_m"]) + " m"
+        if t["shape"]:
+            line += f"; {t['shape']}"
+        if t["truth"] is not None:
+            line += f"; truth {t['truth']}, error {t['error_m']:.4f} m"
+        lines.append(line)
+    return "\n".join(lines)
+
+
+class ArgmaxSpread:
+    """The paper's argmax (its answer unchanged) with a covariance: the paper likelihood's
+    second moment about the argmax over the region (posterior.PosteriorMean's mean and
+    covariance C, plus d d^T for the argmax's offset d from that mean), so a paired or confocal
+    answer carries an uncertainty too. Its name stays 'paper'."""
+
+    name = "paper"
+    capabilities = Capabilities(from_paper=True, paired=True)
+
+    def __init__(self):
+        self._mean = PosteriorMean()
+
+    def estimate(self, scored, prior=None):
+        paper = scored.paper if scored.paper is not None else PaperArgmax().estimate(scored)
+        target = self._mean.estimate(replace(scored, paper=paper)).targets[0]
+        if target.covariance is None:  # no cell above zero: the argmax alone
+            return paper
+        argmax = paper.targets[0].position
+        d = np.asarray(argmax) - target.position
+        spread = LocatedTarget(argmax, covariance=target.covariance + np.outer(d, d),
+                               details={"covariance": "the paper likelihood's spread about "
+                                        "the argmax"})
+        return Estimate([spread], paper.cell_position, paper.score)
+
+
+def _paired_note():
+    """What the default says on paired and confocal captures, in the command line's spelling
+    and with the fit's cost."""
+    return ("paired and confocal captures are located with the paper's argmax by default (the "
+            "model fit is checked on simulations only); pass --estimator model to fit "
+            f"(slower: {MODEL_COST})")
 
 
 def locate(args) -> int:
-    """nl.locate_capture with the command's options; the JSON is its as_json()."""
+    """nl.locate_capture with the command's options; the JSON is its as_json(), each target
+    with its uncertainty and its own truth."""
+    from dataclasses import replace as replaced
+
+    from ..io.ytal.capture import read_capture_with_frame
     from ..localization.capture import locate_capture
     if args.map:
         _check_map_path(args)
     region = None if args.region is None else list(zip(args.region[::2], args.region[1::2]))
     h_s = None if args.h_ns is None else args.h_ns * 1e-9
-    found = locate_capture(args.file, region=region, step_m=args.step, h_s=h_s, pulses=args.pulses,
-                           estimator=_estimator(args), targets=args.targets,
+    sets, frame = read_capture_with_frame(args.file)  # the sets keep every target's truth
+    estimator, note = _estimator(args, sets)
+    found = locate_capture(sets, frame=frame, region=region, step_m=args.step, h_s=h_s,
+                           pulses=args.pulses, estimator=estimator, targets=args.targets,
                            log_mode=True if args.log else None, background=args.background,
                            negatives=args.negatives, calibration=args.calibration,
                            return_map=bool(args.map), backend=args.device,
                            names=("--region", "--step"))
+    found = replaced(found, source=args.file)
     entries = []
-    for point in found.points:
+    for point, hist in zip(found.points, sets):
         entry = point.as_json()
+        entry.update(targets_json(point, _truths(hist)))
+        entry["warnings"] = [note] * bool(note) + entry["warnings"]
         if args.map:
             entry["map"] = _save_map(args, point.laser_point, len(found.points),
                                      point.location, point.grid)
         entries.append(entry)
-        for w in point.warnings:
+        for w in entry["warnings"]:
             print(f"nlos-cl: warning: laser point {point.laser_point}: {w}", file=sys.stderr)
     if args.json:
         print(json.dumps(found.as_json(entries)))
     else:
-        frame = found.frame
         for r in entries:
-            print(f"laser point {r['laser_point']}: " + (
-                  f"located {r['position']} m in the file's frame ({frame.name})"
-                  if r["detected"] else f"no target (argmax of noise {r['argmax_cell']} m)")
-                  + (f", truth {r['truth']}, error {r['error_m']:.4f} m" if r["truth"] else ""))
+            print(text_lines(r, found.frame))
     # exit status 3: no laser point's histograms hold target signal (docs/captures.md)
     return 0 if any(r["detected"] for r in entries) else NO_TARGET_STATUS

@@ -41,6 +41,7 @@ def write_fields(f, h: HistogramSet, device_distance_m, metadata, compression):
             "time_axis": {"t0_s": axis.t0_s, "dt_s": axis.dt_s, "n_bins": axis.n_bins},
             "calibration": {"a_m_per_s": a, "b_m": [float(b) for b in h.calibration.b_m]},
             "truth": None if h.truth is None else [float(v) for v in h.truth],
+            "truths": None if h.truths is None else [[float(v) for v in t] for t in h.truths],
             "allow_negative": bool(h.allow_negative), "units": "W",
             "frame": "nlos_cl (x, y, z) = (-X, Z, Y) of this file"}
     if metadata:
@@ -254,10 +255,10 @@ def to_histograms(fields, H, path, joint=False) -> list[HistogramSet]:
         calibration = PathCalibration(SPEED_OF_LIGHT, -(legs[0][block.sensors]
                                                         + legs[1][block.lasers]))
         exact = restore(ours, axis, calibration, path) if ours else (axis, calibration, None,
-                                                                     True)
+                                                                     True, None)
         laser = laser_points[block.lasers] if block.paired else laser_points[block.lasers[0]]
         sets.append(HistogramSet(data, exact[0], spots[block.sensors], laser, exact[1],
-                                 truth=exact[2], allow_negative=exact[3]))
+                                 truth=exact[2], allow_negative=exact[3], truths=exact[4]))
     return sets
 
 
@@ -313,16 +314,39 @@ def restore(ours, axis, calibration, path=""):
         c = ours["calibration"]
         exact_cal = PathCalibration(float(c["a_m_per_s"]), np.asarray(c["b_m"], float))
     except (KeyError, TypeError, ValueError, InputError):
-        return axis, calibration, None, True
+        return axis, calibration, None, True, None
     ends = [0, -1]  # the hidden path at the first and last bin centre, for detector 0; float32
     ours_path = exact_cal.a_m_per_s * exact.centres()[ends] + exact_cal.b_m[0]  # fields round
     file_path = calibration.a_m_per_s * axis.centres()[ends] + calibration.b_m[0]  # ~1e-6 rel
     if exact.n_bins != axis.n_bins or not np.allclose(ours_path, file_path, rtol=0, atol=1e-4):
-        return axis, calibration, None, True
+        return axis, calibration, None, True, None
     truth = ours.get("truth")
-    ok = truth is None or (isinstance(truth, list) and len(truth) == 3 and all(
-        isinstance(v, (int, float)) and not isinstance(v, bool) for v in truth))
-    require(ok, f"capture {path}: scene_info nlos_cl.truth", f"expected [x, y, z] or null, "
-            f"got {truth!r}", "write the capture again with nl.write_capture")
+    require(truth is None or _is_point(truth), f"capture {path}: scene_info nlos_cl.truth",
+            f"expected [x, y, z] or null, got {truth!r}",
+            "write the capture again with nl.write_capture")
     return exact, exact_cal, truth, flag(ours.get("allow_negative", True),
-                                         "scene_info nlos_cl.allow_negative", path)
+                                         "scene_info nlos_cl.allow_negative", path), \
+        stored_truths(ours, truth, path)
+
+
+def _is_point(value) -> bool:
+    return isinstance(value, list) and len(value) == 3 and all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
+
+
+def stored_truths(ours, truth, path=""):
+    """Every target's centre (K, 3), ours: `truths` as written since every target's is kept;
+    files written before keep `metadata.targets` (`nlos-cl simulate`'s) where its first is the
+    truth, else nothing beyond `truth` (None)."""
+    truths, field = ours.get("truths"), "truths"
+    if truths is None:  # an older file: nlos-cl simulate's metadata, where it agrees
+        old = (ours.get("metadata") or {}).get("targets") if isinstance(
+            ours.get("metadata"), dict) else None
+        if not (isinstance(old, list) and old and all(_is_point(t) for t in old)
+                and truth is not None and np.allclose(old[0], truth)):
+            return None
+        truths, field = old, "metadata.targets"
+    require(isinstance(truths, list) and bool(truths) and all(_is_point(t) for t in truths),
+            f"capture {path}: scene_info nlos_cl.{field}", f"expected a list of [x, y, z], got "
+            f"{truths!r}", "write the capture again with nl.write_capture")
+    return np.asarray(truths, dtype=np.float64)
