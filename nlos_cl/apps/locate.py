@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import sys
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 
@@ -22,36 +23,113 @@ from ..localization.posterior import PosteriorMean
 MODEL_COST = "minutes on thousands of histograms"
 
 
+MAP_META = {"score", "frame", "axes", "units", "estimator", "score_kind"}
+
+
 def is_map(path) -> bool:
-    """A map `locate --map` wrote: an .npz whose arrays are exactly score, x, y, z (read with
-    allow_pickle=False: nothing in the file runs)."""
+    """A map `locate --map` wrote: an .npz of its arrays (since the frame rides inside: score,
+    the three axes and what they mean; before: exactly score, x, y, z), read with
+    allow_pickle=False: nothing in the file runs."""
     try:
         with np.load(path, allow_pickle=False) as data:
-            return sorted(data.files) == ["score", "x", "y", "z"]
+            return (sorted(data.files) == ["score", "x", "y", "z"]
+                    or MAP_META <= set(data.files) and len(data.files) == len(MAP_META) + 3)
     except Exception:  # noqa: BLE001 - anything unreadable is not our map
         return False
 
 
-def _save_map(args, i, n_sets, loc, grid):
-    from pathlib import Path
+def is_map_file(path) -> bool:
+    """A map `locate --map` may replace: its .npz, or a figure nlos_cl wrote (the MANIFEST)."""
+    return Path(path).suffix.lower() == ".npz" and is_map(path)
 
+
+def map_arrays(point) -> dict:
+    """The final grid's score map along the file's axes (coordinates increasing), the axes
+    named as the file's, with the frame, units, estimator and what the score is."""
+    loc, grid, frame = point.location, point.grid, point.frame
+    m = np.asarray(frame.matrix)
+    score = np.asarray(loc.score_map).transpose(2, 1, 0)  # ours (nz, ny, nx) -> [x, y, z]
+    order = [int(np.argmax(np.abs(m[:, i]))) for i in range(3)]  # file axis i: ours order[i]
+    score = score.transpose(order)
+    coords = []
+    for i, j in enumerate(order):
+        c = m[j, i] * np.asarray(grid.axes()[j], dtype=np.float64)
+        if c.size > 1 and c[0] > c[-1]:
+            score, c = np.flip(score, axis=i), c[::-1]
+        coords.append(c)
+    kind = ("log of the joint likelihood (the sum of each detector's log)" if point.log_mode
+            else "joint likelihood (the product of each detector's)")
+    return {"score": np.ascontiguousarray(score), **dict(zip(frame.axes, coords)),
+            "frame": json.dumps(frame.as_json()), "axes": np.array(frame.axes),
+            "units": "m (axes); score: " + kind.split(" (")[0], "estimator": loc.estimator,
+            "score_kind": kind + f", indexed [{', '.join(frame.axes)}]"}
+
+
+def _map_path(args, i, n_sets) -> Path:
+    out = Path(args.map)
+    return out if n_sets == 1 else out.with_suffix(f".{i}{out.suffix}")
+
+
+def _save_map(args, i, n_sets, point, entry, hist):
     from ..io.safe_write import atomic_write
-    out = Path(args.map) if n_sets == 1 else Path(args.map).with_suffix(f".{i}.npz")
-    x, y, z = grid.axes()
+    out, arrays = _map_path(args, i, n_sets), map_arrays(point)
+    if out.suffix.lower() == ".png":
+        from .plotting import map_figure, write_figure
+        view = map_view(arrays, point, entry, hist)
+        write_figure(out, lambda fh: map_figure(fh, view), what="--map", force=args.force)
+        return str(out)
 
     def write(tmp):
         with open(tmp, "wb") as fh:  # a file object: savez would append .npz to a name
-            np.savez_compressed(fh, score=loc.score_map, x=x, y=y, z=z)
+            np.savez_compressed(fh, **arrays)
     atomic_write(out, write, keep_unless=is_map, force=args.force, what="--map",
                  kind="a map nlos-cl locate wrote")
     return str(out)
 
 
+def map_view(arrays, point, entry, hist) -> dict:
+    """What the --map figure draws, seen from above: the map's maximum over the height axis
+    (relative to its peak, in log), the wall, the spots, the truths and each target with its
+    covariance, along the file's lateral and depth axes (ours x and y)."""
+    frame = point.frame
+    m = np.asarray(frame.matrix)
+    lat, dep, up = (int(np.argmax(np.abs(m[j]))) for j in range(3))  # file index of ours j
+    score = np.asarray(arrays["score"], dtype=np.float64)
+    peak = score.max()
+    rel = score - peak if point.log_mode else np.log(np.maximum(score, 1e-300) / max(peak, 1e-300))
+    image = rel.max(axis=up)  # the two axes left, in the file's order
+    image = image.T if lat < dep else image  # rows along depth, columns lateral
+
+    def two(points):
+        p = np.atleast_2d(frame.from_internal(np.asarray(points, dtype=np.float64)))
+        return p[:, [lat, dep]]
+
+    def cov2(t):
+        if t["covariance"] is None:
+            return None
+        c = np.array([[np.inf if v is None else v for v in row] for row in t["covariance"]])
+        return c[np.ix_([lat, dep], [lat, dep])]
+    truths = entry.get("truths") or ([entry["truth"]] if entry.get("truth") else [])
+    return {"image": np.maximum(image, -30.0), "lateral": arrays[frame.axes[lat]],
+            "depth": arrays[frame.axes[dep]], "labels": [frame.axes[k] for k in (lat, dep, up)],
+            "spots": two(hist.detector_spots), "lasers": two(hist.laser_spots),
+            "truths": np.asarray(truths, dtype=np.float64).reshape(-1, 3)[:, [lat, dep]],
+            "targets": [(np.asarray(t["position"])[[lat, dep]], cov2(t))
+                        for t in entry.get("targets", [])],
+            "title": f"laser point {point.laser_point}: {point.location.estimator} estimator, "
+                     f"score map (max over {frame.axes[up]}), {frame.name} frame"}
+
+
 def _check_map_path(args) -> None:
     """Before any work: --map must be writable (never over a file nlos_cl did not write: an
     .npz of the user's own is kept unless --force)."""
+    from ..core.errors import require
     from ..io.safe_write import require_writable
-    require_writable(args.map, keep_unless=is_map, force=args.force, what="--map",
+    suffix = Path(args.map).suffix.lower()
+    require(suffix in (".npz", ".png"), "--map", f"{args.map} ends in {suffix or 'no suffix'}: "
+            "the map is written by its extension", "name it .npz (the arrays, with frame, "
+            "units, axes and estimator) or .png (a labelled figure)")
+    require_writable(args.map, keep_unless=is_map_file, force=args.force, what="--map",
                      kind="a map nlos-cl locate wrote")
     if args.region is not None and args.step is not None:  # the map's size is known now
         import math
@@ -246,8 +324,8 @@ def locate(args) -> int:
         entry.update(targets_json(point, _truths(hist)))
         entry["warnings"] = [note] * bool(note) + entry["warnings"]
         if args.map:
-            entry["map"] = _save_map(args, point.laser_point, len(found.points),
-                                     point.location, point.grid)
+            entry["map"] = _save_map(args, point.laser_point, len(found.points), point, entry,
+                                     hist)
         entries.append(entry)
         for w in entry["warnings"]:
             print(f"nlos-cl: warning: laser point {point.laser_point}: {w}", file=sys.stderr)

@@ -93,6 +93,45 @@ def demo_figure(raw, filtered, location, path_png):
     plt.close(fig)
 
 
+def _ellipse(ax, centre, cov, **style):
+    """The 2-sigma ellipse of a 2 x 2 covariance (none where a variance is not finite)."""
+    from matplotlib.patches import Ellipse
+    if cov is None or not np.all(np.isfinite(cov)):
+        return
+    values, vectors = np.linalg.eigh(cov)
+    angle = np.degrees(np.arctan2(vectors[1, 1], vectors[0, 1]))
+    ax.add_patch(Ellipse(centre, *(4 * np.sqrt(np.maximum(values[::-1], 0))), angle=angle,
+                         fill=False, **style))
+
+
+def map_figure(fh, view):
+    """`nlos-cl locate --map F.png`: the score map seen from above (locate.map_view), with the
+    wall, the spots, the truths and each target with its 2-sigma ellipse, in the file's axes."""
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(7, 6), layout="constrained")
+    lat, dep = view["lateral"], view["depth"]
+    half = [(a[1] - a[0]) / 2 if a.size > 1 else 0.005 for a in (lat, dep)]
+    image = ax.imshow(view["image"], origin="lower", cmap="magma", aspect="equal",
+                      extent=(lat[0] - half[0], lat[-1] + half[0], dep[0] - half[1],
+                              dep[-1] + half[1]))
+    fig.colorbar(image, ax=ax, shrink=0.8, label="log-likelihood - its peak")
+    ax.axhline(0.0, color="0.3", lw=3, label="relay wall")
+    ax.plot(*view["spots"].T, "^", color="C0", ms=6, label="detector spots")
+    ax.plot(*view["lasers"].T, "*", color="gold", mec="k", ms=11, label="laser spot")
+    if len(view["truths"]):
+        ax.plot(*view["truths"].T, "o", mfc="none", mec="lime", ms=12, mew=2, label="truth")
+    for k, (centre, cov) in enumerate(view["targets"]):
+        ax.plot(*centre, "+", color="cyan", ms=14, mew=2, label="estimate" if k == 0 else None)
+        _ellipse(ax, centre, cov, color="cyan", lw=1.5, label="2 sd" if k == 0 else None)
+    ax.set_xlabel(f"{view['labels'][0]} (m)")
+    ax.set_ylabel(f"{view['labels'][1]} (m): depth from the wall")
+    ax.set_title(view["title"], fontsize=9)
+    ax.legend(fontsize=7, loc="upper right")
+    ax.autoscale()
+    fig.savefig(fh, dpi=90)
+    plt.close(fig)
+
+
 # ----------------------------------------------------------------------------- the paper
 
 def map_panel(ax, location, title, truth):
