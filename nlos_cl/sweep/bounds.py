@@ -28,6 +28,14 @@ def shown(value, limit: int = MAX_SHOWN) -> str:
     return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
+def key_name(key) -> str:
+    """A mapping key as a field name in an error: itself when a short one-line text, else
+    shown (a 100 kB key, a number, a list)."""
+    if isinstance(key, str) and key.isprintable() and 0 < len(key) <= 40:
+        return key
+    return shown(key, 40)
+
+
 def data_size(value, limit: int = MAX_STUDY_BYTES, max_depth: int = MAX_DEPTH) -> tuple:
     """(bytes, depth) of plain data as it expands (every value 8 bytes, text its length
     more, an array its nbytes), walked without recursion; it stops as soon as the size passes

@@ -24,7 +24,7 @@ from collections import OrderedDict
 from dataclasses import dataclass, field
 
 from ..core.errors import InputError, require
-from .bounds import shown
+from .bounds import key_name, shown
 from .registry import is_own, is_registered
 from .study import Axis, Study, assignments, axis_group, axis_values, check_scale, seed_values
 
@@ -146,11 +146,12 @@ def _axis(where: str, spec) -> Axis:
     require(isinstance(spec, dict) and "name" in spec and "path" not in spec, where,
             f"expected {{name, values}} or {{name, range}}, got {shown(spec)}", "a runner study's "
             "axes are its function's parameters: write e.g. {name: case, values: [0, 1]}")
-    unknown = sorted(set(spec) - {"name", "values", "range", "scale"})
-    require(not unknown, f"{where}.{unknown[0] if unknown else ''}", "is not a known key",
+    unknown = sorted(set(spec) - {"name", "values", "range", "scale"}, key=str)
+    require(not unknown, f"{where}.{key_name(unknown[0]) if unknown else ''}", "is not a known key",
             "use name, values, range or scale")
     name = spec["name"]
-    require(isinstance(name, str) and name.isidentifier() and name not in RESERVED,
+    require(isinstance(name, str) and name.isidentifier() and name not in RESERVED
+            and len(name) <= MAX_NAME,
             f"{where}.name", f"expected a parameter name, got {shown(name)}",
             f"write a Python identifier other than {sorted(RESERVED)}")
     values = axis_values(where, spec)
@@ -162,9 +163,9 @@ def _axis(where: str, spec) -> Axis:
 def load_runner_study(raw: dict, base_dir=None, allow_runner=()) -> RunnerStudy:
     """A RunnerStudy from a study mapping with a `runner` (checked: allowed (see resolve),
     importable, callable, taking every axis and params name)."""
-    unknown = sorted(set(raw) - TOP)
-    require(not unknown, f"study.{unknown[0] if unknown else ''}", "is not a known key of a "
-            "runner study", f"use one of {sorted(TOP)} (scene studies: no runner)")
+    unknown = sorted(set(raw) - TOP, key=str)
+    require(not unknown, f"study.{key_name(unknown[0]) if unknown else ''}", "is not a known "
+            "key of a runner study", f"use one of {sorted(TOP)} (scene studies: no runner)")
     fn = resolve(raw["runner"], allow_runner)
     axes = raw.get("axes") or []
     require(isinstance(axes, list), "axes", "expected a list", "write axes: [{name, values}]")

@@ -39,8 +39,10 @@ from pathlib import Path
 from ..core.errors import InputError, require
 from ..localization.estimators import estimator_names
 from ..io.scenefile import read_yaml
-from ..io.yamlfile import is_number, whole_number
-from .values import MAX_AXIS_VALUES, axis_values, check_scale, scaled, seed_values  # noqa: F401
+from ..io.yamlfile import is_number
+from .bounds import key_name, shown
+from .values import (MAX_AXIS_VALUES, axis_values, check_scale, scaled, seed_values,
+                     whole_number)
 
 TOP = {"description", "scene", "axes", "estimators", "seeds", "h_s", "filter", "grid", "record",
        "batch_size"}
@@ -58,6 +60,9 @@ SUMMARY_COLUMNS = ("error_mean_m", "error_std_m", "error_max_m", "runs", "t_run_
 # an axis is a column of the table and of summary.csv: it must not take a result's name
 RESERVED = {"run_id", "failure", *SUMMARY_COLUMNS, *(c for cs in RECORD_COLUMNS.values()
                                                       for c in cs)}
+MAX_KEY_PATH = 200  # characters of an axis's path (a column name, echoed in errors)
+MAX_PATH = 1024  # characters of a scene file's path (it is echoed in errors)
+_TOKENS = re.compile(r"'[^']*'|\"[^\"]*\"|[*&][^\s,)]+")  # quoted text, *alias, &anchor
 _STEP = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)|\[(\d+)\]|\.")
 
 
@@ -122,19 +127,20 @@ class Study:
 
 def parse_path(path) -> list:
     """'targets[0].position[1]' -> ['targets', 0, 'position', 1]."""
-    require(isinstance(path, str) and path, "axes[].path", f"expected a key path, got {path!r}",
+    require(isinstance(path, str) and 0 < len(path) <= MAX_KEY_PATH, "axes[].path",
+            f"expected a key path (at most {MAX_KEY_PATH} characters), got {shown(path)}",
             "write e.g. noise.snr_db or targets[0].position[0]")
     steps, pos = [], 0
     while pos < len(path):
         m = _STEP.match(path, pos)
-        require(m is not None and m.end() > pos, f"axes[].path {path!r}",
+        require(m is not None and m.end() > pos, f"axes[].path {shown(path)}",
                 f"cannot read it at character {pos}", "write keys with dots, indices as [0]")
         if m.group(1):
             steps.append(m.group(1))
         elif m.group(2):
             steps.append(int(m.group(2)))
         pos = m.end()
-    require(bool(steps), f"axes[].path {path!r}", "is empty", "write e.g. noise.snr_db")
+    require(bool(steps), f"axes[].path {shown(path)}", "is empty", "write e.g. noise.snr_db")
     return steps
 
 
@@ -167,9 +173,10 @@ def _where(steps) -> str:
 
 def _axis(where: str, spec) -> Axis:
     require(isinstance(spec, dict) and "path" in spec, where, f"expected {{path, values}} or "
-            f"{{path, range}}, got {spec!r}", "write e.g. {path: noise.snr_db, values: [0, 10]}")
-    unknown = sorted(set(spec) - {"path", "name", "values", "range", "scale"})
-    require(not unknown, f"{where}.{unknown[0] if unknown else ''}", "is not a known key",
+            f"{{path, range}}, got {shown(spec)}", "write e.g. {path: noise.snr_db, values: "
+            "[0, 10]}")
+    unknown = sorted(set(spec) - {"path", "name", "values", "range", "scale"}, key=str)
+    require(not unknown, f"{where}.{key_name(unknown[0]) if unknown else ''}", "is not a known key",
             "use path, name, values, range or scale")
     parse_path(spec["path"])
     values = axis_values(where, spec)
@@ -177,14 +184,16 @@ def _axis(where: str, spec) -> Axis:
     if path in ("estimator", "filter"):
         allowed = estimator_names() if path == "estimator" else FILTERS
         bad = [v for v in values if v not in allowed]
-        require(not bad, f"{where}.values", f"unknown {path} {bad[:1]}", f"use {list(allowed)}")
+        require(not bad, f"{where}.values", f"unknown {path} {shown(bad[0] if bad else '')}",
+                f"use {list(allowed)}")
     scale = spec.get("scale")
     if scale is not None:
         check_scale(where, path, values, scale)
     name = spec.get("name", path)
-    require(isinstance(name, str) and name.strip() != "", f"{where}.name", f"expected a "
-            f"column name, got {name!r}", "write e.g. name: snr_db")
-    require(name not in RESERVED, f"{where}.name", f"{name!r} is a column of the results "
+    require(isinstance(name, str) and name.strip() != "" and len(name) <= MAX_KEY_PATH,
+            f"{where}.name", f"expected a column name (at most {MAX_KEY_PATH} characters), got "
+            f"{shown(name)}", "write e.g. name: snr_db")
+    require(name not in RESERVED, f"{where}.name", f"{shown(name)} is a column of the results "
             f"table, reserved: {sorted(RESERVED)}", "give the axis another name: (e.g. "
             f"name: {name}_axis)")
     return Axis(name, path, values, scale)
@@ -212,7 +221,7 @@ def _grid(value):
     if value is None:
         return None
     require(isinstance(value, dict) and "step_m" in value and set(value) <= {"x", "y", "z",
-            "step_m"}, "grid", f"expected {{x, y, z, step_m}}, got {value!r}",
+            "step_m"}, "grid", f"expected {{x, y, z, step_m}}, got {shown(value)}",
             "write e.g. grid: {x: [0, 6], y: [0.01, 6], step_m: 0.01}, or leave it out")
     from ..core.grid import Grid
     Grid.from_ranges(**value)  # checks it
@@ -221,28 +230,56 @@ def _grid(value):
 
 def _settings(raw: dict) -> dict:
     record = raw.get("record", list(RECORDS))
-    require(isinstance(record, list) and set(record) <= set(RECORDS), "record",
-            f"expected a list from {list(RECORDS)}, got {record!r}", f"write e.g. {list(RECORDS)}")
+    require(isinstance(record, list) and all(r in RECORDS for r in record), "record",
+            f"expected a list from {list(RECORDS)}, got {shown(record)}",
+            f"write e.g. {list(RECORDS)}")
     h_s = raw.get("h_s", 0.65e-9)
     require(is_number(h_s) and 0 < h_s <= 1e-3, "h_s", f"must be a positive time in "
-            f"seconds (at most 1 ms), got {h_s!r}", "write e.g. 0.65e-9")
+            f"seconds (at most 1 ms), got {shown(h_s)}", "write e.g. 0.65e-9")
     filt = raw.get("filter", "gauss")
-    require(filt in FILTERS, "filter", f"unknown filter {filt!r}", f"use one of {list(FILTERS)}")
+    require(filt in FILTERS, "filter", f"unknown filter {shown(filt)}",
+            f"use one of {list(FILTERS)}")
     return {"h_s": float(h_s), "filter": filt, "grid": _grid(raw.get("grid")),
             "record": [r for r in RECORDS if r in record]}
 
 
 def _scene(value, base_dir: Path) -> dict:
     if isinstance(value, (str, Path)):
+        require(len(str(value)) <= MAX_PATH and "\n" not in str(value), "scene", f"expected a "
+                f"scene file path, got {shown(str(value))}", "write scene: my_scene.yaml")
         path = Path(value) if Path(value).is_absolute() else base_dir / value
-        value, base_dir = read_yaml(path, "scene file"), path.parent
+        value, base_dir = _scene_file(path), path.parent
     require(isinstance(value, dict), "scene", f"expected a scene file path or a scene mapping, "
-            f"got {value!r}", "write scene: my_scene.yaml, or the scene's keys inline")
+            f"got {shown(value)}", "write scene: my_scene.yaml, or the scene's keys inline")
     value = copy.deepcopy(value)
     for target in value.get("targets") or []:  # mesh files: relative to where they were named
         if isinstance(target, dict) and isinstance(target.get("file"), str):
             target["file"] = str((base_dir / target["file"]).resolve())
     return value
+
+
+def _scene_file(path: Path) -> dict:
+    """The scene file a study names. The study chose the file, not the user, so a YAML error
+    gives its position, never its text (a study naming /etc/group must not print a group)."""
+    from ..io.scenefile import TOP as SCENE_KEYS
+    try:
+        raw = read_yaml(path, "scene file")
+        odd = [k for k in raw if k not in SCENE_KEYS]  # none shown: they may be a secret's lines
+        require(not odd, f"study.scene: {shown(str(path))}", f"is not a scene file ({len(odd)} "
+                f"of its {len(raw)} top-level keys are not scene keys)", f"name a scene file, "
+                f"whose keys are among {sorted(SCENE_KEYS)} (docs/scene-files.md)")
+        return raw
+    except InputError as exc:
+        cause = exc.__context__  # PyYAML's error or the reader's bound, behind `from None`
+        problem = getattr(cause, "problem", None)
+        if not problem:
+            raise
+        mark = getattr(cause, "problem_mark", None)
+        where = "" if mark is None else f", line {mark.line + 1}, column {mark.column + 1}"
+        problem = _TOKENS.sub("'...'", str(problem))  # the file's own words: keys, anchors
+        raise InputError(f"study.scene: the scene file {shown(str(path))} is not a scene file "
+                         f"nlos_cl reads ({shown(problem, 160)}{where}). Fix: name a scene "
+                         "file (docs/scene-files.md), or write the scene inline") from None
 
 
 def read_source(source, base_dir=None) -> tuple:
@@ -259,21 +296,21 @@ def load_scene_study(raw, base_dir: Path) -> Study:
     """A scene study (the file format above) from its dict."""
     require(isinstance(raw, dict) and "scene" in raw, "study", "needs a `scene` (or a `runner`)",
             "write scene: a scene file path, or the scene's keys inline")
-    unknown = sorted(set(raw) - TOP)
-    require(not unknown, f"study.{unknown[0] if unknown else ''}", "is not a known key",
+    unknown = sorted(set(raw) - TOP, key=str)
+    require(not unknown, f"study.{key_name(unknown[0]) if unknown else ''}", "is not a known key",
             f"use one of {sorted(TOP)}")
     axes = raw.get("axes") or []
     require(isinstance(axes, list), "axes", "expected a list", "write axes: [{path, values}]")
     groups = [axis_group(i, spec) for i, spec in enumerate(axes)]
     estimators = raw.get("estimators", ["paper"])
     require(isinstance(estimators, list) and estimators, "estimators", f"expected a list, got "
-            f"{estimators!r}", f"write e.g. estimators: [paper] (of {estimator_names()})")
+            f"{shown(estimators)}", f"write e.g. estimators: [paper] (of {estimator_names()})")
     groups.append((Axis("estimator", "estimator", tuple(estimators)),))
     _axis("estimators", {"path": "estimator", "values": list(groups[-1][0].values)})
     groups.append((Axis("seed", "seed", seed_values(raw.get("seeds", 1))),))
     names = [a.name for g in groups for a in g]
     dup = sorted({n for n in names if names.count(n) > 1})
-    require(not dup, f"axes: name {dup[0] if dup else ''!r}", "is used twice",
+    require(not dup, f"axes: name {shown(dup[0] if dup else '')}", "is used twice",
             "give one of them another `name:` (estimator and seed are taken)")
     batch = raw.get("batch_size")
     if batch is not None:
@@ -305,6 +342,6 @@ def check_scenes(study: Study) -> int:
             try:
                 load_scene(scene)
             except InputError as exc:
-                shown = {a.name: a.values[k] for a in group}
-                raise InputError(f"study axes {shown}: {exc}") from None
+                values = {a.name: a.values[k] for a in group}
+                raise InputError(f"study axes {shown(values, 160)}: {exc}") from None
     return len(seen)
