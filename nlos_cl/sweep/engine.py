@@ -19,6 +19,7 @@ from pathlib import Path
 from ..core.errors import InputError, require
 from ..core.limits import MAX_STUDY_RUNS, require_count
 from . import results
+from .folder_lock import folder_lock
 from .load import load_study
 from .runner import RunnerStudy
 from .runs import run_batch, worker_info
@@ -61,7 +62,14 @@ def sweep(study, out, *, workers: int | None = None, scheduler: str | None = Non
     study = load_study(study, allow_runner=allow_runner)
     require_count("study", study.n_runs, MAX_STUDY_RUNS, "runs (the axes' values, estimators "
                   "and seeds crossed)", "split the study, or take fewer values on an axis")
-    out = Path(out)
+    with folder_lock(Path(out)):  # one sweep writes a folder; --resume reads it under the lock
+        return _locked(study, Path(out), workers, scheduler, resume, batch_size, progress,
+                       report, log, force)
+
+
+def _locked(study, out: Path, workers, scheduler, resume, batch_size, progress, report, log,
+            force) -> SweepResult:
+    """sweep(), holding OUT's lock."""
     done = _prepare(out, study, resume, force)
     if not isinstance(study, RunnerStudy):  # a runner was checked when the study was loaded
         check_scenes(study)
