@@ -31,7 +31,10 @@ def paper_target(x: float, seed: int, y: float = 2.0, snr_db: float = 10.0,
     from ..core.grid import Grid
     from ..localization.api import gauss_filter, locate
     from ..simulation.frame import add_noise
+    from .values import check_grid
+    ranges = {"x": [0.0, 6.0], "y": [0.01, 6.0], "step_m": step_m}
+    check_grid(ranges)  # the study's grid's check: a step the search can score
     noisy = add_noise(clean(x, y, facet_m, dt_s), snr_db, seed)
-    grid = Grid.from_ranges(x=(0.0, 6.0), y=(0.01, 6.0), step_m=step_m)
+    grid = Grid.from_ranges(**ranges)
     loc = locate(gauss_filter(noisy, 0.65e-9), grid, estimator="paper")
     return {"position": loc.position, "error_m": loc.error_m}

@@ -2,7 +2,8 @@
 from __future__ import annotations
 
 from .runner import load_runner_study
-from .study import Study, load_scene_study, read_source
+from .sources import read_source
+from .study import Study, load_scene_study
 
 
 def load_study(source, base_dir=None, allow_runner=()) -> Study:

@@ -38,11 +38,11 @@ from pathlib import Path
 
 from ..core.errors import InputError, require
 from ..localization.estimators import estimator_names
-from ..io.scenefile import read_yaml
 from ..io.yamlfile import is_number
 from .bounds import key_name, shown
-from .values import (MAX_AXIS_VALUES, axis_values, check_scale, scaled, seed_values,
-                     whole_number)
+from .sources import scene as study_scene
+from .values import (MAX_AXIS_VALUES, axis_values, check_grid, check_scale, require_distinct,
+                     require_separate_paths, scaled, seed_values, whole_number)
 
 TOP = {"description", "scene", "axes", "estimators", "seeds", "h_s", "filter", "grid", "record",
        "batch_size"}
@@ -61,8 +61,6 @@ SUMMARY_COLUMNS = ("error_mean_m", "error_std_m", "error_max_m", "runs", "t_run_
 RESERVED = {"run_id", "failure", *SUMMARY_COLUMNS, *(c for cs in RECORD_COLUMNS.values()
                                                       for c in cs)}
 MAX_KEY_PATH = 200  # characters of an axis's path (a column name, echoed in errors)
-MAX_PATH = 1024  # characters of a scene file's path (it is echoed in errors)
-_TOKENS = re.compile(r"'[^']*'|\"[^\"]*\"|[*&][^\s,)]+")  # quoted text, *alias, &anchor
 _STEP = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)|\[(\d+)\]|\.")
 
 
@@ -213,19 +211,14 @@ def axis_group(i: int, spec, axis=_axis) -> tuple:  # axis: runner studies parse
         lengths = {len(a.values) for a in group}
         require(len(lengths) == 1, f"axes[{i}].zip", f"zipped axes differ in length "
                 f"({sorted(lengths)})", "give every zipped axis the same number of values")
+        require_distinct(f"axes[{i}].zip", list(zip(*(a.values for a in group))), "give each "
+                         "combination of the zipped values once")
         return group
-    return (axis(f"axes[{i}]", spec),)
-
-
-def _grid(value):
-    if value is None:
-        return None
-    require(isinstance(value, dict) and "step_m" in value and set(value) <= {"x", "y", "z",
-            "step_m"}, "grid", f"expected {{x, y, z, step_m}}, got {shown(value)}",
-            "write e.g. grid: {x: [0, 6], y: [0.01, 6], step_m: 0.01}, or leave it out")
-    from ..core.grid import Grid
-    Grid.from_ranges(**value)  # checks it
-    return dict(value)
+    group = (axis(f"axes[{i}]", spec),)
+    field = "range" if isinstance(spec, dict) and "range" in spec else "values"
+    require_distinct(f"axes[{i}].{field}", group[0].values, "give each value once" + (
+        " (the range's step is below its 1e-12 rounding)" if field == "range" else ""))
+    return group
 
 
 def _settings(raw: dict) -> dict:
@@ -239,57 +232,8 @@ def _settings(raw: dict) -> dict:
     filt = raw.get("filter", "gauss")
     require(filt in FILTERS, "filter", f"unknown filter {shown(filt)}",
             f"use one of {list(FILTERS)}")
-    return {"h_s": float(h_s), "filter": filt, "grid": _grid(raw.get("grid")),
+    return {"h_s": float(h_s), "filter": filt, "grid": check_grid(raw.get("grid")),
             "record": [r for r in RECORDS if r in record]}
-
-
-def _scene(value, base_dir: Path) -> dict:
-    if isinstance(value, (str, Path)):
-        require(len(str(value)) <= MAX_PATH and "\n" not in str(value), "scene", f"expected a "
-                f"scene file path, got {shown(str(value))}", "write scene: my_scene.yaml")
-        path = Path(value) if Path(value).is_absolute() else base_dir / value
-        value, base_dir = _scene_file(path), path.parent
-    require(isinstance(value, dict), "scene", f"expected a scene file path or a scene mapping, "
-            f"got {shown(value)}", "write scene: my_scene.yaml, or the scene's keys inline")
-    value = copy.deepcopy(value)
-    for target in value.get("targets") or []:  # mesh files: relative to where they were named
-        if isinstance(target, dict) and isinstance(target.get("file"), str):
-            target["file"] = str((base_dir / target["file"]).resolve())
-    return value
-
-
-def _scene_file(path: Path) -> dict:
-    """The scene file a study names. The study chose the file, not the user, so a YAML error
-    gives its position, never its text (a study naming /etc/group must not print a group)."""
-    from ..io.scenefile import TOP as SCENE_KEYS
-    try:
-        raw = read_yaml(path, "scene file")
-        odd = [k for k in raw if k not in SCENE_KEYS]  # none shown: they may be a secret's lines
-        require(not odd, f"study.scene: {shown(str(path))}", f"is not a scene file ({len(odd)} "
-                f"of its {len(raw)} top-level keys are not scene keys)", f"name a scene file, "
-                f"whose keys are among {sorted(SCENE_KEYS)} (docs/scene-files.md)")
-        return raw
-    except InputError as exc:
-        cause = exc.__context__  # PyYAML's error or the reader's bound, behind `from None`
-        problem = getattr(cause, "problem", None)
-        if not problem:
-            raise
-        mark = getattr(cause, "problem_mark", None)
-        where = "" if mark is None else f", line {mark.line + 1}, column {mark.column + 1}"
-        problem = _TOKENS.sub("'...'", str(problem))  # the file's own words: keys, anchors
-        raise InputError(f"study.scene: the scene file {shown(str(path))} is not a scene file "
-                         f"nlos_cl reads ({shown(problem, 160)}{where}). Fix: name a scene "
-                         "file (docs/scene-files.md), or write the scene inline") from None
-
-
-def read_source(source, base_dir=None) -> tuple:
-    """(the study's dict, the folder its scene paths are relative to) from a YAML file path or
-    a dict (relative to `base_dir`, default the working folder)."""
-    if not isinstance(source, dict):
-        path = Path(source)
-        raw = read_yaml(path, "study file")
-        return raw, (path.parent if base_dir is None else Path(base_dir))
-    return source, Path(base_dir or ".")
 
 
 def load_scene_study(raw, base_dir: Path) -> Study:
@@ -307,7 +251,10 @@ def load_scene_study(raw, base_dir: Path) -> Study:
             f"{shown(estimators)}", f"write e.g. estimators: [paper] (of {estimator_names()})")
     groups.append((Axis("estimator", "estimator", tuple(estimators)),))
     _axis("estimators", {"path": "estimator", "values": list(groups[-1][0].values)})
+    require_distinct("estimators", estimators, "name each estimator once")
     groups.append((Axis("seed", "seed", seed_values(raw.get("seeds", 1))),))
+    require_separate_paths([(w + ".path" if w.startswith("axes") else w, a.path,
+                             parse_path(a.path)) for w, a in _placed(axes, groups)])
     names = [a.name for g in groups for a in g]
     dup = sorted({n for n in names if names.count(n) > 1})
     require(not dup, f"axes: name {shown(dup[0] if dup else '')}", "is used twice",
@@ -315,8 +262,17 @@ def load_scene_study(raw, base_dir: Path) -> Study:
     batch = raw.get("batch_size")
     if batch is not None:
         batch = whole_number("batch_size", batch, 1, MAX_AXIS_VALUES, 16)
-    return Study(str(raw.get("description", "")), _scene(raw["scene"], base_dir), tuple(groups),
+    return Study(str(raw.get("description", "")), study_scene(raw["scene"], base_dir), tuple(groups),
                  _settings(raw), batch)
+
+
+def _placed(specs, groups) -> list:
+    """(where the study wrote it, Axis) for every axis of `groups` (the axes, then the
+    estimators' and the seeds' groups)."""
+    wheres = [[f"axes[{i}].zip[{j}]" for j in range(len(g))] if len(g) > 1 or (
+        isinstance(spec, dict) and "zip" in spec) else [f"axes[{i}]"]
+        for i, (spec, g) in enumerate(zip(specs, groups))] + [["estimators"], ["seeds"]]
+    return [(w, a) for ws, g in zip(wheres, groups) for w, a in zip(ws, g)]
 
 
 def scene_of(plan: dict, values: dict) -> dict:

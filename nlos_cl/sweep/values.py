@@ -87,4 +87,69 @@ def seed_values(value) -> tuple:
         isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in value)
     require(ok, "seeds", f"expected a count, a list of non-negative integers or {{start, count}},"
             f" got {shown(value)}", "write e.g. seeds: 10")
+    require_distinct("seeds", value, "give each seed once (a repeated seed repeats its runs)")
     return tuple(value)
+
+
+def _same(value):
+    """What a value is for a run (1 and 1.0 alike; lists and mappings by their contents)."""
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return ("n", float(value))
+    if isinstance(value, (list, tuple)):
+        return ("l", tuple(_same(v) for v in value))
+    if isinstance(value, dict):
+        return ("d", tuple(sorted((repr(k), _same(v)) for k, v in value.items())))
+    return (type(value).__name__, repr(value))
+
+
+def require_distinct(where: str, rows, fix: str) -> None:
+    """Each row (an axis's value, or a zip group's values together) once: a repeated one runs
+    the same runs twice and counts them twice in the summary."""
+    seen: dict = {}
+    for k, row in enumerate(rows):
+        first = seen.setdefault(_same(row), k)
+        require(first == k, where, f"holds {shown(row)} twice (at positions {first} and {k})",
+                fix)
+
+
+def require_separate_paths(axes) -> None:
+    """`axes`: (field, path as written, path steps) of every axis. Two axes on one key (or one
+    on a key inside another's: targets[0].position and targets[0].position[0]) would overwrite
+    each other, and the table would say values the runs did not have."""
+    for i, (field, path, steps) in enumerate(axes):
+        for other, before, other_steps in axes[:i]:
+            n = min(len(steps), len(other_steps))
+            require(steps[:n] != other_steps[:n], field, f"sets {shown(path)}, which {other} "
+                    f"sets too ({shown(before)})", "vary one key with one axis (zip two axes "
+                    "to vary their keys together; `estimators:` and `seeds:` are the estimator's "
+                    "and the seed's axes)")
+
+
+def check_grid(value) -> dict | None:
+    """A study's `grid`: {x, y, z: [low, high], step_m}, as locate's --region and --step are
+    checked: numbers, and a score map within the kernels' index (2^31 cells) and the memory
+    budget (4 bytes a cell), so a step far below what the search can score is refused."""
+    if value is None:
+        return None
+    fix = "write e.g. grid: {x: [0, 6], y: [0.01, 6], step_m: 0.01}, or leave it out"
+    require(isinstance(value, dict) and "step_m" in value and all(
+        k in ("x", "y", "z", "step_m") for k in value), "grid", "expected {x, y, z, step_m}, "
+        f"got {shown(value)}", fix)
+    for axis in ("x", "y", "z"):
+        ends = value.get(axis, [0, 0])
+        require(isinstance(ends, list) and len(ends) == 2 and all(map(is_number, ends)),
+                f"grid.{axis}", f"expected [low, high] in metres, got {shown(ends)}", fix)
+    step = value["step_m"]
+    require(is_number(step) and step > 0, "grid.step_m", f"expected a positive length in "
+            f"metres, got {shown(step)}", fix)
+    from ..core.grid import Grid
+    from ..core.limits import require_memory
+    cells = math.prod(max(0.0, (hi - lo) / step) + 1 for lo, hi in
+                      (value.get(a, [0, 0]) for a in ("x", "y", "z")))  # inf for 1e-320 steps
+    require(cells < 2 ** 31, "grid.step_m", f"makes {cells:.3g} cells at a {step:g} m step, "
+            "more than the search's kernels index (2^31)", "take a larger step_m or a smaller "
+            "grid")
+    require_memory("grid.step_m", 4.0 * cells, f"a score map of {cells:.3g} cells at a "
+                   f"{step:g} m step", "take a larger step_m or a smaller grid")
+    Grid.from_ranges(**value)  # its own checks: ranges not inverted, y > 0
+    return dict(value)
