@@ -28,6 +28,19 @@ def shown(value, limit: int = MAX_SHOWN) -> str:
     return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
+def bounded(message: str, limit: int = 300) -> str:
+    """A message from below (a scene's check) as one line of at most about `limit` characters:
+    a long value it quotes is cut in the middle, its `Fix:` kept."""
+    text = " ".join(str(message).split())
+    if len(text) <= limit:
+        return text
+    cut = text.rfind(" Fix: ")
+    head, fix = (text, "") if cut < 0 else (text[:cut], text[cut:])
+    fix = fix if len(fix) <= limit // 2 else fix[:limit // 2 - 3] + "..."
+    keep = max(40, limit - len(fix) - 5)
+    return head[:keep] + " ... " + fix.lstrip() if fix else head[:keep] + " ..."
+
+
 def key_name(key) -> str:
     """A mapping key as a field name in an error: itself when a short one-line text, else
     shown (a 100 kB key, a number, a list)."""

@@ -131,12 +131,7 @@ def _prepare(out: Path, study: Study, resume: bool, force: bool = False) -> set:
 
 def _fingerprint(record: Path) -> str:
     """The fingerprint study.json records; a file that is not one is named, not read past."""
-    try:
-        old = json.loads(record.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise InputError(f"--out {record.parent}: {STUDY_FILE} is not readable JSON "
-                         f"({type(exc).__name__}: {exc}), so its runs cannot be matched to a "
-                         "study. Fix: restore the file, or pick another folder") from None
+    old = results.read_record(record.parent)
     require(isinstance(old, dict) and isinstance(old.get("fingerprint"), str),
             f"--out {record.parent}: {STUDY_FILE}", "holds no study fingerprint",
             "restore the file written by the sweep, or pick another folder")

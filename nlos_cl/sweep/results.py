@@ -25,14 +25,39 @@ STUDY_FILE = "study.json"
 OUTPUTS = (STUDY_FILE, "summary.csv", "errors_by_axis.png", "error_map.png")  # OUT/ files
 
 
+MAX_RECORD_BYTES = 256 << 20  # study.json: the study expanded (ranges as lists) and bounded
+
+
+def read_record(out):
+    """OUT/study.json parsed, or an InputError naming it: not a regular file (a FIFO would
+    block), larger than MAX_RECORD_BYTES, not UTF-8 JSON, or nested too deep to parse (a
+    100,000-deep file is a RecursionError inside json)."""
+    from ..io.safe_write import require_file
+    record = Path(out) / STUDY_FILE
+    where, fix = f"--out {Path(out)}: {STUDY_FILE}", ("restore the file the sweep wrote, or "
+                                                      "pick another folder")
+    require_file(record, where, fix)
+    with open(record, "rb") as fh:
+        data = fh.read(MAX_RECORD_BYTES + 1)
+    require(len(data) <= MAX_RECORD_BYTES, where, f"is larger than {MAX_RECORD_BYTES >> 20} "
+            "MiB, not a record a sweep wrote", fix)
+    try:
+        return json.loads(data.decode("utf-8"))
+    except (UnicodeDecodeError, ValueError, RecursionError) as exc:
+        problem = "nests too deep" if isinstance(exc, RecursionError) else type(exc).__name__
+        raise InputError(f"--out {Path(out)}: {STUDY_FILE} is not readable JSON ({problem}), "
+                         f"so its runs cannot be matched to a study. Fix: {fix}") from None
+
+
 def is_study_folder(out) -> bool:
     """Whether OUT holds a study record (study.json with a fingerprint), written by a sweep:
     its OUTPUTS are then a sweep's, replaced on --resume (folders from before the manifest of
     nlos_cl.io.safe_write included)."""
     try:
-        return "fingerprint" in json.loads((Path(out) / STUDY_FILE).read_text("utf-8"))
-    except (OSError, ValueError, TypeError):
+        record = read_record(out)
+    except (InputError, OSError):
         return False
+    return isinstance(record, dict) and "fingerprint" in record
 
 
 def write_output(out, name: str, write, force: bool = False) -> Path:

@@ -39,7 +39,7 @@ from pathlib import Path
 from ..core.errors import InputError, require
 from ..localization.estimators import estimator_names
 from ..io.yamlfile import is_number
-from .bounds import key_name, shown
+from .bounds import bounded, key_name, shown
 from .sources import scene as study_scene
 from .values import (MAX_AXIS_VALUES, axis_values, check_grid, check_scale, require_distinct,
                      require_separate_paths, scaled, seed_values, whole_number)
@@ -299,5 +299,5 @@ def check_scenes(study: Study) -> int:
                 load_scene(scene)
             except InputError as exc:
                 values = {a.name: a.values[k] for a in group}
-                raise InputError(f"study axes {shown(values, 160)}: {exc}") from None
+                raise InputError(f"study axes {shown(values, 160)}: {bounded(exc)}") from None
     return len(seen)

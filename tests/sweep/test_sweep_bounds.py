@@ -64,3 +64,102 @@ def test_a_study_naming_system_files_says_where_not_what(tmp_path):
 def test_shown_is_one_short_line(value):
     text = shown(value)
     assert len(text) <= MAX_SHOWN and "\n" not in text
+
+
+def _nested(depth: int, kinds: str):
+    value = 1
+    for i in range(depth):  # built without recursion, as a parser would build it
+        value = [value] if kinds[i % len(kinds)] == "l" else {"k": value}
+    return value
+
+
+@settings(max_examples=25, deadline=None)
+@given(depth=st.integers(65, 100_000), kinds=st.sampled_from(["l", "d", "ld", "dll"]),
+       where=st.sampled_from(["scene", "params", "description"]))
+def test_deep_study_data_is_one_line_not_a_recursion_error(depth, kinds, where):
+    """From Python (nl.sweep(dict)) a study may be nested without bound; past 64 levels it is
+    refused before anything (deepcopy, json, repr) recurses into it."""
+    study = ({"runner": "nlos_cl.sweep.examples:paper_target", "axes": [
+        {"name": "x", "values": [3.0]}], "seeds": 1, "params": {"y": _nested(depth, kinds)}}
+        if where == "params" else {"scene": {}, where: _nested(depth, kinds)})
+    with pytest.raises(InputError, match=r"^study: nests lists or mappings more than 64 deep"):
+        load_study(study)
+
+
+@pytest.mark.parametrize("text", ["[" * 100_000 + "]" * 100_000,
+                                  '{"scene": ' + "{\"a\": " * 100_000 + "1" + "}" * 100_001])
+def test_a_deep_study_json_is_one_line(tmp_path, text):
+    """As the study file, and as the record a --resume reads (OUT/study.json)."""
+    (tmp_path / "study.json").write_text(text)
+    with pytest.raises(InputError, match=r"nests lists or mappings more than 64 deep"):
+        load_study(tmp_path / "study.json")
+    from nlos_cl.sweep import sweep
+    study = {"runner": "nlos_cl.sweep.examples:paper_target", "axes": [
+        {"name": "x", "values": [3.0]}], "seeds": 1}
+    with pytest.raises(InputError, match=r"study\.json is not readable JSON \(nests too deep\)"):
+        sweep(study, tmp_path, workers=0, progress=False, resume=True)
+
+
+def _peak(fn):
+    """(fn's exception or None, peak traced bytes, seconds)."""
+    import tracemalloc
+    tracemalloc.start()
+    start = time.perf_counter()
+    try:
+        fn()
+        caught = None
+    except Exception as exc:  # noqa: BLE001 - the test inspects it
+        caught = exc
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    return caught, peak, time.perf_counter() - start
+
+
+def _bomb(folder, size: int, count: int):
+    values = ", ".join(f"[*a, {k}]" for k in range(count))  # distinct values, each holding *a
+    path = folder / "bomb.yaml"
+    path.write_text(f"description: &a {'x' * size}\nscene: {{}}\n"
+                    f"axes:\n  - {{path: description, name: d, values: [{values}]}}\n")
+    return path
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(size=st.integers(1_000, 110_000), count=st.integers(2, 9_000))
+def test_an_alias_bomb_is_refused(tmp_path, size, count):
+    """One long text aliased many times: the YAML reader bounds the alias *nodes* (10,000), the
+    study bounds what they expand to (MAX_STUDY_BYTES): no 900 MB message or study.json."""
+    path = _bomb(tmp_path, size, count)
+    if size * count > MAX_STUDY_BYTES:
+        with pytest.raises(InputError, match=r"^study file .*: expands to more than 32 MiB") \
+                as err:
+            load_study(path)
+        assert len(str(err.value)) < 400
+    else:
+        assert load_study(path).n_runs == count
+
+
+def test_the_red_team_s_alias_bomb_within_bounded_memory(tmp_path):
+    """100 kB aliased 9,000 times (900 MB expanded): refused, peak Python memory ~16 MB."""
+    caught, peak, seconds = _peak(lambda: load_study(_bomb(tmp_path, 100_000, 9_000)))
+    assert isinstance(caught, InputError) and "expands to more than" in str(caught)
+    assert peak < 64 << 20 and seconds < 60  # nothing is expanded (the reader's pace: ~2 s)
+
+
+def test_shared_references_from_python_are_counted_as_expanded():
+    big = "y" * (1 << 20)
+    study = {"scene": {}, "axes": [{"path": "description", "values": [[big] * 64, [big] * 65]}]}
+    caught, peak, seconds = _peak(lambda: load_study(study))
+    assert isinstance(caught, InputError) and "expands to more than" in str(caught)
+    assert peak < 16 << 20 and seconds < 5
+    assert resource.getrusage(resource.RUSAGE_SELF).ru_maxrss < 4 << 20  # KiB: under 4 GiB
+
+
+@pytest.mark.parametrize("change", [
+    {"targets": [{"shape": "q" * 100_000}]}, {"noise": {"snr_db": "q" * 100_000}},
+    {"q" * 100_000: 1}, {"setup": {"detector_spots": "q" * 100_000}}])
+def test_a_scene_check_quoting_a_long_value_stays_one_short_line(change):
+    scene = {"setup": {"detector_spots": [[-0.5, 0, 0], [-1, 0, 0]]},
+             "targets": [{"shape": "rectangle", "size_m": [0.3, 1.6], "position": [4, 2, 0]}]}
+    with pytest.raises(InputError, match=r"^study axes .* Fix: ") as err:
+        check_scenes(load_study({"scene": {**scene, **change}}))
+    assert len(str(err.value)) <= 400 and "\n" not in str(err.value)
