@@ -20,7 +20,7 @@ from ..ops.argmax_patch import decode
 from ..ops.backend import NumpyBackend
 from ..ops.signals import Signals, as_signals
 from .estimate import Location, Scored, capabilities_of
-from .detection import detect, reachable_bins
+from .detection import detect, raw_floor_of, reachable_bins
 from .estimators import as_estimator
 from .filter import layout_of
 from .paper import PaperArgmax
@@ -158,7 +158,8 @@ class Locator:
         self._search, mode = self._plans.get(trial, self._search), _kind(trial)
         if detect and self._window is None:  # the detection's bins, once
             self._window = reachable_bins(self.layout, self.grid)
-        rows, detection = detected_in(sig, self._window, self._kept) if detect else (None, None)
+        rows, detection = detected_in(sig, self._window, self._kept, raw) if detect else \
+            (None, None)
         if detection is not None and not detection.detected and not return_map:
             return Location.undetected(self._paper(sig, mode, rows), self.grid,
                                        sig.layout.truth, detection, self.estimator.name)
@@ -290,12 +291,13 @@ def _checked(sig: Signals, layout) -> Signals:
 KEEP_ROWS_BYTES = 32 * 2 ** 20
 
 
-def detected_in(signals: Signals, window, kept=None):
+def detected_in(signals: Signals, window, kept=None, raw=None):
     """(the filtered rows on the host as stored, whether they hold target signal in each row's
     reachable bins `window`: localization.detection.detect): one read, which the model fit's
     observation reads too (Scored.host_rows). kept: a dict in which a large record's host
     array is kept for the next frame (KEEP_ROWS_BYTES): the rows are then valid until the
-    Locator's next call."""
+    Locator's next call. raw: the same frame unfiltered (Signals or HistogramSet), whose white
+    bin noise sets the floor of rows without enough unreachable bins (detection.raw_floor)."""
     rows = None
     handle = signals.handle
     if kept is not None and signals.host is None and handle.nbytes >= KEEP_ROWS_BYTES and \
@@ -307,7 +309,7 @@ def detected_in(signals: Signals, window, kept=None):
         rows = signals.backend.read(handle, out=out)
     if rows is None:
         rows = signals.values()
-    return rows, detect(rows, window)
+    return rows, detect(rows, window, raw=raw_floor_of(raw, signals))
 
 
 def _in_grid(estimate, grid: Grid, found):
