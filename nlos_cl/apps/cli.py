@@ -278,6 +278,8 @@ def parser(command: str | None = None) -> argparse.ArgumentParser:
     device, as_json = _parents()
     top = _Parser(prog="nlos-cl", description=__doc__.split("\n\n")[0],
                   parents=[terminal.verbose_flag()])
+    from .. import __version__  # the package's own (no import of its modules)
+    top.add_argument("--version", action="version", version=f"nlos-cl {__version__}")
     sub = top.add_subparsers(dest="command", required=True)
     for name, (help_text, add_args, takes_device, takes_json, _) in COMMANDS.items():
         if command not in (None, name):

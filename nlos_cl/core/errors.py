@@ -39,3 +39,16 @@ def refuse_moved(owner: str, moved: dict, groups: dict, takes: str) -> None:
             raise InputError(f"{owner}.{name}: is an option of {group.__name__} now "
                              f"({group.__module__}). Fix: pass {arg}={group.__name__}({name}=...)")
         raise InputError(f"{owner}.{name}: is not an option. Fix: pass {takes}")
+
+
+def warn(message, category=UserWarning) -> None:
+    """warnings.warn attributed to the first caller outside nlos_cl (its file and line): what
+    a user sees points at their own line, never at a library module, however deep the call."""
+    import os
+    import sys
+    import warnings
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__))) + os.sep  # nlos_cl/
+    frame, level = sys._getframe(1), 1
+    while frame is not None and frame.f_code.co_filename.startswith(root):
+        frame, level = frame.f_back, level + 1
+    warnings.warn(message, category, stacklevel=level + 1)

@@ -9,7 +9,6 @@ import os
 import re
 import stat
 import tempfile
-import warnings
 from dataclasses import dataclass
 
 
@@ -49,9 +48,9 @@ def _ensure_writable_cache() -> None:
         return
     fallback = _private_temp_cache()
     os.environ["XDG_CACHE_HOME"] = fallback
-    warnings.warn(f"cache folder {cache} is not writable: OpenCL kernels are cached in "
-                  f"{fallback} instead. Fix: set XDG_CACHE_HOME to a writable folder",
-                  RuntimeWarning, stacklevel=2)
+    from ..core.errors import warn  # (core holds no device code: safe before pyopencl)
+    warn(f"cache folder {cache} is not writable: OpenCL kernels are cached in {fallback} "
+         "instead. Fix: set XDG_CACHE_HOME to a writable folder", RuntimeWarning)
 
 
 _ensure_writable_cache()

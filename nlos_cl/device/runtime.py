@@ -21,7 +21,7 @@ import numpy as np
 from . import devices  # sets the PoCL cache folder before pyopencl loads
 from . import programs
 from ..core.tuning import CONSTANT_CACHE
-from ..core.errors import DeviceError
+from ..core.errors import DeviceError, warn
 
 cl = devices.cl
 import pyopencl.array as cla  # noqa: E402
@@ -242,8 +242,8 @@ class Runtime:
                                       f"({exc}). Fix: reduce the grid, the number of bins or "
                                       "detectors, or the facet count") from exc
                 self.max_alloc_bytes //= 2
-                warnings.warn(f"device out of memory: retrying in chunks of at most "
-                              f"{self.max_alloc_bytes} bytes", RuntimeWarning, stacklevel=3)
+                warn(f"device out of memory: retrying in chunks of at most "
+                     f"{self.max_alloc_bytes} bytes", RuntimeWarning)
 
     # ------------------------------------------------------------ the Backend protocol
     def standard_normal(self, shape, seed):

@@ -5,12 +5,11 @@ model (nlos_cl.physics.noise) once. A stream of frames: nlos_cl.simulation.seque
 from __future__ import annotations
 
 import math
-import warnings
 
 import numpy as np
 
 from ..core.constants import SPEED_OF_LIGHT
-from ..core.errors import InputError, require
+from ..core.errors import InputError, require, warn
 from ..core.histograms import Layout
 from ..core.paths import PathAxis, PathCalibration, TimeAxis, default_time_axis
 from ..ops.backend import resolve_backend
@@ -56,8 +55,8 @@ def simulate(scene, time_axis: TimeAxis | None = None, *, backend=None) -> Signa
                              "so nothing returns to the wall. Fix: turn the target towards the "
                              "wall (one-sided rectangles light only on their normal's side)")
         if dark.any():  # shadowed by the scene for these detectors: nothing to check there
-            warnings.warn(f"{field} is hidden from detector(s) {np.flatnonzero(dark).tolist()}"
-                          " by the scene (occlusion): it sends them nothing", stacklevel=2)
+            warn(f"{field} is hidden from detector(s) {np.flatnonzero(dark).tolist()} by the "
+                 "scene (occlusion): it sends them nothing")
             mid = 0.5 * (paths.start_m + paths.stop_m)
             span = np.where(dark[:, None], mid[:, None], span)
         _check_window(axis, paths, span, sigma_path)
@@ -104,8 +103,8 @@ def _check_window(axis: TimeAxis, paths: PathAxis, span, sigma_path):
                 f"{t_last * 1e9:.3f}] ns. Fix: set t0_s <= {t_first:.4e} and n_bins >= "
                 f"{math.ceil((t_last - min(t_first, axis.t0_s)) / axis.dt_s)}")
         if start[d] > first[d] or stop[d] < last[d]:
-            warnings.warn(f"time_axis cuts detector {d}'s signal short: it arrives in "
-                          f"[{t_first * 1e9:.3f}, {t_last * 1e9:.3f}] ns", stacklevel=3)
+            warn(f"time_axis cuts detector {d}'s signal short: it arrives in "
+                 f"[{t_first * 1e9:.3f}, {t_last * 1e9:.3f}] ns")
 
 
 def add_noise(signals, snr_db: float = 10.0, seed: int = 0, *, model: NoiseModel | None = None,

@@ -14,6 +14,18 @@ def test_info_self_check_passes():
     from nlos_cl.ops import OPERATIONS
     n_checks = sum(len(op.examples("check")) for op in OPERATIONS.values())
     assert n_checks >= 3 and out.stdout.count(" ok\n") == n_checks  # every operation checked
+    # a bug report's versions, then one summary line
+    lines = out.stdout.strip().splitlines()
+    named = dict(ln.split(None, 1) for ln in lines if ln.startswith("  ") and len(ln.split()) > 1
+                 and "self-check" not in ln)
+    assert {"nlos_cl", "python", "numpy", "pyopencl", "platform", "driver", "device"} <= set(named)
+    assert lines[-1] == f"summary: all {n_checks} self-checks passed on {named['device']}"
+
+
+def test_version():
+    import nlos_cl
+    out = run("--version")
+    assert out.returncode == 0 and out.stdout.strip() == f"nlos-cl {nlos_cl.__version__}"
 
 
 def test_demo_json_locates_the_paper_target(tmp_path):

@@ -20,12 +20,11 @@ total intensity, which is what the ellipse and forward models describe) with a w
 """
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
-from ...core.errors import require
+from ...core.errors import require, warn
 
 FOURIER_H_FORMATS = range(10, 14)  # issue 21: y-tal's Fourier-domain H (complex), refused
 
@@ -62,9 +61,8 @@ def stokes_channel(shape, expect, path) -> tuple:
     """() for H of the expected shape; (0,) (channel S0, with a warning) for a trailing Stokes
     axis of 4."""
     if tuple(shape) == tuple(expect) + (STOKES,):
-        warnings.warn(f"capture {path}: H has a trailing Stokes axis of {STOKES} (a polarized "
-                      "capture): reading its first channel S0 (total intensity) only",
-                      stacklevel=4)
+        warn(f"capture {path}: H has a trailing Stokes axis of {STOKES} (a polarized capture): "
+             "reading its first channel S0 (total intensity) only")
         return (0,)
     return ()
 

@@ -6,14 +6,13 @@ from __future__ import annotations
 
 import functools
 import time
-import warnings
 
 import numpy as np
 
 from ...core.blas_threads import serial_blas
 from ...core.constants import FWHM_PER_SIGMA
 from ...ops.gauss_filter import filter_window
-from ...core.errors import refuse_moved, require
+from ...core.errors import refuse_moved, require, warn
 from ...core.limits import require_targets
 from ...core.tuning import SEARCH_DETECTORS
 from ..estimate import Capabilities, Estimate, LocatedTarget, Prior
@@ -143,7 +142,7 @@ class ModelEstimator:
             clock["data"] = time.perf_counter()
             held = held_axis(obs, scored.grid)
             if held is None:  # collinear spots on a tilted line: no one axis to hold
-                warnings.warn(unfittable_line(obs.spots, obs.laser), stacklevel=3)
+                warn(unfittable_line(obs.spots, obs.laser))
                 return Estimate(list(paper.targets), paper.cell_position, paper.score)
             observable = held.axis != 2  # the height (ModelFit.height_observable)
             free = held.free_mask()
@@ -153,7 +152,7 @@ class ModelEstimator:
             info = _reported(chosen, result, free, cov_all, info, warm_info)
             notes = _notes(held, chosen.shape, result, cov_all, info)
             for note in notes:
-                warnings.warn(note, stacklevel=3)
+                warn(note)
             self.timings = _stages(clock, fitted.problem)
             hidden = hidden_diagnostics(chosen, result, prior)
             located = [self._target(result, cov_all, k, dict(info, **hidden[k]), notes,

@@ -28,10 +28,9 @@ right, their depth seen and under 1e-4 of the signal unexplained, so the ratio a
 say the position is wrong."""
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 
+from ....core.errors import warn
 from ....core.tuning import ARGMAX_MARGIN_M, EXPLAINED_MIN, MAX_EXTENT_M, MISFIT_BIRGE
 from ...estimate import LocatedTarget
 from ...region import line_direction, unseen_axis
@@ -131,7 +130,7 @@ def checked(located: list, paper_position: np.ndarray, spots, lasers) -> list:
     if len(located) == 1 and reasons[0]:
         message = (f"model fit rejected: {reasons[0]}; reporting the paper's argmax instead "
                    "(its position is the target's nearest surface, not its centre)")
-        warnings.warn(message, stacklevel=4)
+        warn(message)
         rejected = located[0].fit
         return [LocatedTarget(np.array(paper_position, dtype=np.float64), details={
             "model": "paper's argmax (model fit rejected)", "fallback": reasons[0],
@@ -139,6 +138,6 @@ def checked(located: list, paper_position: np.ndarray, spots, lasers) -> list:
     for k, (target, reason) in enumerate(zip(located, reasons)):
         reason = reason or misfit(target)
         if reason:
-            warnings.warn(f"model fit, target {k + 1} of {len(located)}: {reason}; it is "
-                          "reported, but doubtful", stacklevel=4)
+            warn(f"model fit, target {k + 1} of {len(located)}: {reason}; it is reported, but "
+                 "doubtful")
     return located
