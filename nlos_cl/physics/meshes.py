@@ -10,7 +10,7 @@ import math
 import numpy as np
 import trimesh
 
-from ..core.errors import InputError, require
+from ..core.errors import require
 from ..core.geometry import as_point
 from ..core.tuning import FACET_M
 
@@ -135,15 +135,12 @@ def l_block(size_m=(0.6, 0.4, 0.6), notch_m=(0.3, 0.3), centre=(2.0, 2.0, 0.0)
 
 
 def load_mesh(path, *, position=None) -> trimesh.Trimesh:
-    """Load any mesh file trimesh reads (OBJ, STL, PLY, GLB, ...), optionally re-centred at
-    `position` (its bounding-box centre moves there)."""
-    try:
-        loaded = trimesh.load(path, force="mesh")
-    except Exception as exc:  # trimesh raises many types for bad files
-        raise InputError(f"mesh file {path!s}: could not be read ({exc}). "
-                         "Fix: pass a mesh file trimesh can load (OBJ, STL, PLY, GLB, OFF)") from exc
-    require(isinstance(loaded, trimesh.Trimesh) and len(loaded.faces) > 0, f"mesh file {path!s}",
-            "holds no triangles", "pass a file with a surface mesh")
+    """Load a mesh file (OBJ, STL, PLY, OFF, GLB, glTF; plain, compressed or in an archive)
+    through the input gate (nlos_cl.physics.mesh_files: sizes budgeted, regular files only,
+    a truncated file refused), optionally re-centred at `position` (its bounding-box centre
+    moves there)."""
+    from .mesh_files import read_mesh
+    loaded = read_mesh(path)
     if position is not None:
         loaded.apply_translation(as_point(position, "position") - loaded.bounds.mean(axis=0))
     return loaded

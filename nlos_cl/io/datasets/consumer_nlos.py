@@ -39,14 +39,14 @@ from pathlib import Path
 import numpy as np
 
 from ...core.constants import SPEED_OF_LIGHT
-from ...core.errors import require
+from ...core.errors import InputError, require
 from ...core.histograms import HistogramSet
-from ...core.limits import require_memory
+from ...core.limits import MAX_FRAMES, require_count, require_memory
 from ...core.paths import PathCalibration, TimeAxis
 
 BIN_PS = 250.0  # configs/tracking.yaml: t_res 250e-12
 FPS = 14.0  # the upstream video writer's fps (README): the capture rate
-PATTERN = re.compile(r"volume_(\d+)\.npz$")
+PATTERN = re.compile(r"volume_(\d+)\.npz")
 FIELDS = ("hists", "pt_cloud")  # every frame has these
 OPTIONAL = ("particles", "cam_z")  # the person-tracking capture's particles; the moving
 # camera's height in cam_localization.py's capture (upstream data/dataloader.py, cam_track)
@@ -55,15 +55,30 @@ TO_INTERNAL = np.array([[-1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0]])
 
 
 def frame_files(folder) -> list[tuple[int, Path]]:
-    """(k, path) of every volume_<k>.npz in `folder`, in frame order."""
+    """(k, path) of every volume_<k>.npz in `folder`, in frame order. Every entry so named must
+    be a regular file, each frame number once: a frame that cannot be read is refused by
+    name, never skipped (its absence would go unseen in the sequence)."""
+    from ...core.gate import regular_size
     folder = Path(folder)
     require(folder.is_dir(), f"dataset {folder}", "is not a folder", "pass the folder that "
             "holds volume_000000.npz, volume_000001.npz, ...")
-    found = sorted((int(m.group(1)), p) for p in folder.iterdir()
-                   if (m := PATTERN.search(p.name)) and p.is_file())
+    found, seen = [], {}
+    for p in folder.iterdir():
+        m = PATTERN.fullmatch(p.name)
+        if not m:
+            continue
+        regular_size(p, f"dataset {folder}: frame {p.name}", "remove it, or put the frame's "
+                     "own .npz file there")
+        k = int(m.group(1))
+        require(k not in seen, f"dataset {folder}: frame {p.name}", f"is frame {k}, as "
+                f"{seen.get(k)} is", "keep one file per frame number")
+        seen[k] = p.name
+        found.append((k, p))
+        require_count(f"dataset {folder}", len(found), MAX_FRAMES, "frames", "convert a "
+                      "folder holding fewer frames")
     require(len(found) > 0, f"dataset {folder}", "holds no volume_*.npz frame", "pass the "
             "capture folder (e.g. captured_data/st_spad_person_tracking)")
-    return found
+    return sorted(found)
 
 
 def read_consumer_nlos(folder, *, dt_ps: float = BIN_PS, t0_ps: float = 0.0, fps: float = FPS,
@@ -86,7 +101,7 @@ def read_consumer_nlos(folder, *, dt_ps: float = BIN_PS, t0_ps: float = 0.0, fps
     files = frame_files(folder)
     first = _declared(files[0][1])
     n_zones, n_t = first["hists"][0]
-    per_frame = sum(8.0 * np.prod(shape) for shape, _ in first.values())
+    per_frame = sum(8.0 * np.prod(shape) for shape, _, _ in first.values())
     require_memory(f"dataset {folder}", 2.0 * per_frame * len(files), f"reading {len(files)} "
                    "frames", "convert a folder holding fewer frames")
     spots0 = _load(files[0][1], n_zones, n_t)["pt_cloud"]
@@ -136,21 +151,41 @@ def _pooled(data, spots, axis) -> HistogramSet:
     return HistogramSet(summed, axis, centre, centre, PathCalibration(SPEED_OF_LIGHT, [0.0]))
 
 
+def _members(z, path) -> dict[str, str]:
+    """field -> the zip member that holds it, by its real name: `hists.npy` (as np.savez
+    writes) or a bare `hists`; a field named twice (both, or one name twice) is refused, so
+    the member whose header is checked is the member read."""
+    names = [i.filename for i in z.infolist()]
+    out = {}
+    for field in FIELDS + OPTIONAL:
+        held = [n for n in names if n in (field, field + ".npy")]
+        require(len(held) <= 1, f"{path}: {field}", f"is held by {len(held)} members "
+                f"({', '.join(held)})", "pass the dataset's own, unmodified file")
+        if held:
+            out[field] = held[0]
+    return out
+
+
 def _declared(path) -> dict:
-    """{field: (shape, dtype)} as the .npz's members declare them (their .npy headers), read
-    without loading any array, so sizes are checked before reading."""
+    """{field: (shape, dtype, member)} as the .npz's members declare them (their .npy headers),
+    read without loading any array, so sizes are checked before reading."""
+    from ...core.gate import open_regular
     try:
-        with zipfile.ZipFile(path) as z:
-            members = {n.removesuffix(".npy"): n for n in z.namelist()}
-            out = {name: _header(z, members[name]) for name in FIELDS + OPTIONAL
-                   if name in members}
-    except (zipfile.BadZipFile, ValueError, OSError) as exc:
-        require(False, f"{path}", f"is not a readable .npz file ({type(exc).__name__}: {exc})",
-                "download the file again")
+        with open_regular(path, f"{path}", "pass the dataset's own volume_*.npz file") as fh, \
+                zipfile.ZipFile(fh) as z:
+            members = _members(z, path)
+            out = {name: _header(z, member, path) + (member,)
+                   for name, member in members.items()}
+            held = sorted(i.filename for i in z.infolist())[:10]
+    except InputError:
+        raise
+    except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:
+        require(False, f"{path}", f"is not a readable .npz file ({type(exc).__name__}: "
+                f"{str(exc)[:120]})", "download the file again")
     missing = [f for f in FIELDS if f not in out]
-    require(not missing, f"{path}", f"lacks {missing} (it holds {sorted(members)})",
+    require(not missing, f"{path}", f"lacks {missing} (it holds {held})",
             "pass the dataset's own, unmodified volume_*.npz files")
-    for name, (shape, dtype) in out.items():
+    for name, (shape, dtype, _) in out.items():
         small = name == "cam_z" and int(np.prod(shape)) <= 3  # a height: any small shape
         require((len(shape) == 2 or small) and dtype.kind in "fiu", f"{path}: {name}",
                 f"is declared {dtype} {shape}, expected a numeric 2-D array", "pass the "
@@ -158,9 +193,13 @@ def _declared(path) -> dict:
     return out
 
 
-def _header(z, member) -> tuple:
-    """(shape, dtype) from a .npy member's header (numpy.lib.format), no data read."""
+def _header(z, member, path) -> tuple:
+    """(shape, dtype) from a .npy member's header (numpy.lib.format), no data read; a member
+    that is no .npy array (a raw file under a field's name) is refused."""
     with z.open(member) as fh:
+        require(fh.read(6) == b"\x93NUMPY", f"{path}: {member}", "is not a .npy array",
+                "pass the dataset's own, unmodified file")
+        fh.seek(0)
         version = np.lib.format.read_magic(fh)
         read = (np.lib.format.read_array_header_1_0 if version == (1, 0)
                 else np.lib.format.read_array_header_2_0)
@@ -171,7 +210,7 @@ def _header(z, member) -> tuple:
 def _load(path, n_zones, n_t):
     """One frame's {hists (Z, T), pt_cloud (Z, 3), and where present particles (P, 3) and
     cam_z} as float64, their declared shapes checked against the first frame's before
-    reading."""
+    reading, each read from the very member whose header was checked."""
     declared = _declared(path)
     for name, want in (("hists", (n_zones, n_t)), ("pt_cloud", (n_zones, 3))):
         require(declared[name][0] == want, f"{path}: {name}", f"has shape "
@@ -180,10 +219,18 @@ def _load(path, n_zones, n_t):
     require("particles" not in declared or declared["particles"][0][1:] == (3,),
             f"{path}: particles", f"has shape {declared.get('particles', ((),))[0]}, "
             "expected (P, 3)", "pass the dataset's own file")
-    require_memory(f"{path}", 16.0 * sum(np.prod(s) for s, _ in declared.values()),
+    require_memory(f"{path}", 16.0 * sum(np.prod(s) for s, _, _ in declared.values()),
                    "reading one frame", "pass the dataset's own files")
-    with np.load(path, allow_pickle=False) as f:
-        out = {name: np.asarray(f[name], dtype=np.float64) for name in declared}
+    try:
+        with zipfile.ZipFile(path) as z:
+            out = {}
+            for name, (_, _, member) in declared.items():
+                with z.open(member) as fh:
+                    value = np.lib.format.read_array(fh, allow_pickle=False)
+                out[name] = np.asarray(value, dtype=np.float64)
+    except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:
+        require(False, f"{path}", f"cannot be read, the file is damaged "
+                f"({type(exc).__name__}: {str(exc)[:120]})", "download the file again")
     for name, value in out.items():
         require(bool(np.all(np.isfinite(value))), f"{path}: {name}", "contains NaN or inf",
                 "pass the dataset's own, unmodified file")

@@ -46,7 +46,7 @@ import numpy as np
 from ...core.constants import SPEED_OF_LIGHT
 from ...core.errors import require
 from ...core.histograms import HistogramSet
-from ...core.limits import require_memory
+from ...core.limits import MAX_FRAMES, require_count
 from ...core.paths import PathCalibration, TimeAxis
 
 BIN_PS = 16.0  # Demo.py: bin_resolution_t = 16e-12
@@ -76,9 +76,14 @@ def read_keyhole(folder, *, dt_ps: float = BIN_PS, fps: float = FPS) -> tuple[li
     direct = _h5(folder / "direct_after.mat", "direct_after").ravel()
     background = _h5(folder / "LongExpNoObject_after.mat", "LongExpNoObject_after").ravel()
     data = _h5(scans[0], "data")
+    require(data.ndim == 2 and data.shape[0] >= 1 and data.shape[1] > N_BINS,
+            f"{scans[0]}: data", f"is {data.shape}, expected (frames, bins): one histogram of "
+            f"more than {N_BINS} bins per exposure, at least one", "pass the dataset's own, "
+            "unmodified scan file")
+    require_count(f"{scans[0]}: data", data.shape[0], MAX_FRAMES, "frames", "split the scan")
     xpos, zpos = (_h5(scans[0], n).ravel() for n in ("xpos", "zpos"))
     n = data.shape[0]
-    require(data.ndim == 2 and len(xpos) == n and len(zpos) == n and len(background) ==
+    require(len(xpos) == n and len(zpos) == n and len(background) ==
             data.shape[1] == len(direct), f"{scans[0]}", f"data {data.shape}, xpos "
             f"{xpos.shape}, zpos {zpos.shape}, the background {background.shape} and the "
             f"direct return {direct.shape} do not match", "pass the dataset's own, unmodified "
@@ -144,13 +149,14 @@ def _rise_bin(direct: np.ndarray) -> float:
 
 
 def _h5(path, name) -> np.ndarray:
-    """A MATLAB v7.3 variable as float64 (h5py: MATLAB's axes reversed), its declared size
-    checked against memory first."""
+    """A MATLAB v7.3 variable as float64 in MATLAB's axis order (matfile.h5_array: its storage
+    and declared size checked first)."""
     import h5py
 
     from ..safe_write import require_file
     from ..ytal.checks import unreadable
     from ..ytal.fields import check_storage
+    from .matfile import h5_array
     require_file(path, f"{path}", "pass the dataset's own folder")
     try:
         f = h5py.File(path, "r")
@@ -161,16 +167,7 @@ def _h5(path, name) -> np.ndarray:
                 "again")
     with f:
         check_storage(f, path, "MATLAB file")  # links would read other files
-        require(name in f and isinstance(f[name], h5py.Dataset), f"{path}: {name}",
-                f"is missing (it holds {sorted(f)})", "pass the dataset's own, unmodified file")
-        d = f[name]
-        require_memory(f"{path}: {name}", 16.0 * float(np.prod(d.shape, dtype=np.float64)),
-                       f"reading {name} {d.shape}", "read it on a machine with more memory")
-        try:
-            value = np.asarray(d[()], dtype=np.float64)
-        except (OSError, RuntimeError, ValueError, TypeError) as exc:
-            raise unreadable(exc, path, name, "MATLAB file") from None
+        value = h5_array(f, name, path).T  # h5py's order, as the reader below expects
     require(bool(np.all(np.isfinite(value))), f"{path}: {name}", "contains NaN or inf",
             "pass the dataset's own, unmodified file")
     return value
-

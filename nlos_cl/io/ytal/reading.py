@@ -43,9 +43,10 @@ def _frame_times(f, where, n_frames) -> np.ndarray:
     ok = isinstance(d, h5py.Dataset) and d.shape is not None and np.issubdtype(d.dtype, np.number)
     require(ok, f"{where}: frame_t_s", f"is {getattr(d, 'dtype', 'a group')}, not numbers",
             "store the frames' times as float64 seconds (write_sequence does)")
+    size = int(np.prod(d.shape, dtype=np.float64))  # checked before it is read
+    require(size == n_frames and n_frames >= 1, f"{where}: frame_t_s", f"has {size:,} "
+            f"entries for {n_frames:,} frames", "store one time per frame of H")
     t = np.asarray(d[()], dtype=np.float64).reshape(-1)
-    require(t.size == n_frames and n_frames >= 1, f"{where}: frame_t_s", f"has {t.size} "
-            f"entries for {n_frames} frames", "store one time per frame of H")
     check_frame_times(t, f"{where}: frame_t_s")
     return t
 
@@ -127,7 +128,7 @@ class Sequence:
     def _open_stacked(self, where, max_frame_bytes):
         import h5py
 
-        from ...core.limits import memory_limit
+        from ...core.limits import MAX_FRAMES, memory_limit, require_count
         from .fields import REQUIRED, dataset, to_histograms
         from .frames import YTAL
         try:
@@ -148,7 +149,9 @@ class Sequence:
                 for k in ("laser_xyz", "sensor_xyz", "sensor_grid_format", "laser_grid_format"):
                     if k in f:
                         fields[k] = dataset(f, k, self.path)
-                self.n_frames = int(H.shape[0])
+                self.n_frames = require_count(f"{where}: H", int(H.shape[0]), MAX_FRAMES,
+                                              "frames declared", "split the recording into "
+                                              "sequences of fewer frames")
                 self.t_s = _frame_times(f, where, self.n_frames)
                 _frame_truths(f, where, self.n_frames)
                 sets = to_histograms(fields, _FrameView(H, 0), self.path)
@@ -195,7 +198,7 @@ class Sequence:
             return
         with h5py.File(self.path, "r") as f:
             H = f["H"]
-            R = f["frame_truths"] if "frame_truths" in f else None
+            R = f.get("frame_truths")
             n_t = H.shape[1]
             for k in range(max(int(start), 0), stop):
                 try:
