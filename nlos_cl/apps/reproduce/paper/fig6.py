@@ -22,8 +22,9 @@ def fig6(s: Settings, out: Path) -> Result:
     maps = {}
     for method in MAP_METHODS:
         hist = sources[method].histograms()
-        maps[method] = (nl.locate(hist.select([0]), grid, return_map=True, estimator="paper"),
-                        nl.locate(hist, grid, return_map=True, estimator="paper"))
+        # raw given: each signal scored as it is (nl.locate would filter the raw one)
+        maps[method] = tuple(nl.locate(h, grid, return_map=True, estimator="paper", raw=h)
+                             for h in (hist.select([0]), hist))
     figure = plotting.maps_figure(maps, scene.truth, out, "fig6")
     rows = [{"method": m, **stats(trials[m]), "paper_x": PAPER["fig6"][m][0],
              "paper_y": PAPER["fig6"][m][1]} for m in METHODS]
