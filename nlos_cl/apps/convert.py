@@ -12,6 +12,18 @@ OPTIONS = {"dt_ps": "dt_ps", "t0_ps": "t0_ps", "width": "width_m", "grid_m": "gr
 
 
 def main(args) -> int:
+    """Convert, or on Ctrl-C say so in one line and exit 130 (the shell's code for SIGINT):
+    the output is written atomically, so an interrupt leaves no part of it."""
+    import sys
+    try:
+        return _convert(args)
+    except KeyboardInterrupt:
+        print(f"nlos-cl: convert {args.src}: interrupted (Ctrl-C); nothing was written to "
+              f"{args.out}. Fix: run the command again to convert it", file=sys.stderr)
+        return 130
+
+
+def _convert(args) -> int:
     from ..core.errors import require
     from ..io.datasets import detect, options_of, read_dataset
     name = args.format or detect(args.src)

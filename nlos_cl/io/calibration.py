@@ -3,6 +3,7 @@ of hidden path against time, and the CSV of (path, peak time) pairs a lab record
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -116,8 +117,15 @@ def read_calibration_pairs(path) -> tuple[np.ndarray, np.ndarray]:
     for i, (number, fields) in enumerate(rows):
         values = [_number(v) for v in fields]
         if i == 0 and None in values:
-            continue  # a header row
-        require(None not in values, f"{where}: line {number}", f"{fields!r} is not numeric",
+            bad = next(v for v, x in zip(fields, values) if x is None)
+            numeric = any(x is not None or _NUMBER_START.match(v.strip("\"'"))
+                          for v, x in zip(fields, values))
+            require(not numeric, f"{where}: line {number}", f"{bad[:40]!r} is not a number, yet the "
+                    f"row {_shown(fields)} holds numbers, so it is a mistyped measurement, not a "
+                    "header (a header holds only words)", "correct the number, or write the "
+                    "header in words")
+            continue  # a header row: words only
+        require(None not in values, f"{where}: line {number}", f"{_shown(fields)} is not numeric",
                 "keep only numbers below the header")
         require(len(values) == 2, f"{where}: line {number}", f"has {len(values)} column(s), "
                 "expected 2: known path (m), peak time (s)", "write two numbers per row")
@@ -126,6 +134,15 @@ def read_calibration_pairs(path) -> tuple[np.ndarray, np.ndarray]:
             "add one row per measurement below the header")
     arr = np.array(pairs, dtype=np.float64)
     return arr[:, 0], arr[:, 1]
+
+
+def _shown(fields) -> str:
+    """A row as an error message shows it: one short line, whatever the file holds."""
+    text = repr(fields)
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
+_NUMBER_START = re.compile(r"[-+]?(\d|\.\d)")
 
 
 def _split_row(line: str) -> list[str]:

@@ -47,6 +47,7 @@ from ...core.errors import require
 from ...core.histograms import HistogramSet
 from ...core.limits import require_memory
 from ...core.paths import PathCalibration, TimeAxis
+from ..ytal.checks import MAX_WALL_SPAN_M
 from .matfile import NUMERIC, is_v73, load, variables
 
 BIN_PS = 32.0  # cnlos_reconstruction.m: bin_resolution = 32e-12
@@ -156,6 +157,7 @@ class _Scan:
         tof = load(tof_path, "tofgrid", 2)
         require(tof.shape == (n, n), f"{tof_path}: tofgrid", f"is {tof.shape}, the scan {n} x "
                 f"{n}", "pass the tof.mat of the same scene")
+        _require_picoseconds(tof, tof_path)
         self.shift = np.floor(tof / dt_ps).astype(np.int64)
         require(bool(np.all((self.shift >= 0) & (self.shift < n_t))), f"{tof_path}: tofgrid",
                 f"holds times outside the record (0 .. {n_t * dt_ps:g} ps)", "pass the tof.mat "
@@ -163,6 +165,10 @@ class _Scan:
         later, half = _nonplanar(self.path, n, dt_ps)
         if later is not None:  # the naive correction: each histogram that many bins later
             self.shift = self.shift - later
+            lost = int(np.count_nonzero((self.shift >= n_t) | (self.shift + self.crop <= 0)))
+            require(lost == 0, f"{self.path.with_name('calibration.mat')}: z_offset", f"moves "
+                    f"{lost} of {n * n} histograms wholly out of the record (they would be "
+                    "zeros)", "pass the calibration.mat of the same scene, z_offset in metres")
         self.width_m = width_m if width_m is not None else half
         self.dt_ps, self.t0_ps, self.flip = dt_ps, t0_ps, flip
 
@@ -198,10 +204,39 @@ def _nonplanar(meas_path, n, dt_ps):
     require(z_offset.shape == (n, n), f"{path}: z_offset", f"is {z_offset.shape}, the scan "
             f"{n} x {n}", "pass the calibration.mat of the same scene")
     half = 0.5 * float(load(path, "width", 2).ravel()[0]) if "width" in held else WIDTH_M
-    require(np.isfinite(half) and half > 0, f"{path}: width", f"must be a positive side in "
-            f"metres, got {2 * half}", "pass the calibration.mat of the same scene")
+    require(np.isfinite(half) and 0 < half <= MAX_WALL_SPAN_M / 2, f"{path}: width",
+            f"must be the scan's side in metres (at most {MAX_WALL_SPAN_M:g}), got {2 * half:g}"
+            + (": that looks like millimetres" if half > MAX_WALL_SPAN_M / 2 else ""),
+            "store width in metres (divide millimetres by 1000)")
+    deepest = float(np.abs(z_offset).max())
+    require(deepest <= 2 * half, f"{path}: z_offset", f"reaches {deepest:.4g} m off the plane, "
+            f"more than the scan's {2 * half:.4g} m side: that looks like millimetres",
+            "store z_offset in metres (divide millimetres by 1000)")
     bins = 2 * np.floor(z_offset / (SPEED_OF_LIGHT * dt_ps * 1e-12)).astype(np.int64)
     return bins, half
+
+
+# a tofgrid time is the device -> wall -> device path of a scan point: f-k's scenes are ~1 m
+# away (3000-6000 ps); under 0.2 m of path no galvo scans a wall
+MIN_TOF_PATH_M = 0.2
+
+
+def _require_picoseconds(tof, tof_path) -> None:
+    """tofgrid in picoseconds, as upstream stores it: its median path at least MIN_TOF_PATH_M
+    (nanoseconds, microseconds or zeros would shift nothing, and the capture would keep the
+    wall's own return); the unit it looks like is named."""
+    median = float(np.median(tof))
+    path_m = SPEED_OF_LIGHT * median * 1e-12
+    if path_m >= MIN_TOF_PATH_M:
+        return
+    units = {"nanoseconds": 1e3, "microseconds": 1e6, "seconds": 1e12}
+    unit = next((u for u, k in units.items()
+                 if MIN_TOF_PATH_M <= SPEED_OF_LIGHT * median * k * 1e-12 <= 1e3), None)
+    require(False, f"{tof_path}: tofgrid", f"its median {median:.4g} ps is {path_m:.3g} m of "
+            f"path to the wall, less than the {MIN_TOF_PATH_M:g} m of any scan"
+            + (f": that looks like {unit}" if unit else " (no time of flight)"),
+            "store tofgrid in picoseconds, as f-k's tof.mat does"
+            + (f" (multiply {unit} by {units[unit]:g})" if unit else ""))
 
 
 def _default_block(n: int) -> int:
