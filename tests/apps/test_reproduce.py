@@ -91,7 +91,7 @@ def _documented(section: str) -> dict:
     text = PAGE.read_text()
     seeds = int(re.search(r"Settings: (\d+) noise seed", text).group(1))
     body = text.split(f"## {section}", 1)[1].split("\n## ", 1)[0]
-    rows = re.findall(r"^\| (\w+) \|.*\| ([\d.]+) ± ([\d.]+) \(max [\d.]+\) \|$", body, re.M)
+    rows = re.findall(r"^\| (\w+) \|.*\| ([\d.]+) ± ([\d.]+) \(max [\d.]+\) \|$", body, re.MULTILINE)
     return {name: (float(mean), float(std), seeds) for name, mean, std in rows}
 
 

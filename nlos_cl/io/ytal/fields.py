@@ -322,11 +322,9 @@ def restore(ours, axis, calibration, path=""):
         return axis, calibration, None, True, None
     truth = ours.get("truth")
     require(truth is None or _is_point(truth), f"capture {path}: scene_info nlos_cl.truth",
-            f"expected [x, y, z] or null, got {truth!r}",
-            "write the capture again with nl.write_capture")
-    return exact, exact_cal, truth, flag(ours.get("allow_negative", True),
-                                         "scene_info nlos_cl.allow_negative", path), \
-        stored_truths(ours, truth, path)
+            f"expected [x, y, z] or null, got {truth!r}", "write it again with nl.write_capture")
+    negative = flag(ours.get("allow_negative", True), "scene_info nlos_cl.allow_negative", path)
+    return exact, exact_cal, truth, negative, stored_truths(ours, truth, path)
 
 
 def _is_point(value) -> bool:
@@ -340,13 +338,13 @@ def stored_truths(ours, truth, path=""):
     truth, else nothing beyond `truth` (None)."""
     truths, field = ours.get("truths"), "truths"
     if truths is None:  # an older file: nlos-cl simulate's metadata, where it agrees
-        old = (ours.get("metadata") or {}).get("targets") if isinstance(
-            ours.get("metadata"), dict) else None
+        meta = ours.get("metadata")
+        old = meta.get("targets") if isinstance(meta, dict) else None
         if not (isinstance(old, list) and old and all(_is_point(t) for t in old)
                 and truth is not None and np.allclose(old[0], truth)):
             return None
         truths, field = old, "metadata.targets"
-    require(isinstance(truths, list) and bool(truths) and all(_is_point(t) for t in truths),
+    require(isinstance(truths, list) and bool(truths) and all(map(_is_point, truths)),
             f"capture {path}: scene_info nlos_cl.{field}", f"expected a list of [x, y, z], got "
-            f"{truths!r}", "write the capture again with nl.write_capture")
+            f"{truths!r}", "write it again with nl.write_capture")
     return np.asarray(truths, dtype=np.float64)
