@@ -33,7 +33,7 @@ from .tracker import Tracker
 # How errors name the options: the keywords here; the CLI passes its flags (OPTION_FLAGS).
 OPTION_NAMES = {"region": "region", "step_m": "step_m", "estimator": "estimator",
                 "targets": "targets", "reflectance": "reflectance", "accel": "accel",
-                "steady_accel": "steady_accel", "motion": "motion"}
+                "steady_accel": "steady_accel", "motion": "motion", "background": "background"}
 REACH_FRAMES = 32  # frames spread over the sequence whose signal bounds the search region
 
 
@@ -77,27 +77,22 @@ def tracker_for(seq, *, estimator=None, targets: int = 1, reflectance=None, regi
     fit, warm-started from the tracks; for paired and confocal captures the mean of the paper's
     likelihood with one target and its argmax with several, with a warning), a name or an
     object. region: three (low, high) ranges along the file's axes, or a Grid; step_m with it.
-    background: a target-free capture (path or HistogramSet) subtracted from every frame, or
-    running_mean: the weight of a running mean of past frames subtracted instead. motion: a
+    background: None (default: the static returns learned from frames spread over the
+    sequence, tracking.static, are subtracted from every frame), a target-free capture (path
+    or HistogramSet), or 'none' (nothing subtracted); running_mean: the weight of a running
+    mean of past frames subtracted instead (for streams). motion: a
     motion model (default motion_for()). full_search: search the whole region every frame.
     on_note: what says the default's note (a callable of the text; default warnings.warn)."""
-    from ..io.ytal.capture import read_capture
-    from ..localization.background import BackgroundRemover
     from ..localization.capture import search_region
-    first = seq[0].histograms
+    first, spread = seq[0].histograms, sampled_frames(seq)
     grid, _ = search_region(first, seq.frame, region, step_m, h_s,
-                            names=(names["region"], names["step_m"]), reach_from=sampled_frames(seq))
-    remover = None
-    if background is not None:
-        if isinstance(background, (str, Path)):
-            background = read_capture(background)[0]
-        remover = BackgroundRemover(background, backend=backend)
-    elif running_mean is not None:
-        remover = BackgroundRemover(alpha=running_mean, backend=backend)
+                            names=(names["region"], names["step_m"]), reach_from=spread)
+    say = on_note or (lambda text: warnings.warn(text, stacklevel=3))
+    remover = _remover(background, running_mean, spread, grid, backend, names, say)
     chosen, note = choose_estimator(estimator, targets=targets, reflectance=reflectance,
                                     paired=first.paired, tracking=True, names=names)
     if note:
-        (on_note or (lambda text: warnings.warn(text, stacklevel=3)))(note)
+        say(note)
     interval = 1.0 / seq.fps if seq.fps else 0.1
     sigma = 0.05  # the Tracker's default; the paper's argmax: measured on the first frames
     if getattr(chosen, "name", None) == "paper" and remover is None:
@@ -108,6 +103,31 @@ def tracker_for(seq, *, estimator=None, targets: int = 1, reflectance=None, regi
                    frame_interval_s=interval, backend=backend,
                    noise=MeasurementNoise(fallback_sigma_m=sigma),
                    plan=SearchPlan(gated_search=not full_search))
+
+
+def _remover(background, running_mean, spread, grid, backend, names, say):
+    """What is subtracted from every frame: a target-free capture (a path or a set), a running
+    mean of past frames, nothing ('none'), or by default the static returns learned from the
+    sequence (tracking.static), with a note where they hold a target."""
+    from ..io.ytal.capture import read_capture
+    from ..localization.background import BackgroundRemover
+    from .static import holds_target, static_background
+    if isinstance(background, str) and background.lower() == "none":
+        return None
+    if background is not None:
+        if isinstance(background, (str, Path)):
+            background = read_capture(background)[0]
+        return BackgroundRemover(background, backend=backend)
+    if running_mean is not None:
+        return BackgroundRemover(alpha=running_mean, backend=backend)
+    learned = static_background(spread)
+    if learned is None:
+        return None
+    if holds_target(learned, grid):
+        say(f"static returns (furniture, or a target that does not move) were learned from "
+            f"{len(spread)} frames spread over the sequence and subtracted, so only what moves "
+            f"is tracked; pass {spelled(names.get('background', '--background'), 'none')} to track them too")
+    return BackgroundRemover(learned, backend=backend)
 
 
 @dataclass(frozen=True)
