@@ -53,7 +53,7 @@ def range_sigma(measured, floor_m: float) -> float:
     return robust_sigma(second[np.isfinite(second)][:, None], floor_m)
 
 
-def track_frames(frames, *, h_s: float, motion=None, smooth: bool = False, backend=None
+def track_frames(frames, *, h_s: float | None = None, motion=None, smooth: bool = False, backend=None
                  ) -> tuple[list, float]:
     """(RangePoints, the measurement sd) of sequence frames (SequenceFrames of one confocal
     spot, in time order): each frame's confocal_range, range_sigma over them all, then

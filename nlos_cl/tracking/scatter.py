@@ -34,7 +34,7 @@ FRAMES = 12  # consecutive frames per window (~0.03 s each on the walk)
 WINDOWS = 8
 
 
-def sequence_scatter(seq, grid, *, h_s: float, floor: float = 0.05, backend=None) -> float:
+def sequence_scatter(seq, grid, *, h_s: float | None, floor: float = 0.05, backend=None) -> float:
     """The argmax's per-axis sigma (m) over WINDOWS runs of FRAMES consecutive frames of a
     sequence, their second differences pooled (the module docstring)."""
     n = len(seq)
@@ -44,7 +44,7 @@ def sequence_scatter(seq, grid, *, h_s: float, floor: float = 0.05, backend=None
     return robust_sigma(np.concatenate(second), floor)
 
 
-def argmax_scatter(frames, grid, *, h_s: float, floor: float = 0.05, backend=None,
+def argmax_scatter(frames, grid, *, h_s: float | None, floor: float = 0.05, backend=None,
                    log_mode=None) -> float:
     """The per-axis sigma (m) of the paper's argmax over consecutive `frames`
     (HistogramSets of one layout, in time order; the first FRAMES); `floor` where fewer than 5
@@ -62,7 +62,7 @@ def robust_sigma(second: np.ndarray, floor: float) -> float:
     return max(floor, float(np.max(sd)))
 
 
-def _second_differences(frames, grid, *, h_s: float, backend=None, log_mode=None):
+def _second_differences(frames, grid, *, h_s: float | None, backend=None, log_mode=None):
     """(k, 3): x[k+1] - 2 x[k] + x[k-1] of the paper's argmax over the first FRAMES `frames`
     where three consecutive frames hold a target (none where fewer than 5 frames are given)."""
     from ..core.tuning import auto_log_mode

@@ -34,6 +34,8 @@ def static_background(frames: list) -> HistogramSet | None:
 def holds_target(background: HistogramSet, grid) -> bool:
     """Does the learned background itself hold a target's return (a static object, or a target
     that stood still)? The detection before location, on the background as a frame."""
-    from ..localization.api import gauss_filter, locate
+    from ..localization.api import gauss_filter
+    from ..localization.detection import detect, raw_floor_of, reachable_bins
     filtered = gauss_filter(background)
-    return bool(locate(filtered, grid, raw=background, estimator="paper").detected)
+    window = reachable_bins(background.layout, grid)
+    return detect(filtered.values(), window, raw=raw_floor_of(background, filtered)).detected

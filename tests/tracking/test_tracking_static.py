@@ -58,3 +58,14 @@ def test_the_median_keeps_what_stays_and_drops_what_moves():
     assert learned.data[:, 50] == pytest.approx(5.0, abs=0.05)
     assert np.abs(learned.data[:, 80:]).max() < 0.1
     assert static_background(frames[:MIN_FRAMES - 1]) is None
+
+
+def test_a_background_with_dark_rows_is_tested_not_located():
+    """The consumer-nlos walk's learned background has zones with no light where the grid is:
+    asking the argmax for a position raised 'no cell has a non-zero likelihood' and stopped
+    `nlos-cl track` before its first frame; the detection alone answers."""
+    from nlos_cl.tracking.static import holds_target
+    clean = nl.simulate(nl.paper_scene()).histograms()
+    data = clean.data.copy()
+    data[1] = -np.abs(data[1])  # a zone darker than its median everywhere
+    assert isinstance(holds_target(clean.with_data(data), nl.Grid()), bool)
