@@ -68,4 +68,5 @@ def test_a_background_with_dark_rows_is_tested_not_located():
     clean = nl.simulate(nl.paper_scene()).histograms()
     data = clean.data.copy()
     data[1] = -np.abs(data[1])  # a zone darker than its median everywhere
-    assert isinstance(holds_target(clean.with_data(data), nl.Grid()), bool)
+    assert isinstance(holds_target(clean.with_data(data), nl.Grid()), bool)  # (the measured
+    # walk that raised: tests/realdata/test_realdata_consumer.py)
