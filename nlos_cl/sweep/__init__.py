@@ -62,5 +62,12 @@ class _CallableModule(types.ModuleType):
 
 sys.modules[__name__].__class__ = _CallableModule
 
-__all__ = ["Study", "RunnerStudy", "load_study", "sweep", "read_table", "example_text",
-           "worker_cache"]
+__all__ = [
+    "RunnerStudy",
+    "Study",
+    "example_text",
+    "load_study",
+    "read_table",
+    "sweep",
+    "worker_cache",
+]

@@ -275,7 +275,7 @@ def _probe(address: str) -> None:
     handshake (msgpack naming the pickle protocol) as soon as a connection opens. distributed
     itself waits without a limit on a server that accepts and says nothing (120 s and more)."""
     import socket
-    rest = address[len("tcp://"):] if address.startswith("tcp://") else address
+    rest = address.removeprefix("tcp://")
     if "://" in rest or ":" not in rest:
         return  # tls://, ucx://, inproc://: distributed's own connect and timeout
     host, _, port = rest.rpartition(":")

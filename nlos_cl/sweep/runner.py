@@ -119,9 +119,14 @@ def _import(runner: str):
                          "Fix: install the module where the study runs, or correct the name"
                          ) from None
     for part in name.split("."):
-        require(hasattr(obj, part), f"runner {runner!r}", f"{module!r} has no {name!r}",
+        # through nlos_cl, only modules and classes: an object's property is code that runs
+        inside = inspect.ismodule(obj) or inspect.isclass(obj) or not is_own(module)
+        try:
+            obj = getattr(obj, part) if inside else None
+        except Exception:  # noqa: BLE001 - AttributeError, or a property that raised
+            obj = None
+        require(obj is not None, f"runner {runner!r}", f"{module!r} has no {name!r}",
                 "check the function's name after the colon")
-        obj = getattr(obj, part)
     require(callable(obj) and not inspect.ismodule(obj), f"runner {runner!r}",
             f"is not callable (a {type(obj).__name__})", "name a function")
     return obj

@@ -42,12 +42,12 @@ INNER = "runner: \"subprocess:getoutput\"\naxes: [{name: cmd, values: [\"touch O
 
 @pytest.mark.parametrize("study", [
     # the engine itself, running an inner study that names a shell command
-    "runner: nlos_cl.sweep.engine:sweep\naxes: [{name: study, values: [inner.yaml]}]\n"
-    "params: {out: o2, allow_runner: [subprocess]}\n",
-    "runner: nlos_cl.apps.cli:main\naxes: [{name: argv, values: [[sweep, inner.yaml, --out, "
-    "o3, --workers, '0', --allow-runner, subprocess]]}]\n",
-    "runner: nlos_cl.io.safe_write:write_text\naxes: [{name: path, values: [precious.txt]}]\n"
-    "params: {text: gone, what: x, force: true}\n",
+    ("runner: nlos_cl.sweep.engine:sweep\naxes: [{name: study, values: [inner.yaml]}]\n"
+     "params: {out: o2, allow_runner: [subprocess]}\n"),
+    ("runner: nlos_cl.apps.cli:main\naxes: [{name: argv, values: [[sweep, inner.yaml, --out, "
+     "o3, --workers, '0', --allow-runner, subprocess]]}]\n"),
+    ("runner: nlos_cl.io.safe_write:write_text\naxes: [{name: path, values: [precious.txt]}]\n"
+     "params: {text: gone, what: x, force: true}\n"),
     "runner: nlos_cl:sweep\naxes: [{name: study, values: [inner.yaml]}]\n",
 ])
 def test_a_study_cannot_reach_nlos_cl_s_unregistered_functions(tmp_path, monkeypatch, study):

@@ -1,7 +1,6 @@
 """Bounded study input (nlos_cl/sweep/bounds.py, issue 59 items 2 and 5): a file a study names
 as its scene is never echoed; values are shown in one short line; deep or alias-multiplied
 study data end in one line naming the study, within bounded memory and time."""
-import json
 import resource
 import time
 

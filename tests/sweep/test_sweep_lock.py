@@ -65,9 +65,8 @@ def test_a_second_sweep_on_a_busy_folder_fails_at_once_and_nothing_is_run_twice(
 
 def test_the_lock_is_held_for_the_whole_sweep_and_is_a_plain_file(slow_study, tmp_path):
     out = tmp_path / "out"
-    with folder_lock(out):
-        with pytest.raises(InputError, match="another nlos-cl sweep"):
-            sweep(slow_study, out, workers=0, progress=False, allow_runner=["my_slow_runs"])
+    with folder_lock(out), pytest.raises(InputError, match="another nlos-cl sweep"):
+        sweep(slow_study, out, workers=0, progress=False, allow_runner=["my_slow_runs"])
     assert not (out / "study.json").exists()  # refused before the record was read or written
     (out / LOCK_FILE).unlink()
     (out / LOCK_FILE).symlink_to(tmp_path / "elsewhere")

@@ -65,7 +65,10 @@ def _attribute_paths(draw):
         if not names:
             break
         parts.append(draw(st.sampled_from(names)))
-        obj = getattr(obj, parts[-1], None)
+        try:
+            obj = getattr(obj, parts[-1], None)
+        except Exception:  # noqa: BLE001 - a property that raises: resolve must say so in a line
+            break
     return f"{module}:{'.'.join(parts)}" if parts else f"{module}:x"
 
 
@@ -80,6 +83,16 @@ def test_any_name_into_nlos_cl_resolves_to_a_registered_runner_or_is_refused(nam
         assert str(exc).startswith("runner") and "Fix:" in str(exc) and "\n" not in str(exc)
     else:
         assert is_registered(fn) or is_registered(inspect.unwrap(fn))
+
+
+@pytest.mark.parametrize("name", ["nlos_cl.localization.model.policy.closed:BOX_YAWS.mT",
+                                  "nlos_cl.localization.model.policy.closed:BOX_YAWS.tolist",
+                                  "nlos_cl.sweep.examples:paper_target.func"])
+def test_names_through_objects_run_no_property(name):
+    """Through nlos_cl a name walks modules and classes only: an array's `.mT` (a property
+    that raises ValueError on 1-D) or a bound method is not reached."""
+    with pytest.raises(InputError, match=rf"^runner {name!r}: .* has no"):
+        resolve(name)
 
 
 @pytest.mark.parametrize("name", ["nlos_cl.sweep.examples:paper_target.__call__",
