@@ -217,6 +217,12 @@ def _search(problem, est, argmax_position, free, held, shadows=False):
     history = [{"targets": 1, "cost": current.cost}]
     wanted = est.targets if est.targets != "auto" else est.max_targets
     while len(current.params) < wanted:
+        if est.targets == "auto" and not misfit(problem, current, free, {})[0]:
+            # the fit already explains the data to its noise: no plate more is tried (the
+            # default on one-target captures pays ~1 fit, not 2-4; `accepts` would refuse it)
+            history.append({"targets": len(current.params) + 1, "accepted": False,
+                            "why": "the fit explains the data"})
+            break
         bigger = add_plate(problem, current, free, held, est.final_nfev,
                            AUTO_RESEAT_PASSES if est.targets == "auto" else RESEAT_PASSES)
         entry = {"targets": len(bigger.params), "cost": bigger.cost}
