@@ -8,7 +8,7 @@ def _paper_spec(args):
     """The paper's scene from the command-line options, as a scene file would give it."""
     from ..physics.noise import PhotonCounter
     from ..physics.noise import AWGN
-    from ..core.paths import default_time_axis
+    from ..core.paths import default_time_axis, simulation_bin
     from ..physics.scene import paper_scene
     from ..io.scenefile import SceneSpec
     scene = paper_scene(position=tuple(args.position or (4.0, 2.0, 0.0)),
@@ -18,7 +18,10 @@ def _paper_spec(args):
         noise = PhotonCounter(n_pulses=args.pulses, tdc_bin_s=args.tdc_ps * 1e-12)
     elif args.snr_db is not None:
         noise = AWGN(args.snr_db)
-    axis = default_time_axis(scene.setup, (args.dt_ps or 10.0) * 1e-12)
+    dt_s = (args.dt_ps or 10.0) * 1e-12
+    if args.photons and args.dt_ps is None:  # bins that sum into the TDC's (a 33 ps TDC: 8.25 ps)
+        dt_s = simulation_bin(args.tdc_ps * 1e-12, dt_s)
+    axis = default_time_axis(scene.setup, dt_s)
     return SceneSpec(scene, axis, noise, args.seed or 0, "paper rectangle 0.3 m x 1.6 m")
 
 

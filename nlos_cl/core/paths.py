@@ -108,6 +108,12 @@ class PathAxis:
         return self.centre0_m[:, None] + self.step_m[:, None] * np.arange(self.n_bins)[None, :]
 
 
+def simulation_bin(tdc_bin_s: float, wanted_s: float = 10e-12) -> float:
+    """The widest simulation bin, at most `wanted_s`, that divides a TDC bin a whole number of
+    times (a 33 ps TDC: 8.25 ps), so photon counts sum whole simulation bins."""
+    return tdc_bin_s / max(1, math.ceil(tdc_bin_s / wanted_s - 1e-9))
+
+
 def default_time_axis(setup, dt_s: float = 1e-12, max_hidden_path_m: float = 18.0) -> TimeAxis:
     """A window from the first possible hidden-path arrival (r1 + r2 = 0) out to
     `max_hidden_path_m` of hidden path; the paper's 6 m x 6 m search area needs about 18 m.
