@@ -87,9 +87,9 @@ def read_mesh(path) -> trimesh.Trimesh:
                    f"parsing {name}", "pass a smaller mesh")
     assets = _Assets(where, path.parent if kind is None else None, members,
                      budget - len(data))
-    DECLARED[fmt](data, where, assets)
     options = {"skip_materials": True} if fmt in ("obj", "glb", "gltf") else {}
     try:
+        DECLARED[fmt](data, where, assets)  # counts and cuts, before trimesh parses a byte
         loaded = trimesh.load(io.BytesIO(data), file_type=fmt, resolver=assets, force="mesh",
                               **options)
     except InputError:

@@ -5,6 +5,7 @@ mm, a calibration CSV whose mistyped first row passed for a header, a mesh cut s
 with the unit or the cut named."""
 import io
 import os
+from pathlib import Path
 
 import h5py
 import numpy as np
@@ -218,3 +219,27 @@ def test_unreadable_frames_are_named_by_convert_not_skipped(tmp_path, capsys):
     assert cli(["convert", str(folder), "--out", str(tmp_path / "o.h5")]) == 2
     err = capsys.readouterr().err
     assert "frame volume_000001.npz: is a FIFO" in err and not (tmp_path / "o.h5").exists()
+
+
+@pytest.mark.parametrize("at, flip, said", [
+    (145, 0x08, "holds complex numbers, not real ones"),  # the complex flag, no imaginary part
+    (200, 0x01, "has a data element of type code 8, not a number type")])
+def test_mat_v5_tags_that_crashed_scipy_are_refused(tmp_path, at, flip, said):
+    """Found by test_fuzz_readers: scipy.io read these into an array of the declared dims past
+    its buffer (a segmentation fault); the tags are checked first now. In a child, so the old
+    code's crash fails the test instead of ending the run."""
+    import subprocess
+    import sys
+    buf = io.BytesIO()
+    scipy.io.savemat(buf, {"rect_data": np.arange(12.0).reshape(2, 2, 3), "width": [[0.3]]},
+                     do_compression=False)
+    raw = bytearray(buf.getvalue())
+    raw[at] ^= flip
+    (tmp_path / "x.mat").write_bytes(bytes(raw))
+    code = ("from nlos_cl.io.datasets.matfile import load\nfrom nlos_cl.core.errors import "
+            f"InputError\ntry:\n    load({str(tmp_path / 'x.mat')!r}, 'rect_data', 3)\n"
+            "except InputError as exc:\n    print(exc)\n")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=60, check=False,
+                         env=dict(os.environ, PYTHONPATH=str(Path(__file__).parents[2])))
+    assert run.returncode == 0 and f"x.mat: rect_data: {said}" in run.stdout, run

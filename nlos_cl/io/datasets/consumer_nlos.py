@@ -179,7 +179,7 @@ def _declared(path) -> dict:
             held = sorted(i.filename for i in z.infolist())[:10]
     except InputError:
         raise
-    except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:
+    except Exception as exc:  # noqa: BLE001 - BadZipFile, encryption, bad npy: all damage
         require(False, f"{path}", f"is not a readable .npz file ({type(exc).__name__}: "
                 f"{str(exc)[:120]})", "download the file again")
     missing = [f for f in FIELDS if f not in out]
@@ -228,7 +228,9 @@ def _load(path, n_zones, n_t):
                 with z.open(member) as fh:
                     value = np.lib.format.read_array(fh, allow_pickle=False)
                 out[name] = np.asarray(value, dtype=np.float64)
-    except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:
+    except InputError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - BadZipFile, encryption, bad npy: all damage
         require(False, f"{path}", f"cannot be read, the file is damaged "
                 f"({type(exc).__name__}: {str(exc)[:120]})", "download the file again")
     for name, value in out.items():

@@ -1,6 +1,8 @@
-"""What a MATLAB v5 (v6, v7) variable's data element declares, read from its tags alone: scipy.io
-allocates the byte count a data element's tag declares before reading it, so that count is
-checked (matfile._v5_array) before scipy is asked for the array. A compressed element (v7's
+"""What a MATLAB v5 (v6, v7) variable's tags declare, checked before scipy.io reads it: scipy
+allocates the byte count a data element's tag declares before reading it (a 1 x 1 array
+declaring 3.9 GB took that much), and reads what the tags say into an array of the declared
+dims (a complex flag without its imaginary part, or a data type that does not fit, crashed the
+process: found by tests/io/test_fuzz_readers.py). A compressed element (v7's
 default) is inflated only as far as its first few hundred bytes: the tags sit at its start.
 
 Layout (MathWorks, "MAT-File Format", R2023b, ch. 1): a 128-byte header (text, subsystem
@@ -28,17 +30,35 @@ def _tag(buf: bytes, at: int, order: str):
     return word, count, at + 8, at + 8 + count + (-count % 8)
 
 
+# miINT8 .. miUINT64 -> bytes a value (MATLAB may store a double array as smaller integers)
+MI_SIZES = {1: 1, 2: 1, 3: 2, 4: 2, 5: 4, 6: 4, 7: 4, 9: 8, 12: 8, 13: 8}
+
+
 def _matrix(body: bytes, order: str):
-    """(name, byte count of the real part's data) from an miMATRIX element's body; None for a
-    class without one (cell, struct, sparse, char...)."""
+    """(name, problem or None) of an miMATRIX element's body: for a numeric class, its real
+    part's data element must be a number type holding exactly prod(dims) values (scipy reads
+    what the tags say into an array of the dims: a mismatch, a complex flag without its
+    imaginary part, or an unknown type read past its buffer and crashed the process)."""
     _, _, flags_at, at = _tag(body, 0, order)
     flags = struct.unpack_from(order + "I", body, flags_at)[0]
-    _, _, _, at = _tag(body, at, order)  # dimensions
+    _, n_dims, dims_at, at = _tag(body, at, order)
+    dims = struct.unpack_from(order + f"{n_dims // 4}i", body, dims_at)
     _, n, name_at, at = _tag(body, at, order)
     name = body[name_at:name_at + n].decode("latin-1")
-    if not 6 <= (flags & 0xFF) <= 15:  # mxDOUBLE_CLASS .. mxUINT64_CLASS
+    if not 6 <= (flags & 0xFF) <= 15:  # not mxDOUBLE_CLASS .. mxUINT64_CLASS: scipy's checks
         return name, None
-    return name, _tag(body, at, order)[1]
+    if flags & 0x800:
+        return name, "holds complex numbers, not real ones"
+    kind, count, _, _ = _tag(body, at, order)
+    values = 1
+    for d in dims:
+        values *= max(d, 0)
+    if kind not in MI_SIZES:
+        return name, f"has a data element of type code {kind}, not a number type"
+    if count != values * MI_SIZES[kind]:
+        return name, (f"declares {count:,} bytes of data for a {tuple(dims)} array of "
+                      f"{MI_SIZES[kind]}-byte values ({values * MI_SIZES[kind]:,} expected)")
+    return name, None
 
 
 def _inflated_head(fh, count: int) -> bytes:
@@ -54,22 +74,22 @@ def _inflated_head(fh, count: int) -> bytes:
     return out
 
 
-def declared_data_bytes(path, name: str) -> int | None:
-    """The byte count variable `name`'s real-part data element declares, or None where the file
-    is no v5 file, the variable is not found, or its class carries no such element (scipy's own
-    checks then apply)."""
+def variable_problem(path, name: str) -> str | None:
+    """What is wrong with variable `name`'s tags (see _matrix), or None where nothing is, the
+    file is no v5 file or the variable is not found (scipy's own checks then apply). A name
+    held twice is checked in every copy."""
     require_file(path, f"{path}", "pass the downloaded .mat file")
     with open(path, "rb") as fh:
         head = fh.read(128)
         if len(head) < 128 or head[126:128] not in (b"IM", b"MI"):
             return None
         order = "<" if head[126:128] == b"IM" else ">"
-        at, best = 128, None
+        at = 128
         while True:
             fh.seek(at)
             tag = fh.read(8)
             if len(tag) < 8:
-                return best
+                return None
             kind, count = struct.unpack(order + "II", tag)
             try:
                 if kind == MI_COMPRESSED:
@@ -82,7 +102,7 @@ def declared_data_bytes(path, name: str) -> int | None:
                 else:
                     at += 8 + count + (-count % 8)
                     continue
-            except (struct.error, zlib.error, UnicodeDecodeError):
-                return best  # damaged: scipy's reading says so
-            if found[0] == name and found[1] is not None:  # a name twice: the larger counts
-                best = max(best or 0, found[1])
+            except (struct.error, zlib.error, UnicodeDecodeError, ValueError):
+                return "sits in a file whose tags are damaged (cut short or corrupted)"
+            if found[0] == name and found[1] is not None:
+                return found[1]

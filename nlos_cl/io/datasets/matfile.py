@@ -103,9 +103,10 @@ def variables(path) -> dict:
     except NotImplementedError:  # scipy: "Please use HDF reader for matlab v7.3 files"
         raise InputError(f"{path}: is a MATLAB v7.3 (HDF5) file whose header nlos_cl does not "
                          "recognise. Fix: save it again in MATLAB with save(..., '-v7')") from None
-    except (ValueError, TypeError, OSError) as exc:
-        raise InputError(f"{path}: is not a readable .mat file ({type(exc).__name__}: {exc}). "
-                         "Fix: download the file again") from None
+    except Exception as exc:  # noqa: BLE001 - ValueError, zlib.error, struct.error...: damaged
+        raise InputError(f"{path}: is not a readable .mat file ({type(exc).__name__}: "
+                         f"{' '.join(str(exc).split())[:120]}). Fix: download the file again"
+                         ) from None
 
 
 def load(path, name: str, ndim: int) -> np.ndarray:
@@ -139,19 +140,16 @@ def load(path, name: str, ndim: int) -> np.ndarray:
 
 
 def _v5_array(path, name: str, shape: tuple) -> np.ndarray:
-    """A v4-v7 variable through scipy.io, after the bytes its data element declares are
-    checked against its shape (scipy allocates what the element declares, before reading it:
-    a 1 x 1 array declaring 3.9 GB of data took that much); a complex array is refused (its
-    imaginary part would be dropped), and a damaged element is an InputError."""
+    """A v4-v7 variable through scipy.io, after its tags are checked (mat5.variable_problem:
+    the data element must hold exactly its dims' values, so scipy allocates no more and reads
+    no past its buffer); a complex array is refused (its imaginary part would be dropped), and
+    a damaged element is an InputError."""
     import scipy.io
 
-    from .mat5 import declared_data_bytes
-    declared = declared_data_bytes(path, name)
-    if declared is not None:
-        most = 8 * int(np.prod(shape, dtype=np.float64)) + 8
-        require(declared <= most, f"{path}: {name}", f"declares {declared:,} bytes of data "
-                f"for a {shape} array (at most {most:,}): a damaged or crafted file",
-                "pass the dataset's own, unmodified file")
+    from .mat5 import variable_problem
+    problem = variable_problem(path, name)
+    require(problem is None, f"{path}: {name}", f"{problem}", "pass the dataset's own, "
+            "unmodified file")
     try:
         arr = scipy.io.loadmat(path, variable_names=[name])[name]
     except (ValueError, TypeError, OSError, EOFError, IndexError, KeyError) as exc:
