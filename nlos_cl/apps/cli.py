@@ -206,8 +206,11 @@ def _track_args(p):
                    help="search ranges along the file's axes (default: what the capture sees)")
     p.add_argument("--step", type=_number("grid.step", "pass metres, e.g. 0.01", positive=True),
                    default=None, help="grid step (m) with --region")
-    p.add_argument("--h-ns", type=H_NS, default=0.65, help="Gauss filter window h (ns)")
-    p.add_argument("--background", default=None, help="a target-free capture to subtract")
+    p.add_argument("--h-ns", type=H_NS, default=None, help="Gauss filter window h (ns; "
+                   "default: 0.65, or 3 bins where the bins are coarser)")
+    p.add_argument("--background", default=None, metavar="BG.h5|none",
+                   help="a target-free capture to subtract, or 'none' (default: the static "
+                   "returns learned from frames spread over the sequence)")
     p.add_argument("--running-mean", type=_number("running_mean", "pass a weight in (0, 1], "
                                                   "e.g. 0.05", positive=True), default=None,
                    metavar="ALPHA", help="subtract a running mean of past frames (weight ALPHA)")

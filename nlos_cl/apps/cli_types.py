@@ -93,4 +93,5 @@ def reflectance(text: str):
 # How the library's errors name its options on the command line (its `names=` arguments).
 OPTION_FLAGS = {"region": "--region", "step_m": "--step", "estimator": "--estimator",
                 "targets": "--targets", "reflectance": "--reflectance", "accel": "--accel",
-                "steady_accel": "--steady-accel", "motion": "--motion"}
+                "steady_accel": "--steady-accel", "motion": "--motion",
+                "background": "--background"}

@@ -27,13 +27,17 @@ import json
 import sys
 
 
+def _h_s(args) -> float | None:
+    return None if args.h_ns is None else args.h_ns * 1e-9
+
+
 def tracker_options(args, backend) -> dict:
     """The command's options as nlos_cl.tracking.sequences.tracker_for takes them (errors
     name the flags)."""
     from .cli_types import OPTION_FLAGS
     region = None if args.region is None else list(zip(args.region[::2], args.region[1::2]))
     return dict(estimator=args.estimator, targets=args.targets, reflectance=args.reflectance,
-                region=region, step_m=args.step, h_s=args.h_ns * 1e-9,
+                region=region, step_m=args.step, h_s=_h_s(args),
                 background=args.background or None, running_mean=args.running_mean,
                 motion=motion_model(args), full_search=args.full_search, backend=backend,
                 names=OPTION_FLAGS, on_note=_warn)
@@ -138,7 +142,7 @@ def _range_main(args, seq, backend) -> int:
     stop = len(seq) if args.max_frames is None else min(args.max_frames, len(seq))
     frames = tqdm(seq.frames(0, stop), total=stop, unit="frame", desc="range",
                   file=sys.stderr, disable=args.no_progress)
-    points, sigma = track_frames(frames, h_s=args.h_ns * 1e-9, motion=motion_model(args),
+    points, sigma = track_frames(frames, h_s=_h_s(args), motion=motion_model(args),
                                  smooth=args.smooth, backend=backend)
     if args.json:
         for p in points:

@@ -126,7 +126,7 @@ def _remover(background, running_mean, spread, grid, backend, names, say):
     if holds_target(learned, grid):
         say(f"static returns (furniture, or a target that does not move) were learned from "
             f"{len(spread)} frames spread over the sequence and subtracted, so only what moves "
-            f"is tracked; pass {spelled(names.get('background', '--background'), 'none')} to track them too")
+            f"is tracked; pass {spelled(names['background'], 'none')} to track them too")
     return BackgroundRemover(learned, backend=backend)
 
 
