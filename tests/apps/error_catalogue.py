@@ -336,6 +336,14 @@ CASES = [
     ("a corrupt mesh file", "mesh file",
      lambda: nl.load_mesh(write_file("broken.stl", "solid x\nnot an stl at all\n"))),
     ("a mesh file that does not exist", "mesh file", lambda: nl.load_mesh("/nonexistent/person.obj")),
+    ("an ASCII STL cut after its first facet", "an ASCII STL without its closing `endsolid`",
+     lambda: nl.load_mesh(write_file("cut.stl", "solid x\nfacet normal 0 0 1\nouter loop\n"
+                                     "vertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\n"
+                                     "endfacet\n"))),
+    ("an OBJ cut inside its last line", "does not end with a line break",
+     lambda: nl.load_mesh(write_file("cut.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2"))),
+    ("a calibration CSV whose first row is a mistyped measurement", "is not a number, yet the row",
+     lambda: calibration.read_calibration_pairs(write_file("p.csv", "2.5,5.17e-8x\n3,1e-8\n"))),
     ("a capture file missing a y-tal field", "missing field(s) ['t_start']",
      lambda: nl.read_capture(capture_file(lambda f: f.__delitem__("t_start")))),
     ("a capture whose delta_t is in seconds, not metres", "delta_t",

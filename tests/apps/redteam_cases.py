@@ -544,3 +544,77 @@ def _seq_edit(box, edit):
 
 def _scaled_times(box, factor):
     return _seq_edit(box, _times("frame_t_s", factor))
+
+
+# ---- issue 59: the readers, by class (builders in redteam_readers.py)
+import redteam_readers as R  # beside this file: the runner puts its folder on sys.path
+
+SIM = ["--out", "o.h5"]
+CONVERT = ["--out", "o.h5"]
+wrote = says("wrote")
+CASES += [
+    Case(MEM, "a bz2 STL bomb (600 MB of triangles in ~1 kB) as a scene's mesh",
+         lambda b: ["simulate", R.mesh_scene(b, R.bz2_bomb(b)), *SIM]),
+    Case(MEM, "a zip whose STL member declares 4 GiB",
+         lambda b: ["simulate", R.mesh_scene(b, R.zip_declaring(b)), *SIM]),
+    Case(MEM, "a sparse 3 GiB OBJ as a scene's mesh",
+         lambda b: ["simulate", R.mesh_scene(b, R.sparse(b, "big.obj")), *SIM]),
+    Case(MEM, "a glTF whose buffer is a sparse 3 GiB file",
+         lambda b: ["simulate", R.mesh_scene(b, R.gltf(b, byte_length=3 << 30,
+                                                       sparse_bytes=3 << 30)), *SIM]),
+    Case(MEM, "a zlib-compressed .mat element declaring 3.9 GB",
+         lambda b: ["convert", R.mat_declaring(b), "--format", "lct", *CONVERT]),
+    Case(MEM, "an .npz whose raw 'hists' shadows the checked hists.npy",
+         lambda b: ["convert", R.volumes(b, shadow=True), *CONVERT]),
+    Case(MEM, "a sequence declaring 10^9 frames and 10^9 frame times",
+         lambda b: ["track", R.billion_frames(b), "--no-progress"]),
+    Case(HANG, "a glTF whose buffer is a FIFO",
+         lambda b: ["simulate", R.mesh_scene(b, R.gltf(b, fifo=True)), *SIM]),
+    Case(HANG, "an OBJ whose mtllib is a FIFO (read without its materials)",
+         lambda b: ["simulate", R.mesh_scene(b, R.obj_with_fifo_mtl(b)), *SIM], ok=wrote),
+    Case(HANG, "a scene's mesh file that is a FIFO",
+         lambda b: ["simulate", R.mesh_scene(b, R.fifo(b, "m.stl")), *SIM]),
+    Case(HANG, "a consumer-nlos frame that is a FIFO",
+         lambda b: ["convert", R.volumes(b, fifo_frame=True), *CONVERT]),
+    Case(TB, "a Keyhole scan with 0 frames",
+         lambda b: ["convert", R.keyhole(b, np.zeros((0, 2000))), *CONVERT]),
+    Case(TB, "a Keyhole scan whose data is a scalar",
+         lambda b: ["convert", R.keyhole(b, np.float64(3.0)), *CONVERT]),
+    Case(TB, "a compound (complex) rect_data in a v7.3 .mat",
+         lambda b: ["convert", R.mat73(b.work / "c.mat", {"rect_data": np.zeros(
+             (2, 3, 4), dtype=[("real", "<f8"), ("imag", "<f8")]), "width": np.array([[0.3]])}),
+             "--format", "lct", *CONVERT]),
+    Case(TB, "a sparse all-zero rect_data in a v7.3 .mat",
+         lambda b: ["convert", R.mat73(b.work / "s.mat", {"rect_data": {"jc": np.zeros(
+             65, np.uint64)}, "width": np.array([[0.3]])}), "--format", "lct", *CONVERT]),
+    Case(TB, "a v5 .mat whose complex flag has no imaginary part (crashed scipy)",
+         lambda b: ["convert", R.mat_flipped(b, 145, 0x08), "--format", "lct", *CONVERT]),
+    Case(TB, "a v5 .mat whose data element has type code 8 (crashed scipy)",
+         lambda b: ["convert", R.mat_flipped(b, 200, 0x01), "--format", "lct", *CONVERT]),
+    Case(WRONG, "f-k tofgrid in nanoseconds",
+         lambda b: ["convert", R.fk(b, tof_scale=1e-3), *CONVERT]),
+    Case(WRONG, "f-k z_offset in millimetres",
+         lambda b: ["convert", R.fk(b, z_offset=50.0), *CONVERT]),
+    Case(WRONG, "a calibration CSV whose first row has a typo (taken for a header)",
+         lambda b: ["calibrate", b.text("pairs.csv", "2.5,5.17e-8x\n3.0,1.0e-8\n3.5,1.17e-8\n"
+                                        "4.0,1.33e-8\n")]),
+    Case(WRONG, "an ASCII STL cut after its first facet",
+         lambda b: ["simulate", R.mesh_scene(b, R.cut(b, "m.stl", R.exported("stl_ascii"),
+                                                      R.exported("stl_ascii").index(
+                                                          b"endfacet") + 9)), *SIM]),
+    Case(WRONG, "a binary STL cut after its first triangle",
+         lambda b: ["simulate", R.mesh_scene(b, R.cut(b, "m.stl", R.exported("stl"), 134)),
+                    *SIM]),
+    Case(WRONG, "an OBJ cut inside its last face",
+         lambda b: ["simulate", R.mesh_scene(b, R.cut(b, "m.obj", R.exported("obj"), -3)),
+                    *SIM]),
+    Case(DL, "simulate --out over an nlos_cl capture whose H the user replaced",
+         lambda b: ["simulate", "--out", R.ours_then_edited(b, "cap.h5", R.measured),
+                    "--facet", "0.05"]),
+    Case(DL, "convert --out over an nlos_cl capture the user added a dataset to",
+         lambda b: ["convert", _mat73(b), "--format", "lct", "--out",
+                    R.ours_then_edited(b, "cap.h5", R.added)]),
+    Case(DL, "simulate --frames --out over an nlos_cl sequence the user edited",
+         lambda b: ["simulate", b.copy("walk.yaml"), "--frames", "2", "--out",
+                    R.ours_then_edited(b, "seq.h5", R.measured)]),
+]
