@@ -3,7 +3,9 @@ scene_info): PyYAML's SafeLoader with YAML 1.2 floats, and bounds on what a shor
 can make, checked while it is composed so a hostile file fails fast in one line:
 
 - aliases (`*name`) may repeat a block, not multiply it: all of them together may add at most
-  ALIAS_NODES nodes (a 9-level "billion laughs" of 9 aliases each would make 9^9 = 387 M);
+  ALIAS_NODES nodes (a 9-level "billion laughs" of 9 aliases each would make 9^9 = 387 M) and
+  MAX_BYTES characters of text (one 100 kB string aliased 9,000 times made 900 MB of study.json
+  or error message);
   an alias inside its own anchor (a structure containing itself) is refused;
 - nesting deeper than MAX_DEPTH is refused (PyYAML's composer recurses, so 20,000 nested
   brackets end in RecursionError);
@@ -43,7 +45,7 @@ def yaml_loader():
     class Loader(yaml.SafeLoader):
         def __init__(self, stream):
             super().__init__(stream)
-            self._depth, self._added, self._open, self._sizes = 0, 0, set(), {}
+            self._depth, self._added, self._open, self._sizes = 0, (0, 0), set(), {}
 
         def compose_node(self, parent, index):
             event = self.peek_event()
@@ -69,11 +71,14 @@ def yaml_loader():
                                 f"&{anchor}, a structure that contains itself",
                                 "write the values out instead of the alias")
             if anchor in self.anchors:
-                self._added += _size(self.anchors[anchor], self._sizes)
-            if self._added > ALIAS_NODES:
-                raise YamlLimit(f"its aliases expand to more than {ALIAS_NODES} values (line "
-                                f"{line}, *{anchor}): an alias may repeat a block, not multiply "
-                                "it", "write the values out, or use fewer nested aliases")
+                nodes, chars = _size(self.anchors[anchor], self._sizes)
+                self._added = (self._added[0] + nodes, self._added[1] + chars)
+            if self._added[0] > ALIAS_NODES or self._added[1] > MAX_BYTES:
+                what = (f"{ALIAS_NODES} values" if self._added[0] > ALIAS_NODES else
+                        f"{MAX_BYTES >> 20} MiB of text")
+                raise YamlLimit(f"its aliases expand to more than {what} (line {line}, "
+                                f"*{anchor}): an alias may repeat a block, not multiply it",
+                                "write the values out, or use fewer nested aliases")
 
         def construct_mapping(self, node, deep=False):
             _no_duplicate_keys(self, node)
@@ -83,17 +88,18 @@ def yaml_loader():
     return Loader
 
 
-def _size(node, sizes: dict) -> int:
-    """How many nodes `node` stands for once its aliases are expanded (memoised per node, so
-    this stays linear in the file however the aliases nest)."""
+def _size(node, sizes: dict) -> tuple[int, int]:
+    """(nodes, characters of scalar text) `node` stands for once its aliases are expanded
+    (memoised per node, so this stays linear in the file however the aliases nest)."""
     import yaml
     if id(node) not in sizes:
         if isinstance(node, yaml.SequenceNode):
-            sizes[id(node)] = 1 + sum(_size(n, sizes) for n in node.value)
+            parts = [_size(n, sizes) for n in node.value]
         elif isinstance(node, yaml.MappingNode):
-            sizes[id(node)] = 1 + sum(_size(k, sizes) + _size(v, sizes) for k, v in node.value)
+            parts = [_size(n, sizes) for pair in node.value for n in pair]
         else:
-            sizes[id(node)] = 1
+            parts = [(0, len(str(node.value)))]
+        sizes[id(node)] = (1 + sum(p[0] for p in parts), sum(p[1] for p in parts))
     return sizes[id(node)]
 
 

@@ -278,3 +278,14 @@ def test_a_volume_frame_that_is_a_fifo_or_folder_is_refused_by_name(tmp_path, no
     (folder / "volume_000002.npz").mkdir()
     with pytest.raises(InputError, match=r"frame volume_000002\.npz: is a folder"):
         nl.read_dataset(folder, "consumer-nlos")
+
+
+def test_one_long_string_aliased_thousands_of_times_is_refused():
+    """9,000 aliases of one 100 kB string are 9,000 nodes (under the node bound) but 900 MB
+    of text once written out (study.json, an error message): text is bounded too."""
+    from nlos_cl.io.yamlfile import load_text
+    text = "a: &s " + "x" * 100_000 + "\nb: [" + ", ".join(["*s"] * 9000) + "]\n"
+    with pytest.raises(InputError, match=r"study\.yaml: its aliases expand to more than 1 MiB "
+                       "of text"):
+        load_text(text, "study.yaml")
+    assert load_text("a: &s [1, 2]\nb: *s\n", "x") == {"a": [1, 2], "b": [1, 2]}
