@@ -45,7 +45,10 @@ def is_map_file(path) -> bool:
 def map_arrays(point) -> dict:
     """The final grid's score map along the file's axes (coordinates increasing), the axes
     named as the file's, with the frame, units, estimator and what the score is."""
+    from ..io.json_format import INTERNAL
     loc, grid, frame = point.location, point.grid, point.frame
+    if not frame.is_permutation:  # a fitted wall's rotation: the map stays along our axes
+        frame = INTERNAL
     m = np.asarray(frame.matrix)
     score = np.asarray(loc.score_map).transpose(2, 1, 0)  # ours (nz, ny, nx) -> [x, y, z]
     order = [int(np.argmax(np.abs(m[:, i]))) for i in range(3)]  # file axis i: ours order[i]
@@ -59,7 +62,7 @@ def map_arrays(point) -> dict:
     kind = ("log of the joint likelihood (the sum of each detector's log)" if point.log_mode
             else "joint likelihood (the product of each detector's)")
     return {"score": np.ascontiguousarray(score), **dict(zip(frame.axes, coords)),
-            "frame": json.dumps(frame.as_json()), "axes": np.array(frame.axes),
+            "frame": json.dumps(point.frame.as_json()), "axes": np.array(frame.axes),
             "units": "m (axes); score: " + kind.split(" (")[0], "estimator": loc.estimator,
             "score_kind": kind + f", indexed [{', '.join(frame.axes)}]"}
 
@@ -90,7 +93,10 @@ def map_view(arrays, point, entry, hist) -> dict:
     """What the --map figure draws, seen from above: the map's maximum over the height axis
     (relative to its peak, in log), the wall, the spots, the truths and each target with its
     covariance, along the file's lateral and depth axes (ours x and y)."""
+    from ..io.json_format import INTERNAL, entry_internal
     frame = point.frame
+    if not frame.is_permutation:  # the map is along our axes (map_arrays): so is the figure
+        entry, frame = entry_internal(entry, frame), INTERNAL
     m = np.asarray(frame.matrix)
     lat, dep, up = (int(np.argmax(np.abs(m[j]))) for j in range(3))  # file index of ours j
     score = np.asarray(arrays["score"], dtype=np.float64)

@@ -68,7 +68,7 @@ def _entry(frame, tracks, measurements, cframe, smoothed=None, mark=None) -> dic
               (t, t.position, t.velocity, t.position_covariance) for t, s in states]
     entry = {"frame": frame.index, "t_s": frame.t_s,
              "tracks": [{"id": t.id, "status": t.status, "position": vector_json(p, cframe),
-                         "velocity": vector_json(v, cframe),
+                         "velocity": vector_json(v, cframe, direction=True),
                          "covariance": covariance_json(c, cframe)} for t, p, v, c in states],
              "measurements": [vector_json(x.position, cframe) for x in measurements],
              "truths": None if frame.truths is None else

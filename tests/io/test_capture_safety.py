@@ -241,7 +241,7 @@ def ytal_points(points):
      "sensor_grid_xyz: points 1 and 2 are the same spot"),
     ("a sensor 0.3 m off the wall", lambda f: f["sensor_grid_xyz"].__setitem__(
         (), ytal_points([[-0.5, 0, 0], [-1.0, 0.3, 0], [-1.5, 0, 0]])),
-     "sensor_grid_xyz: point 1 (1, 0, 0.3) lies 0.3 m off the relay wall Z = 0"),
+     "sensor_grid_xyz: point 1 (1, 0, 0.3) lies 0.225 m off the relay wall"),
     ("the laser 0.3 m off the wall", lambda f: f["laser_grid_xyz"].__setitem__(
         (), ytal_points([[0, 0.3, 0]])), "laser_grid_xyz: point 0"),
 ])

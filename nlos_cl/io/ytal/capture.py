@@ -3,7 +3,7 @@
 The field-by-field mapping, the frames and the safety rules are in docs/captures.md. In short:
 H is time-first (T_Si, T_Sx_Sy, T_Lx_Ly_Sx_Sy, T_Li_Si), delta_t and t_start are metres of
 optical path, our metadata rides in scene_info['nlos_cl'], and y-tal's frame (wall Z = 0) maps
-to ours by (x, y, z) = (-X, Z, Y). Writes are atomic; reads check truncation, sizes and
+to ours by (x, y, z) = (-X, Z, Y) (a wall elsewhere: a frame fitted to its points, wall.py). Writes are atomic; reads check truncation, sizes and
 geometry. Pairings follow y-tal (pairing.py): one laser point -> one set; paired or confocal
 (one laser point per sensor point) -> one set with a laser spot per histogram; exhaustive
 (T_Lx_Ly_Sx_Sy, T_Li_Si) -> one set per laser point, or with joint=True one paired set.
@@ -79,8 +79,9 @@ def read_capture(path, *, max_bytes: int | None = None, joint: bool = False
 
 def read_capture_with_frame(path, *, max_bytes: int | None = None, joint: bool = False
                             ) -> tuple[list[HistogramSet], CaptureFrame]:
-    """read_capture's sets (internal frame) and the file's own frame, to give and report
-    positions, grids and regions in the file's coordinates."""
+    """read_capture's sets (internal frame) and the file's own frame (YTAL, or the one fitted to
+    a wall that is not Z = 0: wall.capture_frame), to give and report positions, grids and
+    regions in the file's coordinates."""
     import h5py
 
     path = Path(path)
@@ -100,10 +101,10 @@ def read_capture_with_frame(path, *, max_bytes: int | None = None, joint: bool =
                     "nlos_cl.tracking.read_sequence(path)[k] for frame k")
             check_memory(f, path, max_bytes)
             fields = {k: dataset(f, k, path) for k in f.keys() if k != "H"}
-            sets = to_histograms(fields, f["H"], path, joint=joint)
+            sets, frame = to_histograms(fields, f["H"], path, joint=joint, with_frame=True)
     except InputError:
         raise
     except (OSError, RuntimeError, LookupError, ValueError, TypeError, AttributeError,
             OverflowError) as exc:  # h5py on corrupted bytes raises all of these
         raise unreadable(exc, path) from None
-    return sets, YTAL
+    return sets, frame

@@ -14,8 +14,9 @@ from ...core.constants import SPEED_OF_LIGHT
 from ...core.errors import InputError, require
 from ...core.histograms import HistogramSet, PathCalibration, TimeAxis
 from .checks import check_bin, check_wall_scale, flag, our_metadata, unreadable
-from .frames import YTAL, check_wall_spots, from_ytal, to_ytal
+from .frames import check_wall_spots, to_ytal
 from .pairing import check_h_format, plan, read_block
+from .wall import capture_frame, first_and_last_legs, ours_in
 
 H_FORMATS = {"UNKNOWN": 0, "T_Sx_Sy": 1, "T_Lx_Ly_Sx_Sy": 2, "T_Si": 3, "T_Li_Si": 4}
 
@@ -218,9 +219,10 @@ def scalar(value, field, path):
     return x
 
 
-def to_histograms(fields, H, path, joint=False) -> list[HistogramSet]:
-    """H (unread): shapes are checked first, then it is read one HistogramSet at a time (one
-    laser point at a time for exhaustive captures; see pairing.py for y-tal's pairings)."""
+def to_histograms(fields, H, path, joint=False, with_frame=False):
+    """[HistogramSet] (with_frame: and the file's CaptureFrame, wall.capture_frame). H (unread):
+    shapes are checked first, then it is read one HistogramSet at a time (one laser point at a
+    time for exhaustive captures; see pairing.py for y-tal's pairings)."""
     where = f"capture {path}"
     check_h_format(fields["H_format"], H, path)
     h_format = enum_name(fields["H_format"], H_FORMATS, "H_format", path)
@@ -236,9 +238,10 @@ def to_histograms(fields, H, path, joint=False) -> list[HistogramSet]:
     blocks = plan(h_format, H.shape, sensors, lasers, formats, path, joint)
     axis = time_axis(fields, H.shape[0], path)
     sensors, lasers = sensors.reshape(-1, 3), lasers.reshape(-1, 3)
-    spots, laser_points = from_ytal(sensors), from_ytal(lasers)
+    frame = capture_frame(fields, sensors, lasers, path)
+    spots, laser_points = frame.to_internal(sensors), frame.to_internal(lasers)
     paired = blocks[0].paired and not joint  # joint rows: the grids are checked unpaired
-    check_wall_spots(laser_points, spots, YTAL, paired=paired, laser_field="laser_grid_xyz",
+    check_wall_spots(laser_points, spots, frame, paired=paired, laser_field="laser_grid_xyz",
                      spots_field="sensor_grid_xyz", prefix=f"{where}: ")
     legs = first_and_last_legs(fields, sensors, lasers, path)
     ours = our_metadata(fields.get("scene_info"), path) if len(blocks) == 1 else None
@@ -258,8 +261,9 @@ def to_histograms(fields, H, path, joint=False) -> list[HistogramSet]:
                                                                      True, None)
         laser = laser_points[block.lasers] if block.paired else laser_points[block.lasers[0]]
         sets.append(HistogramSet(data, exact[0], spots[block.sensors], laser, exact[1],
-                                 truth=exact[2], allow_negative=exact[3], truths=exact[4]))
-    return sets
+                                 truth=ours_in(frame, exact[2]), allow_negative=exact[3],
+                                 truths=ours_in(frame, exact[4])))
+    return (sets, frame) if with_frame else sets
 
 
 def time_axis(fields, n_t, path) -> TimeAxis:
@@ -277,33 +281,6 @@ def time_axis(fields, n_t, path) -> TimeAxis:
     check_bin(delta_t, path)
     return TimeAxis((t_start - 0.5 * delta_t) / SPEED_OF_LIGHT, delta_t / SPEED_OF_LIGHT,
                     n_t)
-
-
-def first_and_last_legs(fields, sensors, lasers, path):
-    """Per sensor point and per laser point (y-tal frame, flattened), the device legs to
-    remove when t_accounts_first_and_last_bounces is set; zeros otherwise. Device origins
-    stored empty (h5py.Empty, y-tal's None, or a 0-size array) are unknown, not an error,
-    unless these legs need them."""
-    legs = np.zeros(len(sensors)), np.zeros(len(lasers))
-    if not flag(fields["t_accounts_first_and_last_bounces"], "t_accounts_first_and_last_bounces",
-                path):
-        return legs
-    lxyz, sxyz = (origin(fields.get(k)) for k in ("laser_xyz", "sensor_xyz"))
-    require(lxyz is not None and sxyz is not None, f"capture {path}: laser_xyz",
-            "t_accounts_first_and_last_bounces is set but the device positions are missing",
-            "store laser_xyz and sensor_xyz")
-    lxyz, sxyz = (float_array(v, k, path) for v, k in ((lxyz, "laser_xyz"),
-                                                        (sxyz, "sensor_xyz")))
-    for value, key in ((lxyz, "laser_xyz"), (sxyz, "sensor_xyz")):
-        require(value.size == 3, f"capture {path}: {key}", f"has shape {value.shape}, expected "
-                "one (x, y, z) point: the device's position", f"store {key} as 3 numbers")
-    lxyz, sxyz = lxyz.reshape(3), sxyz.reshape(3)
-    return np.linalg.norm(sensors - sxyz, axis=1), np.linalg.norm(lasers - lxyz, axis=1)
-
-
-def origin(value):
-    """A device origin as stored, or None where it is empty (unknown)."""
-    return None if value is None or np.size(value) == 0 else value
 
 
 def restore(ours, axis, calibration, path=""):

@@ -130,7 +130,6 @@ class Sequence:
 
         from ...core.limits import MAX_FRAMES, memory_limit, require_count
         from .fields import REQUIRED, dataset, to_histograms
-        from .frames import YTAL
         try:
             with h5py.File(self.path, "r") as f:
                 missing = [k for k in REQUIRED if k not in f]
@@ -146,7 +145,8 @@ class Sequence:
                         f" GiB, more than the {limit / 2**30:.3g} GiB allowed", "crop the frames")
                 fields = {k: dataset(f, k, self.path) for k in REQUIRED + ("scene_info",)
                           if k in f and k != "H"}
-                for k in ("laser_xyz", "sensor_xyz", "sensor_grid_format", "laser_grid_format"):
+                for k in ("laser_xyz", "sensor_xyz", "sensor_grid_format", "laser_grid_format",
+                          "sensor_grid_normals", "laser_grid_normals"):  # the wall's frame
                     if k in f:
                         fields[k] = dataset(f, k, self.path)
                 self.n_frames = require_count(f"{where}: H", int(H.shape[0]), MAX_FRAMES,
@@ -154,7 +154,7 @@ class Sequence:
                                               "sequences of fewer frames")
                 self.t_s = _frame_times(f, where, self.n_frames)
                 _frame_truths(f, where, self.n_frames)
-                sets = to_histograms(fields, _FrameView(H, 0), self.path)
+                sets, frame = to_histograms(fields, _FrameView(H, 0), self.path, with_frame=True)
                 require(len(sets) == 1, where, f"has {len(sets)} laser points per frame",
                         "write one laser point (or one per histogram: paired) per sequence")
                 require(int(np.prod(H.shape[2:])) == sets[0].n_detectors, f"{where}: H",
@@ -164,7 +164,7 @@ class Sequence:
             raise
         except (OSError, RuntimeError, LookupError, ValueError, TypeError) as exc:
             raise unreadable(exc, self.path, what="sequence") from None
-        self._first, self.frame = sets[0], YTAL
+        self._first, self.frame = sets[0], frame
         self.layout = sets[0].layout
 
     def __len__(self) -> int:
