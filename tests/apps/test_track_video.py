@@ -64,10 +64,14 @@ def test_drawn_map_is_the_locators_joint_map(walk, recorded):
     _, records, lines = recorded
     assert [r[0] for r in records] == list(range(N_FRAMES))
     assert len(lines) == N_FRAMES  # --json still streams a line per frame
+    from nlos_cl.tracking.sequences import sampled_frames
+    from nlos_cl.tracking.static import static_background
     seq, ref = read_sequence(walk), NumpyBackend()
+    learned = static_background(sampled_frames(seq))  # what `track` subtracts by default
     for index, truths, grid, log_mode, scores in records[2::3]:
         assert scores.shape == (grid.shape[1], grid.shape[0]) and not log_mode  # (ny, nx)
         h = seq[index].histograms  # recomputed independently: float64 NumPy twins
+        h = h if learned is None else h.with_data(h.data - learned.data)
         expected = nl.locate(nl.gauss_filter(h, 0.65e-9, backend=ref), grid, return_map=True,
                              backend=ref).score_map
         assert expected.shape == (1,) + scores.shape

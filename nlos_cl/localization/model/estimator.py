@@ -178,6 +178,11 @@ class ModelEstimator:
             from .policy.subset import plate_or_closed
             chosen = plate_or_closed(self, problem, result, free, cov, choice, smooth)
             clock["box"] = time.perf_counter()
+        elif self.targets == "auto" and self.closed is not False:  # or one closed target
+            from .policy.subset import one_closed_instead
+            chosen = one_closed_instead(self, problem, paper.targets[0].position, free, held,
+                                        chosen, smooth)
+            history.append({"targets": 1, "closed_instead": chosen.result is not result})
         return Fitted(problem, chosen, history)
 
     def problem(self, obs, backend):

@@ -129,3 +129,17 @@ def test_a_glossy_target_stays_on_the_device(obs):
     from nlos_cl.physics.reflectance import GGX
     with pytest.raises(ValueError, match="reflectance"):
         HostShapeProblem(obs, box, reflectance=GGX(specular=0.6, roughness=0.3, diffuse=0.2))
+
+
+@pytest.mark.parametrize("shape", (ellipsoid, cylinder), ids=["ellipsoid", "cylinder"])
+def test_a_start_outside_the_bounds_is_scored_inside_them(obs, shape):
+    """policy.closed's rounder starts from a plate fit (depth 0: sqrt(w d) = 0 across) divided
+    by a zero semi-axis ('invalid value encountered in matmul' in `nlos-cl track` on
+    docs/scenes/walk.yaml); starts outside the shape's bounds are not scored."""
+    from nlos_cl.localization.model.policy import starts
+    flat = CLOSED.copy()
+    flat[3:6] = (0.0, 0.7, 0.0)  # no width, no depth
+    with np.errstate(invalid="raise", divide="raise"):
+        chosen = starts.best_starts(HostShapeProblem(obs, shape), np.stack([flat, CLOSED]),
+                                    keep=2)
+    assert len(chosen) == 1 and np.array_equal(chosen[0], CLOSED)

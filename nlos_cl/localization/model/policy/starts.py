@@ -121,6 +121,14 @@ def best_starts(problem, rows, fixed=None, keep=3) -> list[np.ndarray]:
 def _best(problem, rows, fixed, keep):
     fixed_cols = problem.columns(fixed) if fixed is not None and len(fixed) else None
     costs, rows = [], np.asarray(rows, np.float64)
+    lower, upper = problem.shape.LOWER, problem.shape.UPPER
+    if rows.shape[-1:] == np.shape(lower):
+        # starts outside the fit's bounds are not scored: a rounder start from a plate (depth
+        # 0: ellipsoid.rounder_sizes' sqrt(w d) = 0) divided by a zero semi-axis, and its NaN
+        # cost was never chosen (clipping it into the bounds instead changed which starts win:
+        # tests/localization/model/test_model_depth.py's box came back a plate)
+        inside = np.all((rows >= lower) & (rows <= upper), axis=1)
+        rows = rows[inside] if inside.any() else rows
     alone = fixed_cols is None and problem.obs.mode == "gauss"
     for at in range(0, len(rows), SCORE_ROWS):  # (B, D, n) floats: bounded, B <= SCORE_ROWS
         batch = problem.column_batch(rows[at:at + SCORE_ROWS])

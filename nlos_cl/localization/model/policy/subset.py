@@ -141,3 +141,24 @@ def plate_or_closed(est, problem, result, free, cov, choice=None, smooth=None):
     cov_full = covariance(full, refit, free_there)
     cov_full.info.update({k: v for k, v in why.items() if k not in cov_full.info})
     return Chosen(full, refit, free_there, cov_full)
+
+
+def one_closed_instead(est, problem, argmax_position, free, held, several, smooth=None):
+    """targets='auto' fitted a plate more where one plate missed the data; one closed target
+    may explain it with fewer parameters (a box's lit side taken up by a second plate). The
+    one-target fit and its plate_or_closed choice: kept where the shape chosen is closed and
+    explains the data (misfit), else `several` (a Chosen) stands. Costs a one-target fit, only
+    where 'auto' found several targets."""
+    import copy
+    one = copy.copy(est)
+    one.targets = 1
+    result, _, choice = one._fit(problem, argmax_position, free, held, smooth)
+    if result is None:  # decided on a subset (cold_fit): its choice is a Chosen already
+        single = choice.chosen
+    else:
+        cov = covariance(problem, result, free, reuse=result.jacobian is not None)
+        single = plate_or_closed(one, problem, result, free, cov, choice, smooth)
+    if not shape_of(single.problem).CLOSED or misfit(single.problem, single.result,
+                                                     single.free, single.cov.info)[0]:
+        return several
+    return single
