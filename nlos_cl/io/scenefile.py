@@ -276,10 +276,12 @@ def _target(i: int, spec, base: Path, cell: float):
         raise InputError(f"{where}: {exc}") from None
 
 
-def _time_axis(raw, setup):
-    from ..core.paths import TimeAxis, default_time_axis
+def _time_axis(raw, setup, noise=None):
+    from ..core.paths import TimeAxis, default_time_axis, simulation_bin
     raw = _keys("time_axis", raw or {}, {"dt_s", "t0_s", "n_bins", "max_hidden_path_m"})
-    dt = _number("time_axis.dt_s", raw.get("dt_s", 10e-12))
+    tdc = getattr(noise, "tdc_bin_s", None)  # photon counts: bins that sum into the TDC's
+    dt = _number("time_axis.dt_s", raw.get("dt_s", 10e-12 if tdc is None else
+                                           simulation_bin(tdc)))
     if "t0_s" in raw or "n_bins" in raw:
         require("t0_s" in raw and "n_bins" in raw, "time_axis", "t0_s and n_bins go together",
                 "give both, or neither (then the window is derived)")
@@ -330,7 +332,7 @@ def load_scene(source) -> SceneSpec:
     text = raw.get("description", "")
     require(isinstance(text, (str, int, float)), "description", f"expected text, got "
             f"{type(text).__name__}", "write description: a line of text (quote it if it has ':')")
-    return SceneSpec(scene, _time_axis(raw.get("time_axis"), setup), noise, seed,
+    return SceneSpec(scene, _time_axis(raw.get("time_axis"), setup, noise), noise, seed,
                      str(text), tuple(paths))
 
 

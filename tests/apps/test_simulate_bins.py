@@ -19,3 +19,12 @@ def test_a_tdc_bin_of_33_ps_is_simulated_with_no_option(tmp_path):
     out = tmp_path / "c.h5"
     assert cli.main(["simulate", "--photons", "--tdc-ps", "33", "--out", str(out)]) == 0
     assert nl.read_capture(out)[0].time_axis.dt_s == pytest.approx(33e-12)
+
+
+def test_a_scene_file_with_a_33_ps_tdc_and_no_bin_is_simulated(tmp_path):
+    scene = tmp_path / "s.yaml"
+    scene.write_text("targets: [{shape: rectangle, position: [4, 2, 0]}]\n"
+                     "noise: {photons: {tdc_bin_s: 33.0e-12}}\n")
+    out = tmp_path / "c.h5"
+    assert cli.main(["simulate", str(scene), "--out", str(out)]) == 0
+    assert nl.read_capture(out)[0].time_axis.dt_s == pytest.approx(33e-12)
