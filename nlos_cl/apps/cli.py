@@ -174,10 +174,10 @@ def _estimator_args(p):
                    "a covariance (docs/model-estimator.md); paper: the paper's argmax; mean: "
                    "the mean and covariance of the paper's likelihood "
                    "(default: model; paper for paired and confocal captures)")
-    p.add_argument("--targets", type=_targets, default="auto",
-                   help="targets to fit (model estimator): a count, or 'auto' (default: every "
-                   "target the data support, up to 3: a plate more is fitted while one fewer "
-                   "misses the data and the BIC takes it)")
+    p.add_argument("--targets", type=_targets, default=1,
+                   help="targets to fit (model estimator): a count, or 'auto' (every target the "
+                   "data support, up to 3: a plate more is fitted while one fewer misses the "
+                   "data and the BIC takes it)")
     _reflectance_arg(p)
 
 

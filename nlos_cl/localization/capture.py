@@ -255,7 +255,7 @@ def _spread(hist, filtered, h_s, backend):
 
 
 def locate_capture(capture, *, region=None, step_m: float | None = None,
-                   h_s: float | None = None, estimator=None, targets="auto", log_mode=None,
+                   h_s: float | None = None, estimator=None, targets=1, log_mode=None,
                    background=None, negatives: str = "keep", calibration=None,
                    return_map: bool = False, backend=None, frame: CaptureFrame | None = None,
                    names=REGION_NAMES, pulses: int | None = None,
@@ -265,7 +265,7 @@ def locate_capture(capture, *, region=None, step_m: float | None = None,
     capture: a y-tal file's path, or HistogramSet(s) (ours; `frame` says which frame to report
     in, default ours). region: None (derived from the capture), three (low, high) ranges along
     the file's axes at step_m, or a Grid of ours. estimator: 'model' (with `targets` plates, or
-    'auto', the default: every target the data support, up to 3), 'paper', an estimator object, or None: 'model', and the paper's argmax for paired
+    'auto': every target the data support, up to 3), 'paper', an estimator object, or None: 'model', and the paper's argmax for paired
     and confocal captures (estimators.PAIRED_LOCATE_NOTE says why, in the point's warnings). log_mode: None = auto_log_mode(detectors).
     background: a target-free capture (path or sets) subtracted first, bins below 0 handled by
     `negatives`; calibration: a CSV of (path m, peak time s) pairs (Eq. 26), a PathCalibration
