@@ -16,7 +16,7 @@ from ...core.histograms import HistogramSet, PathCalibration, TimeAxis
 from .checks import check_bin, check_wall_scale, flag, our_metadata, unreadable
 from .frames import check_wall_spots, to_ytal
 from .pairing import check_h_format, plan, read_block
-from .wall import capture_frame, first_and_last_legs, ours_in
+from .wall import capture_frame, first_and_last_legs, float_array, ours_in
 
 H_FORMATS = {"UNKNOWN": 0, "T_Sx_Sy": 1, "T_Lx_Ly_Sx_Sy": 2, "T_Si": 3, "T_Li_Si": 4}
 
@@ -196,18 +196,6 @@ def enum_name(value, members, field, path):
             f"value {value!r} is not one of {[k for k in members if k != 'UNKNOWN']}",
             "write a known y-tal enum value")
     return name
-
-
-def float_array(value, field, path, last_dim=3):
-    arr = np.asarray(value)
-    require(np.issubdtype(arr.dtype, np.floating) or np.issubdtype(arr.dtype, np.integer),
-            f"capture {path}: {field}", f"has dtype {arr.dtype}, expected floating point",
-            "store coordinates as float32 metres")
-    require(arr.ndim >= 1 and arr.shape[-1] == last_dim, f"capture {path}: {field}",
-            f"has shape {arr.shape}, expected (..., {last_dim})", "store (x, y, z) rows")
-    require(bool(np.all(np.isfinite(arr))), f"capture {path}: {field}", "contains NaN or inf",
-            "store finite coordinates")
-    return arr.astype(np.float64)
 
 
 def scalar(value, field, path):

@@ -1,6 +1,7 @@
 """The relay wall of a capture whose wall points are not the plane Z = 0 (y-tal's): a plane
 fitted through the laser and sensor points, its front from what the file says, and the
-CaptureFrame that puts it at our y = 0; and the device legs (first_and_last_legs).
+CaptureFrame that puts it at our y = 0; the device legs (first_and_last_legs) and the check of
+stored coordinates (float_array).
 
 - plane: through the points' centroid, normal to the stored wall normals where every laser and
   sensor point is within WALL_TOLERANCE_M of that plane (what the file declares; a least-squares
@@ -194,7 +195,6 @@ def first_and_last_legs(fields, sensors, lasers, path):
     require(lxyz is not None and sxyz is not None, f"capture {path}: laser_xyz",
             "t_accounts_first_and_last_bounces is set but the device positions are missing",
             "store laser_xyz and sensor_xyz")
-    from .fields import float_array  # (fields imports this module)
     lxyz, sxyz = (float_array(v, k, path) for v, k in ((lxyz, "laser_xyz"),
                                                         (sxyz, "sensor_xyz")))
     for value, key in ((lxyz, "laser_xyz"), (sxyz, "sensor_xyz")):
@@ -207,3 +207,15 @@ def first_and_last_legs(fields, sensors, lasers, path):
 def origin(value):
     """A device origin as stored, or None where it is empty (unknown)."""
     return None if value is None or np.size(value) == 0 else value
+
+
+def float_array(value, field, path, last_dim=3):
+    arr = np.asarray(value)
+    require(np.issubdtype(arr.dtype, np.floating) or np.issubdtype(arr.dtype, np.integer),
+            f"capture {path}: {field}", f"has dtype {arr.dtype}, expected floating point",
+            "store coordinates as float32 metres")
+    require(arr.ndim >= 1 and arr.shape[-1] == last_dim, f"capture {path}: {field}",
+            f"has shape {arr.shape}, expected (..., {last_dim})", "store (x, y, z) rows")
+    require(bool(np.all(np.isfinite(arr))), f"capture {path}: {field}", "contains NaN or inf",
+            "store finite coordinates")
+    return arr.astype(np.float64)
