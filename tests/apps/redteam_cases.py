@@ -618,3 +618,8 @@ CASES += [
          lambda b: ["simulate", b.copy("walk.yaml"), "--frames", "2", "--out",
                     R.ours_then_edited(b, "seq.h5", R.measured)]),
 ]
+
+# ---- issue 59: studies and sweeps, by class (cases in redteam_studies.py)
+from redteam_studies import STUDY_CASES  # beside this file; it imports the names above
+
+CASES += STUDY_CASES
