@@ -26,7 +26,7 @@ import numpy as np
 
 from ..core.errors import require
 from ..core.grid import Grid
-from ..core.stats import row_median
+from ..core.stats import median, row_median
 from ..core.histograms import HistogramSet
 from ..io.ytal.frames import require_locatable
 from ..ops.gauss_filter import filter_window
@@ -98,7 +98,7 @@ def signal_reach(sets) -> np.ndarray | None:
         return None
     # a row whose signal is weak (a spot that sees little of the target) must not cut the
     # region for all: no row bounds closer than the median row's reach
-    return np.maximum(reach, float(np.median(reach[np.isfinite(reach)])))
+    return np.maximum(reach, float(median(reach[np.isfinite(reach)])))
 
 
 def _reach_floor(data: np.ndarray):
@@ -112,7 +112,8 @@ def _reach_floor(data: np.ndarray):
     if data.shape[1] > 8:
         steps = np.mean(np.abs(data[:, 4:] - data[:, :-4]), axis=1)[:, None]
         quiet = math.sqrt(math.pi / 2.0) / math.sqrt(2.0) * steps
-        low = np.quantile(data, 0.1, axis=1)[:, None] + 1.2815515655446004 * quiet
+        k = (data.shape[1] - 1) // 10  # the 10 % quantile (np.quantile imports numpy.ma)
+        low = np.partition(data, k, axis=1)[:, k:k + 1] + 1.2815515655446004 * quiet
         floor, sigma = np.minimum(floor, low), np.minimum(sigma, quiet)
     return floor, sigma
 

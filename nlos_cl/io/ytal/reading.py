@@ -176,6 +176,9 @@ class Sequence:
         bad = int(data.size - np.count_nonzero(np.isfinite(data)))
         require(bad == 0, f"sequence {self.path}: H[{k}]", f"{bad} values are NaN or inf",
                 "replace missing bins by 0 before writing")
+        if truths is not None and truths.size:  # stored in YTAL's internal axes (wall.ours_in)
+            from .wall import ours_in
+            truths = ours_in(self.frame, truths.reshape(-1, 3)).reshape(truths.shape)
         truth = None
         if truths is not None and np.all(np.isfinite(truths[0])):
             truth = truths[0]
