@@ -207,7 +207,7 @@ def _track_args(p):
     p.add_argument("--step", type=_number("grid.step", "pass metres, e.g. 0.01", positive=True),
                    default=None, help="grid step (m) with --region")
     p.add_argument("--h-ns", type=H_NS, default=None, help="Gauss filter window h (ns; "
-                   "default: 0.65, or 3 bins where the bins are coarser)")
+                   "default: 0.65, or 2 bins where the bins are coarser)")
     p.add_argument("--background", default=None, metavar="BG.h5|none",
                    help="a target-free capture to subtract, or 'none' (default: the static "
                    "returns learned from frames spread over the sequence)")

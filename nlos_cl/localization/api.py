@@ -26,7 +26,7 @@ from .locator import Locator
 
 def gauss_filter(signals, h_s: float | None = None, *, backend=None) -> Signals:
     """Paper Eq. 24: a Gaussian of sigma = h / 3 over the window [t - h, t + h]; h_s None: the
-    paper's 0.65 ns, or 3 bins where the bins are coarser (ops.gauss_filter.filter_window)."""
+    paper's 0.65 ns, or 2 bins where the bins are coarser (ops.gauss_filter.filter_window)."""
     sig = as_signals(signals, backend)
     return GaussFilter(h_s, sig.layout.time_axis)(sig)
 

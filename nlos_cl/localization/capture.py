@@ -272,7 +272,7 @@ def locate_capture(capture, *, region=None, step_m: float | None = None,
     or a CalibrationFit. return_map: keep each final grid's score map (location.score_map).
     names: how errors and warnings name the region and step_m options (a CLI: its flags).
     h_s: the Gauss filter's window; None: from the direct return's width where the capture has
-    one, else the paper's 0.65 ns or 3 bins, whichever is wider. preprocess: the measured-data steps (measured_processing;
+    one, else the paper's 0.65 ns or 2 bins, whichever is wider. preprocess: the measured-data steps (measured_processing;
     each point's `processing` says what they found); pulses: laser pulses per histogram for
     the pile-up correction (off without it). Warnings (e.g. an unobservable height) are
     collected in each point's `warnings`, not raised.

@@ -22,7 +22,7 @@ def layout_of(value) -> Layout:
 class GaussFilter:
     """The paper's Gauss filter (Eq. 24) for one time axis: a Gaussian of sigma = h / 3 over
     the window [t - h, t + h]. `plan(signals) -> Signals` on the signals' backend. h_s: None
-    (default) follows the bins: the paper's 0.65 ns, or 3 bins where they are coarser
+    (default) follows the bins: the paper's 0.65 ns, or 2 bins where they are coarser
     (ops.gauss_filter.filter_window); `window_s` is the one in use."""
 
     def __init__(self, h_s: float | None = None, time_axis: TimeAxis | None = None, *,

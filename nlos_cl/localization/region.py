@@ -26,7 +26,7 @@ import numpy as np
 
 from ..core.errors import require
 from ..core.grid import Grid
-from ..core.stats import median, row_median
+from ..core.stats import row_median
 from ..core.histograms import HistogramSet
 from ..io.ytal.frames import require_locatable
 from ..ops.gauss_filter import filter_window
@@ -88,34 +88,14 @@ def signal_reach(sets) -> np.ndarray | None:
     reach = None
     for h in sets:
         data = np.asarray(h.data, dtype=np.float64)
-        floor, sigma = _reach_floor(data)
+        floor = row_median(data)[:, None]
+        sigma = 1.4826 * row_median(np.abs(data - floor), overwrite=True)[:, None]
         above = data > floor + SIGNAL_SIGMAS * sigma
         last = np.where(above.any(axis=1), data.shape[1] - np.argmax(above[:, ::-1], axis=1), -1)
         axis = h.path_axis()
         path = np.where(last >= 0, axis.start_m + last * axis.step_m + REACH_MARGIN_M, np.inf)
         reach = path if reach is None else np.maximum(reach, path)
-    if reach is None or not np.isfinite(reach).any():
-        return None
-    # a row whose signal is weak (a spot that sees little of the target) must not cut the
-    # region for all: no row bounds closer than the median row's reach
-    return np.maximum(reach, float(median(reach[np.isfinite(reach)])))
-
-
-def _reach_floor(data: np.ndarray):
-    """Per row (D, 1) a floor and sigma that a return filling the record cannot raise: the
-    lower of the median / MAD and of (the 10 % quantile + 1.28 sigma) / the spread of 4-bin
-    differences (white noise's; detection.RawFloor). Both lower choices can only move the
-    reach outward (a larger region, never one cut before the target: a 1.2 m plate filling a
-    4 ns record was bounded 0.4-0.5 m short)."""
-    floor = row_median(data)[:, None]
-    sigma = 1.4826 * row_median(np.abs(data - floor))[:, None]
-    if data.shape[1] > 8:
-        steps = np.mean(np.abs(data[:, 4:] - data[:, :-4]), axis=1)[:, None]
-        quiet = math.sqrt(math.pi / 2.0) / math.sqrt(2.0) * steps
-        k = (data.shape[1] - 1) // 10  # the 10 % quantile (np.quantile imports numpy.ma)
-        low = np.partition(data, k, axis=1)[:, k:k + 1] + 1.2815515655446004 * quiet
-        floor, sigma = np.minimum(floor, low), np.minimum(sigma, quiet)
-    return floor, sigma
+    return None if reach is None or not np.isfinite(reach).any() else reach
 
 
 def visible_box(histograms: HistogramSet, reach=None) -> tuple[np.ndarray, np.ndarray]:

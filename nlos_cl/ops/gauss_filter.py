@@ -25,11 +25,13 @@ OUTPUTS_PER_ITEM = 32  # two float16 accumulators per work item (gauss_filter.cl
 FFT_MIN_TAPS = 400  # from here a CPU device filters by FFT (measured crossover: ~170-400)
 
 
-# The default window spans at least this many bins each side (sigma one bin): the paper's 0.65 ns
-# is narrower than one bin of a 1 ns TDC (the VL53L1X's bins are 1.33 ns), where it would only
-# rescale the data and was refused; the filter's job, noise averaged over the pulse's scale, then
-# falls to a few bins.
-MIN_WINDOW_BINS = 3
+# The default window spans at least this many bins each side (sigma 2/3 of a bin): the paper's
+# 0.65 ns is narrower than one bin of a 1 ns TDC (the VL53L1X's bins are 1.33 ns), where it
+# would only rescale the data and was refused; the filter's job, noise averaged over the pulse's
+# scale, then falls to a few bins. Not 3: a 250 ps TDC (the consumer-nlos walk) would leave the
+# paper's window for 0.75 ns, and its track split in two; at 1-1.5 ns bins 1-3 bins located
+# alike (median 0.10-0.18 m, 9 draws: the model at coarse bins, not the window, limits them).
+MIN_WINDOW_BINS = 2
 
 
 def filter_window(dt_s: float, h_s: float | None = None) -> float:

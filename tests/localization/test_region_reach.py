@@ -48,21 +48,3 @@ def test_the_answer_does_not_move():
     b = nl.locate_capture(h, estimator="paper", region=whole).points[0].location.position
     assert np.linalg.norm(a - b) < 0.02
 
-
-@pytest.mark.parametrize("width_m, depth_m, n_bins", [(1.2, 0.5, 4000), (0.7, 0.8, 4000),
-                                                      (1.2, 1.5, 5000)])
-def test_a_return_that_fills_the_record_is_not_cut_short(width_m, depth_m, n_bins):
-    """signal_reach's floor from the row's median and MAD rose with a return filling the
-    record (issue 55 item 5). A guard: the returns here are cut by neither floor where they
-    stand 8 sigma above the noise; the new floor reaches 0.1-0.4 m further on their tails."""
-    from test_detection_records import _filling
-    clean = _filling(width_m, depth_m, n_bins)
-    noisy = nl.add_noise(clean, 10.0, seed=1).histograms()
-    reach = signal_reach([noisy])
-    axis = noisy.path_axis()
-    sigma = np.std(noisy.data - clean.data, axis=1)  # the bins' noise, known here
-    # the last bin whose return stands 8 noise sigma above zero: seen by any fair floor
-    seen = [np.nonzero(r > 8 * s)[0] for r, s in zip(clean.data, sigma)]
-    end = np.array([k[-1] if k.size else -1 for k in seen])
-    assert (end >= 0).any()
-    assert np.all((end < 0) | (reach >= axis.start_m + end * axis.step_m)), (reach, end)

@@ -214,7 +214,7 @@ def process_capture(sets: list, backgrounds: list | None, *, negatives: str = "k
     """Every laser point's set processed: (sets, reports, the Gauss filter's h, where h came
     from). h: the caller's where given; else 3 sigma of the direct return's width, pooled over
     the laser points (one instrument); else the filter's default for the bins (the paper's
-    0.65 ns, or 3 bins where they are coarser: ops.gauss_filter.filter_window)."""
+    0.65 ns, or 2 bins where they are coarser: ops.gauss_filter.filter_window)."""
     from ...ops.gauss_filter import filter_window
     backgrounds = [None] * len(sets) if backgrounds is None else backgrounds
     done = [process_measured(h, background=b, negatives=negatives, pulses=pulses,
@@ -226,8 +226,8 @@ def process_capture(sets: list, backgrounds: list | None, *, negatives: str = "k
         h, source = measured, "the direct return: 3 x its FWHM / 2.355 (the paper's sigma = h / 3)"
     else:
         h = filter_window(sets[0].time_axis.dt_s)
-        source = ("the paper's 0.65 ns" if h == PAPER_H_S else "3 bins (the paper's 0.65 ns is "
-                  "under 3 bins)") + " (no direct return to measure the response on)"
+        source = ("the paper's 0.65 ns" if h == PAPER_H_S else "2 bins (the paper's 0.65 ns is "
+                  "under 2 bins)") + " (no direct return to measure the response on)"
     for p in done:
         p.report["instrument_response"].update(h_s=_r(h), h_source=source)
     return [p.histograms for p in done], [p.report for p in done], h, source
