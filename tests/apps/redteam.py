@@ -116,10 +116,13 @@ def error_lines(err: str) -> list[str]:
             and not re.match(r"^\s*\d+%\|", ln)]
 
 
+MAX_CLEAR_CHARS = 600  # the longest clear line in the catalogue is ~420 characters
+
+
 def is_clear(lines: list[str]) -> bool:
     """One line, naming a field (`nlos-cl: FIELD: ...` or argparse's `argument --x:`) and a fix
     (`Fix:`, or argparse's list of choices)."""
-    if len(lines) != 1:
+    if len(lines) != 1 or len(lines[0]) > MAX_CLEAR_CHARS:  # an echoed 100 kB value is vague
         return False
     line = lines[0]
     names_field = re.match(r"^nlos-cl(?: \w+)?: (?:argument )?\S.{0,160}?: \S", line)
