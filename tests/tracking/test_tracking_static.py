@@ -65,10 +65,10 @@ def test_the_background_keeps_what_stays_and_drops_what_moves(share):
     static = np.zeros((2, 200))
     static[:, 50] = 5.0
     frames = []
-    for k in range(12):
+    for k in range(MIN_FRAMES):
         data = static + rng.normal(0, 0.01, static.shape)
-        data[:, 80 + 9 * k] += 3.0  # a mover: another bin every frame
-        if k < share * 12:
+        data[:, 80 + 4 * k] += 3.0  # a mover: another bin every frame
+        if k < share * MIN_FRAMES:
             data[:, 60] += 3.0  # ... and one it comes back to in `share` of the frames
         frames.append(nl.HistogramSet(data, axis, spots, [0, 0, 0],
                                       nl.PathCalibration(nl.SPEED_OF_LIGHT, [0.0, 0.0])))
