@@ -35,16 +35,7 @@ def subtract_background(histograms: HistogramSet, background: HistogramSet, *,
     """
     require(negatives in ("clip", "floor", "keep"), "negatives",
             f"must be 'clip', 'floor' or 'keep', got {negatives!r}", "pick one of the three")
-    require(background.data.shape == histograms.data.shape, "background",
-            f"has shape {background.data.shape}, the signal {histograms.data.shape}",
-            "record the background with the same detectors and time axis")
-    gap = _path_gap(histograms, background)
-    require(gap <= 0, "background.time_axis", f"its bins lie {gap:.3g} m of hidden path away "
-            "from the signal's (beyond the float32 precision of the file format)",
-            "record both with the same TDC settings and calibration")
-    require(bool(np.allclose(background.detector_spots, histograms.detector_spots, rtol=0,
-                             atol=1e-5)),
-            "background.detector_spots", "differ from the signal's", "use the same spots")
+    require_alike(histograms, background)
     require(not np.array_equal(background.data, histograms.data), "background",
             "is the signal itself (equal in every bin), so nothing would be left",
             "pass the capture recorded without the target")
@@ -57,6 +48,26 @@ def subtract_background(histograms: HistogramSet, background: HistogramSet, *,
     elif negatives == "floor":
         diff = np.maximum(diff, floor)
     return replace(histograms, data=diff, allow_negative=True)
+
+
+def require_alike(signal: HistogramSet, background: HistogramSet) -> None:
+    """A background taken as the signal was: the same shape, time axis (hidden path per bin),
+    detector spots and laser spot(s), so the pairing too (issue 59 item 4: `track --background`
+    checked the shape alone, `locate --background` not the laser spots: 5.8 m off)."""
+    require(background.data.shape == signal.data.shape, "background",
+            f"has shape {background.data.shape}, the signal {signal.data.shape}",
+            "record the background with the same detectors and time axis")
+    gap = _path_gap(signal, background)
+    require(gap <= 0, "background.time_axis", f"its bins lie {gap:.3g} m of hidden path away "
+            "from the signal's (beyond the float32 precision of the file format)",
+            "record both with the same TDC settings and calibration")
+    require(bool(np.allclose(background.detector_spots, signal.detector_spots, rtol=0,
+                             atol=1e-5)),
+            "background.detector_spots", "differ from the signal's", "use the same spots")
+    require(background.laser_spots.shape == signal.laser_spots.shape and bool(np.allclose(
+            background.laser_spots, signal.laser_spots, rtol=0, atol=1e-5)),
+            "background.laser_spot", "differs from the signal's (another laser point, or "
+            "another pairing)", "record the background with the same laser point(s)")
 
 
 def _path_gap(signal: HistogramSet, background: HistogramSet) -> float:

@@ -117,6 +117,8 @@ def _remover(background, running_mean, spread, grid, backend, names, say):
     if background is not None:
         if isinstance(background, (str, Path)):
             background = read_capture(background)[0]
+        from ..localization.background import require_alike
+        require_alike(spread[0], background)  # the time axis, spots and laser spots too
         return BackgroundRemover(background, backend=backend)
     if running_mean is not None:
         return BackgroundRemover(alpha=running_mean, backend=backend)
