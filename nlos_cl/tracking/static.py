@@ -20,6 +20,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.histograms import HistogramSet
+from ..core.stats import row_median
+from ..localization.detection import MAD_TO_SIGMA
 
 MIN_FRAMES = 24  # fewer frames: a slow mover fills some bins in nearly all of them (a 12-frame
 # walk of a 1.6 m plate: its learned "static" return made the fits 30x slower)
@@ -27,7 +29,7 @@ QUANTILE = 0.1
 QUANTILE_Z = 1.2815515655446004  # -Phi^-1(QUANTILE): Gaussian noise's offset there
 SPREAD_QUANTILE = 0.75  # a bin is static where QUANTILE..SPREAD_QUANTILE spans the noise alone:
 SPREAD_Z = 1.9560  # Phi^-1(0.75) - Phi^-1(0.1) sigma, plus 8 / sqrt(frames) for the quantiles' error
-BUDGET_BYTES = 512 * 2 ** 20  # the frames stacked for the median (float64)
+BUDGET_BYTES = 512 * 2 ** 20  # the frames stacked for the quantiles (float64)
 
 
 def static_background(frames: list) -> HistogramSet | None:
@@ -43,7 +45,7 @@ def static_background(frames: list) -> HistogramSet | None:
     # per row, sigma from frame-to-frame differences at each bin (static returns cancel, a
     # mover adds to a minority of them): the MAD of differences / sqrt 2
     steps = np.abs(np.diff(stack, axis=0)).transpose(1, 0, 2).reshape(stack.shape[1], -1)
-    sigma = 1.4826 * np.median(steps, axis=1) / np.sqrt(2.0)
+    sigma = MAD_TO_SIGMA * row_median(steps, overwrite=True) / np.sqrt(2.0)
     low, upper = np.quantile(stack, [QUANTILE, SPREAD_QUANTILE], axis=0)
     # static where the bin holds the same return in (nearly) every frame: its spread between
     # the two quantiles is the noise's (1.95 sigma), not a mover's that comes and goes (a slow
