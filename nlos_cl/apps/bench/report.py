@@ -25,13 +25,20 @@ def _peers(r) -> str:
     return "; ".join(f"{k} {v * 1e3:.1f} ms ({v / r.kernel_s:.0f}x)" for k, v in r.peers.items())
 
 
+def _num(v, fmt: str, unit: str = "") -> str:
+    """`v` formatted, or "-" where it was not measured (None or NaN: no twin, no probe)."""
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "-"
+    return format(v, fmt) + unit
+
+
 def _fmt_row(r) -> str:
     frac = "-" if math.isnan(r.fraction) else (f"{100 * r.fraction:.0f} % "
                                               f"(probe +-{100 * r.limit_spread:.0f} %)")
     return (f"| {r.case} | {r.size} | {r.kernel_s * 1e3:.2f} | {100 * r.spread:.0f} % | "
-            f"{r.twin_s * 1e3:.1f} | {r.ratio:.1f}x | {r.build_s:.2f} | "
-            f"{r.throughput:.3g} {r.unit}/s | {frac} | {r.bound} | {r.peak_host_mb:.0f} | "
-            f"{_peers(r) or '-'} | {r.note} |")
+            f"{_num(r.twin_s * 1e3, '.1f')} | {_num(r.ratio, '.1f', 'x')} | {r.build_s:.2f} | "
+            f"{r.throughput:.3g} {r.unit}/s | {frac} | {r.bound} | "
+            f"{_num(r.peak_host_mb, '.0f')} | {_peers(r) or '-'} | {r.note} |")
 
 
 def table(rows) -> str:
@@ -79,10 +86,8 @@ def pf_peer_section(path: Path = PF_PEER_JSON) -> str:
     except (OSError, ValueError, KeyError):
         return ""
 
-    def num(v, fmt):
-        return "-" if v is None or (isinstance(v, float) and math.isnan(v)) else format(v, fmt)
-
-    lines = [f"## Peer tracker: the consumer-nlos authors' particle filter (issue 23)\n",
+    num = _num
+    lines = ["## Peer tracker: the consumer-nlos authors' particle filter\n",
              f"`scripts/pf_peer.sh` ({data.get('date', '?')}, {data.get('cpu', '?')}, "
              f"{data.get('threads', '?')} threads; its own venv: PyTorch on the CPU) ran the "
              "authors' `tracking.py` (1,000 particles) and then `nlos-cl track` on the same "

@@ -4,8 +4,8 @@ per frame, timed interleaved in one run (each repeat runs every case once, in tu
 - functional: nl.gauss_filter + nl.locate per frame (each builds its plan);
 - plans: GaussFilter + Locator built once;
 - tracker: nlos_cl.tracking.Tracker.update from the host frame to track states (upload,
-  filter, locate, Kalman), with the paper's estimator and with the model-based one (issue 12's
-  goals: >= 500 and >= 30 frames/s; issue 23 raised the model tracker's to 100); the model
+  filter, locate, Kalman), with the paper's estimator and with the model-based one (targets:
+  >= 500 and >= 100 frames/s, the model tracker's on the paper's scene, warm); the model
   tracker warm-starts each frame's fit from its confirmed track (nlos_cl.tracking.warm), and a
   second row, warm_start=False, fits every frame from its data alone (the rate before warm
   starts, measured in the same run).
@@ -13,9 +13,9 @@ per frame, timed interleaved in one run (each repeat runs every case once, in tu
 The model trackers run fewer frames per repeat; their twin column is empty. One more row,
 `crossing_row`: two targets crossing (crossing draw 1 of `reproduce draws`: 8 spots, a 3-D
 region), tracked once as `nlos-cl track --targets 2` tracks it; its frames are a sequence, so
-not repeated: the median over its frames after the first (issue 23's goal: >= 20 frames/s).
+not repeated: the median over its frames after the first (target: >= 20 frames/s).
 And `cold_row`: one frame located in-process from its data alone, against the paper's argmax
-on the same frames (issue 23's goal: <= 20 ms and <= 15x the argmax).
+on the same frames (target: <= 20 ms and <= 15x the argmax).
 """
 from __future__ import annotations
 
@@ -29,8 +29,9 @@ import nlos_cl as nl
 
 from ...ops.backend import NumpyBackend
 from ...simulation.stream import stream_frames
+from .harness import target
 
-# frames/s: issue 12's (500 and 30), the model tracker's raised by issue 23 (warm, paper's scene)
+# frames/s the trackers should reach on the paper's scene (the model tracker warm-started)
 GOALS = {"tracker, paper estimator": 500.0, "tracker, model estimator": 100.0}
 
 
@@ -66,7 +67,7 @@ def _cases(rt, clean, frames, grid, smoke):
                                      twin_tracker("paper")),
         "tracker, model estimator": (lambda i: model.update(frames[i % k]), 4 if smoke else 40,
                                      None),
-        # the same fits with the plates on the device (ops/plate_model.py): issue 23 item 1
+        # the same fits with the plates on the device (ops/plate_model.py)
         "tracker, model estimator, model_on='kernel'": (lambda i: kernel.update(frames[i % k]),
                                                         4 if smoke else 40, None),
         "tracker, model estimator, warm_start=False": (lambda i: cold.update(frames[i % k]),
@@ -107,9 +108,8 @@ def stream_rows(rt, smoke, Row):
             twin(1)
             twin_s = time.perf_counter() - start
         goal = GOALS.get(label)
-        note = "per frame; twin: one frame" + (
-            f"; goal >= {goal:.0f} frames/s: {'met' if 1 / med >= goal else 'NOT met'}"
-            if goal else "")
+        note = "per frame" + ("; twin: one frame" if twin is not None else "") + (
+            "; " + target(f">= {goal:.0f} frames/s", 1 / med >= goal) if goal else "")
         rows.append(Row("stream", f"{label}: {n} frames x {repeats} repeats, 3 x 4096 bins, "
                         f"{size}x{size} cells", n, med, twin_s, 0.0, 1 / med, "frames",
                         math.nan, "-", 0.0, (max(times[label]) - min(times[label])) / med,
@@ -117,8 +117,8 @@ def stream_rows(rt, smoke, Row):
     return rows
 
 
-# Issue 23's first goal: the model estimate of the paper's scene <= 20 ms a frame in-process,
-# and <= 15x the paper's argmax on the same frames
+# Target: the model estimate of the paper's scene <= 20 ms a frame in-process, and <= 15x the
+# paper's argmax on the same frames
 COLD_GOAL_S, COLD_GOAL_RATIO = 0.020, 15.0
 
 
@@ -156,9 +156,9 @@ def cold_row(rt, smoke, Row):
                (q3 - q1) / med,
                note=f"median frame; spread: IQR / median; the paper's argmax on the same "
                f"frames {1e3 * med_paper:.2f} ms ({med / med_paper:.0f}x); frames whose fit "
-               f"tried the closed shapes: {len(closed)} of {len(pairs)}; goal (issue 23) <= "
-               f"{1e3 * COLD_GOAL_S:.0f} ms and <= {COLD_GOAL_RATIO:.0f}x the argmax: "
-               f"{'met' if met else 'NOT met'}")
+               f"tried the closed shapes: {len(closed)} of {len(pairs)}; "
+               + target(f"<= {1e3 * COLD_GOAL_S:.0f} ms and <= {COLD_GOAL_RATIO:.0f}x the "
+                        "argmax", met))
 
 
 CROSSING_DRAW = 1  # of `reproduce draws --only crossings` (master seed 2201): ids and RMS met
@@ -185,5 +185,5 @@ def crossing_row(rt, smoke, Row):
     return Row("stream", f"tracker, two targets crossing (crossing draw {CROSSING_DRAW}: 8 spots, "
                f"{len(times) + 1} frames, a 3-D region)", len(times), med, math.nan,
                out["setup_s"], 1 / med, "frames", math.nan, "-", 0.0, (q3 - q1) / med,
-               note="median frame after the first; spread: IQR / median; goal (issue 23) "
-               f">= 20 frames/s: {'met' if 1 / med >= 20 else 'NOT met'}")
+               note="median frame after the first; spread: IQR / median; "
+               + target(">= 20 frames/s", 1 / med >= 20))
