@@ -15,9 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..io.json_format import covariance_in, covariance_json, rounded, vector_json
-from ..localization.estimate import Capabilities, Estimate, LocatedTarget
-from ..localization.paper import PaperArgmax
-from ..localization.posterior import PosteriorMean
+from ..localization.posterior import ArgmaxSpread
 
 MANY_HISTOGRAMS = 256  # the paired model fit's cost: seconds below, minutes at 4,096
 
@@ -46,7 +44,7 @@ def map_arrays(point) -> dict:
     """The final grid's score map along the file's axes (coordinates increasing), the axes
     named as the file's, with the frame, units, estimator and what the score is."""
     from ..io.json_format import INTERNAL
-    loc, grid, frame = point.location, point.grid, point.frame
+    loc, grid, frame = point.internal, point.grid, point.frame
     if not frame.is_permutation:  # a fitted wall's rotation: the map stays along our axes
         frame = INTERNAL
     m = np.asarray(frame.matrix)
@@ -230,7 +228,7 @@ def target_json(t, frame, truth, grid) -> dict:
 def targets_json(point, truths) -> dict:
     """The point's targets, each matched to its own truth; `truth` and `error_m` the first
     target's (against its nearest truth where none was assigned to it)."""
-    loc, frame = point.location, point.frame
+    loc, frame = point.internal, point.frame
     if not loc.targets:
         return {"truths": None if truths is None else [vector_json(t, frame) for t in truths]}
     assigned = matched([t.position for t in loc.targets], truths)
@@ -269,31 +267,6 @@ def text_lines(r, frame) -> str:
             line += f"; truth {t['truth']}, error {t['error_m']:.4f} m"
         lines.append(line)
     return "\n".join(lines)
-
-
-class ArgmaxSpread:
-    """The paper's argmax (its answer unchanged) with a covariance: the paper likelihood's
-    second moment about the argmax over the region (posterior.PosteriorMean's mean and
-    covariance C, plus d d^T for the argmax's offset d from that mean), so a paired or confocal
-    answer carries an uncertainty too. Its name stays 'paper'."""
-
-    name = "paper"
-    capabilities = Capabilities(from_paper=True, paired=True)
-
-    def __init__(self):
-        self._mean = PosteriorMean()
-
-    def estimate(self, scored, prior=None):
-        paper = scored.paper if scored.paper is not None else PaperArgmax().estimate(scored)
-        target = self._mean.estimate(replace(scored, paper=paper)).targets[0]
-        if target.covariance is None:  # no cell above zero: the argmax alone
-            return paper
-        argmax = paper.targets[0].position
-        d = np.asarray(argmax) - target.position
-        spread = LocatedTarget(argmax, covariance=target.covariance + np.outer(d, d),
-                               details={"covariance": "the paper likelihood's spread about "
-                                        "the argmax"})
-        return Estimate([spread], paper.cell_position, paper.score)
 
 
 def _paired_note(n: int):

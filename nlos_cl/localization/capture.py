@@ -29,6 +29,7 @@ from .api import gauss_filter, locate
 from .estimate import Location, capabilities_of
 from .estimators import choose_estimator
 from .paper import PaperArgmax
+from .posterior import ArgmaxSpread
 from .region import default_region, on_region_edge, region_step, zoom_region
 
 REGION_NAMES = ("region", "step_m")  # how errors name the region options (a CLI: its flags)
@@ -64,12 +65,14 @@ def search_region(histograms: HistogramSet, frame: CaptureFrame = INTERNAL, regi
 
 @dataclass(frozen=True)
 class PointLocation:
-    """One laser point's answer. `location` and the grids are in our frame; `position`,
-    `positions` and `covariances` in the capture's (`frame`)."""
+    """One laser point's answer, in the capture's frame (`frame`): `location` (positions,
+    covariances, truth), `position`, `positions`, `covariances`. `internal` is the same answer
+    in ours, as the estimators gave it; `laser_spot` and the grids are ours too (`frame.ranges`
+    gives a grid along the file's axes)."""
 
     laser_point: int
     laser_spot: np.ndarray  # ours
-    location: Location
+    internal: Location  # ours
     grid: Grid  # the final search grid (the zoom, where the region was coarsened)
     region: Grid  # the search region
     log_mode: bool
@@ -78,18 +81,23 @@ class PointLocation:
     processing: dict | None = None  # what measured-data processing found and did, per step
 
     @property
+    def location(self) -> Location:
+        """The answer in the capture's frame (Location.in_frame: no score map there)."""
+        return self.internal.in_frame(self.frame)
+
+    @property
     def position(self) -> np.ndarray:
-        return self.frame.from_internal(self.location.position)
+        return self.frame.from_internal(self.internal.position)
 
     @property
     def positions(self) -> list:
         """Every target's position, best first (file frame)."""
-        return [self.frame.from_internal(t.position) for t in self.location.targets]
+        return [self.frame.from_internal(t.position) for t in self.internal.targets]
 
     @property
     def covariances(self) -> list:
         """Every target's covariance (file frame, m^2; None where the estimator gives none)."""
-        return [covariance_in(t.covariance, self.frame) for t in self.location.targets]
+        return [covariance_in(t.covariance, self.frame) for t in self.internal.targets]
 
     @property
     def zoomed(self) -> bool:
@@ -98,11 +106,11 @@ class PointLocation:
     @property
     def on_edge(self) -> bool:
         """The answer lies on the region's edge: the target may be outside it."""
-        return on_region_edge(self.location.position, self.region)
+        return on_region_edge(self.internal.position, self.region)
 
     def as_json(self) -> dict:
         """The CLI's per-laser-point object (file frame)."""
-        loc, frame = self.location, self.frame
+        loc, frame = self.internal, self.frame
         targets = [{"position": vector_json(t.position, frame),
                     "covariance": covariance_json(t.covariance, frame),
                     "extent_m": None if t.extent_m is None else rounded(t.extent_m)}
@@ -225,7 +233,7 @@ def _locate_point(i, hist, frame, region, derived, *, h_s, estimator, log_mode, 
     if hist.paired and not capabilities_of(estimator).paired:
         notes.append(f"the {estimator.name} estimator fits layouts with one laser spot, and this "
                      "capture gives each histogram its own: located with the paper's argmax")
-        estimator = PaperArgmax()
+        estimator = ArgmaxSpread()
     with pywarnings.catch_warnings(record=True) as caught:
         pywarnings.simplefilter("always")
         loc = locate(filtered, grid, log_mode=log_mode, estimator=estimator, raw=raw,
@@ -269,7 +277,7 @@ def locate_capture(capture, *, region=None, step_m: float | None = None,
     and confocal captures (estimators.PAIRED_LOCATE_NOTE says why, in the point's warnings). log_mode: None = auto_log_mode(detectors).
     background: a target-free capture (path or sets) subtracted first, bins below 0 handled by
     `negatives`; calibration: a CSV of (path m, peak time s) pairs (Eq. 26), a PathCalibration
-    or a CalibrationFit. return_map: keep each final grid's score map (location.score_map).
+    or a CalibrationFit. return_map: keep each final grid's score map (internal.score_map).
     names: how errors and warnings name the region and step_m options (a CLI: its flags).
     h_s: the Gauss filter's window; None: from the direct return's width where the capture has
     one, else the paper's 0.65 ns or 2 bins, whichever is wider. preprocess: the measured-data steps (measured_processing;
@@ -294,6 +302,8 @@ def locate_capture(capture, *, region=None, step_m: float | None = None,
         grid, derived = search_region(hist, frame, region, step_m, h_s, names=names)
         point_est, note = (choose_estimator(None, targets=targets, paired=True)
                            if estimator is None and hist.paired else (est, None))
+        if isinstance(estimator, str | None) and isinstance(point_est, PaperArgmax):
+            point_est = ArgmaxSpread()  # the paper's answer, with its likelihood's spread
         points.append(_locate_point(i, hist, frame, grid, derived, h_s=h_s,
                                     estimator=point_est, log_mode=log_mode,
                                     return_map=bool(return_map), backend=backend, names=names,

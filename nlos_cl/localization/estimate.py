@@ -43,7 +43,9 @@ class Estimate:
 
 @dataclass(frozen=True)
 class Location:
-    """Where the target is: `position` (m, our frame) is the first of `targets`."""
+    """Where the target is: `position` (m) is the first of `targets`. Positions, covariances,
+    truth and cell are in the frame named by `frame` ("nlos_cl", ours, as every estimator gives
+    them; a file's, after `in_frame`); `grid` is the search's, always ours."""
 
     position: np.ndarray  # (3,) metres
     cell_position: np.ndarray  # centre of the best cell
@@ -56,6 +58,25 @@ class Location:
     # localization.detection.Detection, where the Locator tested the frame for any target
     # signal; with `detected` False, `targets` is empty and `position` the argmax of noise
     detection: Any = None
+    frame: str = "nlos_cl"  # the frame of every coordinate above but `grid` (CaptureFrame.name)
+
+    def in_frame(self, frame) -> "Location":
+        """This location (ours) with its coordinates in `frame` (a CaptureFrame): positions,
+        covariances, truth and best cell; the score map (along our grid) is left out, and each
+        target's `fit` / `details` stay the estimator's record (ours). The identity frame
+        returns it unchanged."""
+        from ..io.json_format import covariance_in
+        if self.frame != "nlos_cl":
+            raise ValueError(f"in_frame: this location is already in the {self.frame} frame")
+        if np.array_equal(np.asarray(frame.matrix), np.eye(3)) and not any(frame.origin):
+            return self
+        from dataclasses import replace
+        targets = [replace(t, position=frame.from_internal(t.position),
+                           covariance=covariance_in(t.covariance, frame)) for t in self.targets]
+        return replace(self, position=frame.from_internal(self.position),
+                       cell_position=frame.from_internal(self.cell_position),
+                       truth=None if self.truth is None else frame.from_internal(self.truth),
+                       score_map=None, targets=targets, frame=frame.name)
 
     @classmethod
     def of(cls, estimate: Estimate, grid: Grid, truth, score_map, estimator: str,

@@ -1,5 +1,6 @@
 """The paper's joint likelihood read as a posterior over the search region: its mean and
-covariance (estimator 'mean').
+covariance (estimator 'mean'), and the argmax with the likelihood's spread about it as its
+covariance (`ArgmaxSpread`: what locate_capture's 'paper' answers carry).
 
 The paper's estimate is the likelihood's argmax. Where the likelihood is broad and flat-topped
 (few detectors, coarse bins: the consumer sensor's 16 zones of 250 ps bins, whose likelihood
@@ -25,6 +26,8 @@ On the walk every 2nd cell alone gave means 0.5 mm from every cell's (median; 90
 LOG_SPAN below the maximum weigh under e^-LOG_SPAN and are skipped.
 """
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 
@@ -137,3 +140,28 @@ def likelihood_moments(scores: np.ndarray, grid: Grid, log_mode: bool):
     cov = np.array([[px @ dx ** 2, cxy, cxz], [cxy, py @ dy ** 2, cyz], [cxz, cyz, pz @ dz ** 2]])
     cov += np.diag(np.where(np.asarray(grid.shape) > 1, st ** 2 / 12, 0.0))
     return mean, cov
+
+
+class ArgmaxSpread:
+    """The paper's argmax (its answer unchanged) with a covariance: the paper likelihood's
+    second moment about the argmax over the region (posterior.PosteriorMean's mean and
+    covariance C, plus d d^T for the argmax's offset d from that mean), so a paired or confocal
+    answer carries an uncertainty too. Its name stays 'paper'."""
+
+    name = "paper"
+    capabilities = Capabilities(from_paper=True, paired=True)
+
+    def __init__(self):
+        self._mean = PosteriorMean()
+
+    def estimate(self, scored, prior=None):
+        paper = scored.paper if scored.paper is not None else PaperArgmax().estimate(scored)
+        target = self._mean.estimate(replace(scored, paper=paper)).targets[0]
+        if target.covariance is None:  # no cell above zero: the argmax alone
+            return paper
+        argmax = paper.targets[0].position
+        d = np.asarray(argmax) - target.position
+        spread = LocatedTarget(argmax, covariance=target.covariance + np.outer(d, d),
+                               details={"covariance": "the paper likelihood's spread about "
+                                        "the argmax"})
+        return Estimate([spread], paper.cell_position, paper.score)

@@ -43,15 +43,21 @@ def test_positions_are_given_in_the_file_frame_and_in_ours(capture, hist):
     found = nl.locate_capture(capture)
     (point,) = found.points
     assert found.frame.name == "ytal" and found.source == str(capture)
-    np.testing.assert_allclose(point.location.position, TRUTH, atol=0.01)
-    np.testing.assert_allclose(point.position, YTAL.from_internal(point.location.position))
+    np.testing.assert_allclose(point.internal.position, TRUTH, atol=0.01)
+    np.testing.assert_allclose(point.position, YTAL.from_internal(point.internal.position))
     np.testing.assert_allclose(found.position, [-4.0, 0.0, 2.0], atol=0.01)
-    ours, cov = point.location.covariance, point.covariances[0]  # file (X, Y, Z) = (-x, z, y)
+    # the public Location is the file's too: no internal coordinate leaves without a conversion
+    assert point.location.frame == "ytal" and point.internal.frame == "nlos_cl"
+    np.testing.assert_allclose(point.location.position, point.position)
+    np.testing.assert_allclose(point.location.targets[0].position, point.positions[0])
+    np.testing.assert_array_equal(point.location.covariance, point.covariances[0])
+    np.testing.assert_allclose(point.location.truth, YTAL.from_internal(TRUTH))
+    ours, cov = point.internal.covariance, point.covariances[0]  # file (X, Y, Z) = (-x, z, y)
     assert np.isinf(ours[2, 2]) and np.isinf(cov[1, 1])  # the unobservable height
     assert cov[0, 0] == ours[0, 0] and cov[2, 2] == ours[1, 1] and cov[0, 2] == -ours[0, 1]
     assert point.as_json()["targets"][0]["covariance"] == covariance_json(
-        point.location.covariance, YTAL)
-    assert any("height (z) is unobservable" in w for w in point.warnings)
+        point.internal.covariance, YTAL)
+    assert any("height (up the wall) is unobservable" in w for w in point.warnings)
     assert not point.zoomed and not point.on_edge and point.log_mode is False
     sets = nl.locate_capture(hist, estimator="paper")  # already read: our frame
     assert sets.frame is INTERNAL and sets.source is None
@@ -82,7 +88,7 @@ def test_a_coarsened_region_is_refined_on_a_zoom(capture):
     """A narrower filter asks for a finer step than 4 million cells allow: coarse, then zoom."""
     point = nl.locate_capture(capture, h_s=0.1e-9, estimator="paper").points[0]
     assert point.zoomed and min(point.grid.step) < min(point.region.step)
-    np.testing.assert_allclose(point.location.position, TRUTH, atol=0.05)
+    np.testing.assert_allclose(point.internal.position, TRUTH, atol=0.05)
 
 
 def test_an_edge_answer_warns_in_the_callers_words(capture):

@@ -110,6 +110,14 @@ def test_paired_captures_default_to_the_papers_argmax_and_say_so(runtime):
         point = nl.locate_capture(h, region=GRID).points[0]
     assert point.location.estimator == "paper"
     assert any("located with the paper's argmax by default" in w for w in point.warnings)
+    # the library's default answer carries the paper likelihood's spread as its uncertainty
+    # (it had none), whose trace is a few cells' squared width, not zero or unbounded
+    cov = point.covariances[0]
+    assert cov is not None and np.all(np.isfinite(np.diag(cov))) and np.all(np.diag(cov) > 0)
+    assert np.trace(cov) < 1.0
+    paper = nl.locate_capture(h, region=GRID, estimator="paper").points[0]
+    np.testing.assert_array_equal(paper.position, point.position)
+    assert paper.covariances[0] is not None
 
 
 class _OneLaserOnly(nl.PaperArgmax):

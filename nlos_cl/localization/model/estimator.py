@@ -32,15 +32,17 @@ from .shapes.shape import MODELS, name_of
 from .solve.covariance import centre_covariance, covariance
 from .solve.records import Chosen, Fitted
 
-HEIGHT_WARNING = ("height (z) is unobservable with collinear wall spots (rotating the target "
-                  "about their line changes no path): z is held at {v:.3f} m; use spots off "
-                  "one line to measure it")
+# Frame-free words: an answer is reported in the capture's frame, where height is Y (y-tal's)
+# and ours z; the held axis shows as "unobservable" in the answer's own axes.
+HEIGHT_WARNING = ("height (up the wall) is unobservable with collinear wall spots (rotating the "
+                  "target about their line changes no path): it is held at the search "
+                  "region's middle height; use spots off one line to measure it")
 # spots on a vertical line: the azimuth about it is unseen, and x is held as z is for a line
 # along x (random one-target draws on vertical lines: p90 0.32 m from the paper's argmax,
 # which the fit had fallen back to)
-X_WARNING = ("x is unobservable with wall spots on a vertical line (rotating the target "
-             "about their line changes no path): x is held at {v:.3f} m; use spots off one "
-             "line to measure it")
+X_WARNING = ("the position across a vertical line of wall spots is unobservable (rotating the "
+             "target about their line changes no path): it is held at the search region's "
+             "middle; use spots off one line to measure it")
 HELD_WARNINGS = {2: HEIGHT_WARNING, 0: X_WARNING}
 # model_on="auto": plate fits with up to this many detectors evaluate the model on the host
 # (model.batch, a Jacobian's plates in one call), larger ones with the forward op on

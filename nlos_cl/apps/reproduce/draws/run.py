@@ -18,7 +18,8 @@ from ..common import Settings
 # Said for every collinear layout whatever the answer (z, or x for a vertical line, is held on
 # the spots' plane, where the draws put the truth): not a sign that this answer is off, so
 # not counted as a warning.
-INFORMATIONAL = ("height (z) is unobservable", "x is unobservable")
+INFORMATIONAL = ("height (up the wall) is unobservable",
+                 "the position across a vertical line of wall spots is unobservable")
 # Said where the spots cannot tell how deep one target is (model.depth): a warning about a
 # closed object's centre, which says nothing about a plate's, whose centre is its surface's.
 DEPTH_UNSEEN = ("the spots see only the front of target", "the depth of target")
