@@ -113,9 +113,6 @@ def main(args) -> int:
         print(json.dumps(_finite(results[0].summary)) if args.name == "beyond"
               else rp.summary_json(results))
     else:
-        for r in results:
-            print(f"{r.name}: {r.title} ({r.seconds:.1f} s) -> {args.out}/{r.name}.csv "
-                  + " ".join(r.figures))
-            print("  " + json.dumps(r.summary)[:600])
-        print(f"wall time {wall:.1f} s")
+        from .reproduce.report import summary_text
+        print(summary_text(results, Path(args.out), wall))
     return 0

@@ -1,9 +1,10 @@
 """The report (docs/results/paper/paper-results.md): every experiment's numbers from this run, the
-paper's beside them, the settings, and the remarks (text.yaml) on where and why they differ; and the
-JSON summary that `--json` prints."""
+paper's beside them, the settings, and the remarks (text.yaml) on where and why they differ; the
+JSON summary that `--json` prints; and the aligned table `nlos-cl reproduce` prints."""
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import nlos_cl as nl
@@ -118,3 +119,72 @@ def write_report(results, s: Settings, path: Path, out: Path, wall_s: float,
         parts.append("")
     from ...io.safe_write import write_text
     write_text(path, "\n".join(parts), what="--doc", force=force)
+
+
+# ----------------------------------------------------------------------------- the terminal
+
+def _cell(value) -> str:
+    """A table cell as a reader wants it: '-' where nothing was measured (NaN, None), floats
+    to 4 significant digits, markdown emphasis dropped."""
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return "-"
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    text = str(value).replace("**", "")
+    return "-" if text.strip().lower() == "nan" else text
+
+
+def _markdown_tables(text: str) -> list[list[list[str]]]:
+    """Every markdown table of `text`, as rows of cells (the separator line left out)."""
+    tables, rows = [], []
+    for line in text.splitlines() + [""]:
+        if line.startswith("|"):
+            if not set(line) <= set("|-: "):
+                rows.append([_cell(c.strip()) for c in line.strip()[1:-1].split("|")])
+        elif rows:
+            tables.append(rows)
+            rows = []
+    return tables
+
+
+def _dict_rows(dicts, limit: int = 40) -> list[list[str]]:
+    """Dicts (a result's rows or checks) as a header row and one row each (the first `limit`)."""
+    columns = list(dict.fromkeys(k for d in dicts for k in d
+                                 if not isinstance(d[k], (dict, list))))
+    return [[("check" if c == "goal" else c) for c in columns]] + [
+        [_cell(d.get(c, "")) for c in columns] for d in dicts[:limit]]
+
+
+def aligned(rows: list[list[str]], indent: str = "  ") -> str:
+    """Rows of cells (the first the header) as plain text in aligned columns."""
+    width = max(map(len, rows))
+    rows = [r + [""] * (width - len(r)) for r in rows]
+    widths = [max(len(r[i]) for r in rows) for i in range(width)]
+    lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in rows]
+    lines.insert(1, "  ".join("-" * w for w in widths))
+    return "\n".join(indent + line for line in lines)
+
+
+def headline_tables(r: Result) -> list[list[list[str]]]:
+    """What the terminal shows of one experiment: the paper's numbers beside ours (the paper's
+    experiments), the targets checked (beyond, draws), the page's first table per section
+    (flood, tracking), else the result's rows."""
+    if r.name in SECTIONS:
+        return _markdown_tables(_section(r))
+    if r.summary.get("goals"):
+        return [_dict_rows(r.summary["goals"])]
+    pages = r.summary.get("markdown")
+    pages = pages.values() if isinstance(pages, dict) else [pages] if pages else []
+    tables = [t[0] for t in map(_markdown_tables, pages) if t]
+    return tables or ([_dict_rows(r.rows)] if r.rows else [])
+
+
+def summary_text(results, out: Path, wall_s: float) -> str:
+    """`nlos-cl reproduce`'s summary: per experiment its title, time, files and table."""
+    parts = []
+    for r in results:
+        files = ", ".join([f"{r.name}.csv", *r.figures])
+        parts.append(f"{r.name}: {r.title} ({r.seconds:.1f} s); files in {out}: {files}")
+        parts += [aligned(t) for t in headline_tables(r)]
+        parts.append("")
+    return "\n".join(parts + [f"wall time {wall_s:.1f} s"])

@@ -1,6 +1,6 @@
 """The report of `reproduce beyond` (docs/results/beyond/beyond-the-paper.md): per-case statistics
-of both estimators, the model's 95 % region coverage, issue 11's goals checked against this run, and
-remarks computed from the numbers. Prose templates and goals are in text.yaml."""
+of both estimators, the model's 95 % region coverage, the targets checked against this run, and
+remarks computed from the numbers. Prose templates and targets are in text.yaml."""
 from __future__ import annotations
 
 import math
@@ -83,7 +83,7 @@ def coverage_rows(entries) -> list[dict]:
 
 
 def goal_rows(summary, entries) -> list[dict]:
-    """Issue 11's goals (text.yaml), each checked on the worst matching case of this run."""
+    """The targets (text.yaml's goals), each checked on the worst matching case of this run."""
     out = []
     for g in TEXT["goals"]:
         rows = [r for r in summary if r["section"] == g["section"]
@@ -164,7 +164,7 @@ def write_beyond_report(result, s: Settings, path: Path, out: Path, wall_s: floa
                                      step_cm=s.grid_step_m * 100, h_ns=s.h_s * 1e9,
                                      dt_ps=s.dt_s * 1e12), "", TEXT["intro"], "",
              "## " + TEXT["titles"]["goals"], "", TEXT["goals_intro"], "",
-             _table(["goal", "measured (worst case)", "met"],
+             _table(["check", "measured (worst case)", "met"],
                     [(g["goal"], g["measured"], g["met"]) for g in summ["goals"]]), "",
              "## " + TEXT["titles"]["cases"], "", TEXT["cases_intro"], "",
              cases_table(summ["summary"]), "", *[f"![{p}]({fig_dir / p})" for p in result.figures],

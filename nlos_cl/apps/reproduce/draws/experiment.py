@@ -1,10 +1,10 @@
-"""`nlos-cl reproduce draws`: evaluation by random draws, not chosen cases (issue 22). Each
+"""`nlos-cl reproduce draws`: evaluation by random draws, not chosen cases. Each
 family (simulation/draws/draws.yaml: one, multi, closed, mismatch, crossings, counts) draws its
 scenes at random (simulation.draws.families: a pure function of family, index and master seed),
 simulates each with nlos_cl's forward model, adds noise, and locates it with the paper's argmax
 and with the library's default estimator (run); crossings are sequences of two targets whose
-paths cross, tracked as `nlos-cl track` tracks them (cross_run). The tables and the issue's
-goals come from the rows alone (report; cross_report for crossings).
+paths cross, tracked as `nlos-cl track` tracks them (cross_run). The tables and the
+targets checked come from the rows alone (report; cross_report for crossings).
 
 Writes OUT/draws.csv (every row, by `reproduce.run`), OUT/draws-summary.csv and OUT/draws.md
 (with --doc, that page there instead: docs/results/draws/draws.md). Not part of `reproduce all`;
@@ -157,7 +157,7 @@ def page(rows, summ, cfg, s: Settings, options: str, seconds: float, seed: int) 
                 f"(log-uniform), TDC bins {c['tdc_ps'][0]}-{c['tdc_ps'][1]} ps, jitter 30 ps; "
                 "its row's 'counting' column holds these, its SNR is not used; both "
                 "estimators read the counts as counts (Poisson).")
-    sections = [header, how, "## Goals (issue 22)",
+    sections = [header, how, "## Targets, checked on this run",
                 report.goal_table(report.goals(summ) + cross.goals(summ))]
     if located:
         sections += ["## Per family and estimator",

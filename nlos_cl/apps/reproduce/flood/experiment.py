@@ -1,4 +1,4 @@
-"""`nlos-cl reproduce flood`: the flood study (issue 21 item 4), how far nlos_cl's confocal
+"""`nlos-cl reproduce flood`: the flood study: how far nlos_cl's confocal
 reading of a consumer multizone sensor's captures moves a location, measured on simulations of
 that sensor (study says what is simulated, flood.yaml every number; report writes the page).
 

@@ -1,4 +1,4 @@
-"""The confocal approximation of a multizone sensor, measured (issue 21, item 4).
+"""The confocal approximation of a multizone sensor, measured.
 
 A consumer multizone ToF sensor (the ST VL53L8 of the consumer-nlos walk,
 io/datasets/consumer_nlos.py) floods its whole field of view with one diffused pulse; each
