@@ -194,24 +194,44 @@ def sweep_figure(rows, key, xlabel, title, out: Path, name: str,
 
 
 def grid_errors_figure(rows, errors, summary, out: Path, name: str) -> str:
-    """The 5 x 5 grid: per method, the mean error per position (top) and the histogram of
-    every error (bottom). rows: dicts with x, y, <method>_mean_m; errors: {method: [m]}."""
+    """The 5 x 5 grid (grid_errors_axes), saved as out/name.png."""
+    return save(grid_errors_axes(rows, errors, summary), out, name)
+
+
+def grid_errors_axes(rows, errors, summary):
+    """The 5 x 5 grid: per method, the mean error per position (top; one logarithmic colour
+    scale and one colorbar for every method, so that the panels compare; each cell's error
+    written in cm) and the histogram of every error (bottom). rows: dicts with x, y,
+    <method>_mean_m; errors: {method: [m]}. Returns the figure."""
+    from matplotlib.colors import LogNorm
     plt = pyplot()
-    fig, axes = plt.subplots(2, len(errors), figsize=(4 * len(errors), 7), layout="constrained")
+    fig, axes = plt.subplots(2, len(errors), figsize=(4 * len(errors) + 1, 7), layout="constrained",
+                             squeeze=False)
     ys = sorted({r["y"] for r in rows})
+    maps = {m: np.array([[r[f"{m}_mean_m"] for r in rows if r["y"] == y] for y in ys], float)
+            for m in errors}
+    finite = np.concatenate([e[np.isfinite(e) & (e > 0)] for e in maps.values()])
+    norm = LogNorm(*(finite.min(), finite.max()) if finite.size else (1e-3, 1.0))
     for col, m in enumerate(errors):
-        emap = np.array([[r[f"{m}_mean_m"] for r in rows if r["y"] == y] for y in ys])
-        im = axes[0, col].imshow(emap, origin="lower", extent=(0.5, 5.5, 0.5, 5.5), cmap="viridis")
-        axes[0, col].set_title(f"{m}: error per position (m)", fontsize=9)
-        axes[0, col].set_xlabel("x (m)")
-        axes[0, col].set_ylabel("y (m)")
-        fig.colorbar(im, ax=axes[0, col], label="error (m)")
+        ax = axes[0, col]
+        im = ax.imshow(maps[m], origin="lower", extent=(0.5, 5.5, 0.5, 5.5), cmap="viridis",
+                       norm=norm)
+        for (i, j), e in np.ndenumerate(maps[m]):
+            ax.text(j + 1, i + 1, f"{e * 100:.1f}", ha="center", va="center", fontsize=7,
+                    color="white" if norm(e) < 0.6 else "black")
+        ax.set_title(f"{m}: mean error per position (cm)", fontsize=9)
+        ax.set_xlabel("x (m)")
+        ax.set_ylabel("y (m)")
         axes[1, col].hist(errors[m], bins=20, color="C0")
         axes[1, col].set_title(f"{m}: mean {summary[m]['mean_m']:.4f} m, std "
                                f"{summary[m]['std_m']:.4f} m", fontsize=9)
         axes[1, col].set_xlabel("error (m)")
         axes[1, col].set_ylabel("count")
-    return save(fig, out, name)
+    bar = fig.colorbar(im, ax=list(axes[0]), label="mean error (m), one scale for all")
+    ticks = [t for t in (0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1, 2) if norm.vmin <= t <= norm.vmax]
+    bar.set_ticks(ticks, labels=[f"{t:g}" for t in ticks])
+    bar.ax.minorticks_off()
+    return fig
 
 
 # ----------------------------------------------------------------------------- the benchmark

@@ -105,26 +105,57 @@ def _map_axes(study: Study, data: dict):
 
 
 def error_map(data: dict, xcol: str, ycol: str, path: Path, force: bool = False):
-    """Mean error per (x, y) cell over everything else, one panel per estimator."""
+    """Mean error per (x, y) cell over everything else (error_map_figure), saved at `path`."""
+    return _save(error_map_figure(data, xcol, ycol), path, force)
+
+
+def error_map_figure(data: dict, xcol: str, ycol: str):
+    """Mean error per (x, y) cell over everything else, one panel per estimator, every panel
+    on one colour scale with one colorbar (so that their colours compare; logarithmic, as the
+    estimators' errors differ by orders of magnitude)."""
     import matplotlib.pyplot as plt
     estimators = list(dict.fromkeys(data["estimator"]))
-    fig, panels = plt.subplots(1, len(estimators), figsize=(4.4 * len(estimators), 3.8),
-                               squeeze=False)
+    fig, panels = plt.subplots(1, len(estimators), figsize=(4.4 * len(estimators) + 1, 3.8),
+                               squeeze=False, layout="constrained")
     x, y = data[xcol].astype(float), data[ycol].astype(float)
-    for ax, est in zip(panels[0], estimators):
+    means = {}
+    for est in estimators:
         pick = data["estimator"] == est
         cells = sorted(set(zip(x[pick], y[pick])))
-        mean = [data["error_m"][pick & (x == cx) & (y == cy)].astype(float).mean()
-                for cx, cy in cells]
+        means[est] = (cells, [data["error_m"][pick & (x == cx) & (y == cy)].astype(float).mean()
+                              for cx, cy in cells])
+    norm = _log_norm(np.concatenate([m for _, m in means.values()]))
+    for ax, est in zip(panels[0], estimators):
+        cells, mean = means[est]
         cx, cy = np.asarray(cells).T
-        art = ax.scatter(cx, cy, c=mean, s=260, marker="s", cmap="viridis")
+        art = ax.scatter(cx, cy, c=np.maximum(mean, norm.vmin), s=260, marker="s",
+                         cmap="viridis", norm=norm)
         for a, b, m in zip(cx, cy, mean):
             ax.annotate(f"{m * 100:.1f}", (a, b), ha="center", va="center", fontsize=6,
-                        color="white")
-        fig.colorbar(art, ax=ax, label="mean error (m)")
+                        color="white" if norm(m) < 0.6 else "black")
         ax.set_title(f"{est}: mean error (cm in cells)", fontsize=9)
-        ax.set_xlabel(xcol)
-        ax.set_ylabel(ycol)
+        ax.set_xlabel(_axis_label(xcol))
+        ax.set_ylabel(_axis_label(ycol))
         ax.set_aspect("equal", adjustable="datalim")
-    fig.tight_layout()
-    return _save(fig, path, force)
+    bar = fig.colorbar(art, ax=list(panels[0]), label="mean error (m), one scale for all")
+    ticks = [t for t in (0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1, 2, 5)
+             if norm.vmin <= t <= norm.vmax]
+    bar.set_ticks(ticks, labels=[f"{t:g}" for t in ticks])
+    bar.ax.minorticks_off()
+    return fig
+
+
+def _axis_label(column: str) -> str:
+    """'truth_x_m' -> 'true x (m)'; a study's own axis name as it is."""
+    if column.startswith("truth_") and column.endswith("_m"):
+        return f"true {column[6:-2]} (m)"
+    return column
+
+
+def _log_norm(errors):
+    """One logarithmic colour scale over every panel's errors (a zero error is drawn at the
+    smallest positive one)."""
+    from matplotlib.colors import LogNorm
+    positive = errors[np.isfinite(errors) & (errors > 0)]
+    low, high = (positive.min(), positive.max()) if positive.size else (1e-3, 1.0)
+    return LogNorm(float(low), float(max(high, low * 1.01)))
