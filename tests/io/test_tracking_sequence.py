@@ -94,7 +94,7 @@ def test_interrupted_write_keeps_the_old_file(tmp_path):
         write_sequence(path, broken())
     assert path.read_bytes() == before
     # no temporary file left (the manifest holds the first write's SHA-256: issue 59)
-    assert sorted(os.listdir(tmp_path)) == [".nlos_cl-written.json", "seq.h5"]
+    assert sorted(os.listdir(tmp_path)) == ["files-written-by-nlos_cl.json", "seq.h5"]
 
 
 def test_bad_frames_are_refused(tmp_path):
