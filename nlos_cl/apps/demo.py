@@ -87,10 +87,12 @@ def run(args) -> int:
     (scene, sim, noisy, filtered, paper, model), cold, notes = _run_once(args, backend, grid)
     warm = _run_once(args, backend, grid)[1]  # programs built, buffers pooled: steady state
     if args.png:
+        from .demo_figure import demo_figure
         from .plotting import write_figure
-        from .plotting import demo_figure
+        answer = model if args.estimator == "model" else paper  # what the text heads with
         write_figure(args.png, lambda fh: demo_figure(noisy.histograms(), filtered.histograms(),
-                                                      paper, fh), what="--png", force=args.force)
+                                                      paper, fh, answer), what="--png",
+                     force=args.force)
     estimates = _estimates(paper, model, warm)
     chosen = estimates[args.estimator]
     result = {

@@ -1,5 +1,6 @@
-"""Every figure of nlos_cl: the demo figure, the paper's experiments (signals, probability
-maps, sweeps, the 5 x 5 grid) and the benchmark's performance figure.
+"""The figures of nlos_cl: `locate --map`'s, the paper's experiments (signals, probability
+maps, sweeps, the 5 x 5 grid), `reproduce beyond`'s and the benchmark's performance figure
+(the demo's: demo_figure, drawn with this module's helpers).
 
 matplotlib is imported inside the functions (Agg backend), so importing this module costs
 nothing; nothing in the library imports it at import time."""
@@ -8,8 +9,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-
-from ..core.constants import TINY
 
 DETECTOR_NAMES = "ABCDEFGHIJKLMNOPQRSTUVWXYZ"
 
@@ -35,62 +34,6 @@ def signal_window(y, t, frac=0.02) -> slice:
     idx = np.nonzero(y > frac * y.max())[0]
     pad = max((idx[-1] - idx[0]) // 2, 20)
     return slice(max(idx[0] - pad, 0), min(idx[-1] + pad, len(t)))
-
-
-# ----------------------------------------------------------------------------- the demo
-
-def _demo_signal_panel(ax, raw, filtered, path, d):
-    support = np.nonzero(np.abs(filtered.data[d]) > 0.02 * np.abs(filtered.data[d]).max())[0]
-    lo, hi = (support[0], support[-1]) if support.size else (0, raw.data.shape[1] - 1)
-    pad = max((hi - lo) // 2, 10)
-    sl = slice(max(lo - pad, 0), min(hi + pad, raw.data.shape[1]))
-    ax.plot(path[d, sl], raw.data[d, sl] * 1e15, lw=0.6, color="0.6", label="raw + noise")
-    ax.plot(path[d, sl], filtered.data[d, sl] * 1e15, lw=1.5, color="C3", label="Gauss filtered")
-    ax.set_xlabel("hidden path r1 + r2 (m)")
-    ax.set_ylabel("power (fW)")
-    ax.set_title(f"detector {DETECTOR_NAMES[d % 26]} at x = {raw.detector_spots[d, 0]:.2f} m")
-    ax.legend(loc="upper right", fontsize=8)
-
-
-def _demo_map_panel(ax, location, score, limits, title):
-    grid = location.grid
-    x, y, _ = grid.axes()
-    image = ax.imshow(score, origin="lower", aspect="equal", cmap="magma",
-                      extent=(x[0] - grid.step[0] / 2, x[-1] + grid.step[0] / 2,
-                              y[0] - grid.step[1] / 2, y[-1] + grid.step[1] / 2))
-    ax.set_xlim(*limits[:2])
-    ax.set_ylim(*limits[2:])
-    if location.truth is not None:
-        ax.plot(*location.truth[:2], "o", mfc="none", mec="cyan", ms=12, mew=2, label="truth")
-    ax.plot(*location.position[:2], "x", color="lime", ms=12, mew=2.5, label="located")
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("y (m), distance from the wall")
-    ax.set_title(title)
-    ax.legend(loc="upper right", fontsize=8)
-    return image
-
-
-def demo_figure(raw, filtered, location, path_png):
-    """Raw and filtered signals per detector, and the joint probability map (whole and zoomed)."""
-    plt = pyplot()
-    n_det = raw.n_detectors
-    fig = plt.figure(figsize=(4 * max(n_det, 3), 8.5), layout="constrained")
-    grid_spec = fig.add_gridspec(2, max(n_det, 3))
-    path = raw.hidden_path_axis()
-    for d in range(n_det):
-        _demo_signal_panel(fig.add_subplot(grid_spec[0, d]), raw, filtered, path, d)
-    x, y, _ = location.grid.axes()
-    score = location.score_map[0] / max(location.score_map.max(), TINY)
-    centre = location.truth if location.truth is not None else location.position
-    views = ((grid_spec[1, :-1], (x[0], x[-1], y[0], y[-1]), "joint probability, plane z = 0"),
-             (grid_spec[1, -1], (centre[0] - 0.3, centre[0] + 0.3, centre[1] - 0.3,
-                                 centre[1] + 0.3), "zoom: +-0.3 m around the truth"))
-    for spec, limits, title in views:
-        ax = fig.add_subplot(spec)
-        image = _demo_map_panel(ax, location, score, limits, title)
-    fig.colorbar(image, ax=ax, label="joint likelihood (normalised)")
-    fig.savefig(path_png, dpi=110)
-    plt.close(fig)
 
 
 def _ellipse(ax, centre, cov, **style):

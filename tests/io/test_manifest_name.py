@@ -7,8 +7,13 @@ import os
 import pytest
 
 from nlos_cl.core.errors import InputError
-from nlos_cl.io.safe_write import (MANIFEST, OLD_MANIFEST, require_writable, write_text,
-                                   written_by_nlos_cl)
+from nlos_cl.io.safe_write import (
+    MANIFEST,
+    OLD_MANIFEST,
+    require_writable,
+    write_text,
+    written_by_nlos_cl,
+)
 
 
 def test_the_record_is_visible_and_named_for_what_it_lists(tmp_path):
