@@ -14,7 +14,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 PATH = re.compile(r"(?<![\w./-])((?:nlos_cl|tests|scripts|kernels)/[\w./-]*[\w/])")
-DOTTED = re.compile(r"(?<![\w.])(nlos_cl(?:\.[A-Za-z_]\w*)+)")
+DOTTED = re.compile(r"(?<![\w./-])(nlos_cl(?:\.[A-Za-z_]\w*)+)")
 # named as files to create, not files that exist
 EXAMPLES = {"nlos_cl/localization/centroid.py": "docs/architecture.md's house tour: the file a "
                                                 "new estimator adds"}
@@ -62,6 +62,11 @@ def test_every_dotted_module_named_exists():
     ("scripts/old.py", "(since deleted)", False), ("nlos_cl/physics/", "", False)])
 def test_the_path_check_can_fail(name, line, gone):
     assert missing_path(name, line) is gone
+
+
+def test_a_file_name_is_no_dotted_name():
+    assert not DOTTED.findall("its `files-written-by-nlos_cl.json`, docs/nlos_cl.md")
+    assert DOTTED.findall("(nlos_cl.io.safe_write: atomic)") == ["nlos_cl.io.safe_write"]
 
 
 def test_the_dotted_check_can_fail():
