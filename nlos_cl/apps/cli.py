@@ -192,6 +192,8 @@ def _reflectance_arg(p):
 def _track_args(p):
     p.add_argument("file", help="a sequence (or capture) .h5 file: docs/tracking.md")
     p.add_argument("--video", default=None, help="write an animation (.gif, or .mp4 with ffmpeg)")
+    p.add_argument("--csv", default=None, metavar="FILE.csv", help="write every frame's tracks, "
+                   "measurements and truths as a table (the file's axes, ± 1 sd)")
     p.add_argument("--estimator", choices=ESTIMATOR_CHOICES, metavar="NAME", default=None,
                    help="per-frame estimator (model: centre and covariance, warm-started from "
                    "the tracks; paper: the argmax, faster; mean: the mean and covariance of "
@@ -232,13 +234,14 @@ def _track_args(p):
                    "followed, only a box holding the tracks' gates, where that is cheaper: the "
                    "region's own scores; docs/tracking.md)")
     p.add_argument("--smooth", action="store_true",
-                   help="offline: with --json, print every frame's tracks smoothed with the "
-                        "later frames (Rauch-Tung-Striebel), after the last frame")
+                   help="offline: print every frame's tracks smoothed with the later frames "
+                        "(Rauch-Tung-Striebel), after the last frame")
     p.add_argument("--lag", type=_number("lag", "pass a number of frames, e.g. 5", minimum=0,
                                          integer=True), default=0, metavar="L",
-                   help="real time with a latency: with --json, each frame's line L frames "
-                        "later, fixed-lag smoothed with them")
-    p.add_argument("--force", action="store_true", help="replace an existing --video file")
+                   help="real time with a latency: each frame's line L frames later, "
+                        "fixed-lag smoothed with them")
+    p.add_argument("--force", action="store_true", help="replace an existing --video or --csv "
+                   "file nlos_cl did not write")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 

@@ -86,6 +86,15 @@ def simulate(args) -> int:
                                    "targets": truths, "noise": noise, "seed": spec.seed},
                          force=args.force)
     print(f"wrote {path}: {hist.n_detectors} detectors x {hist.time_axis.n_bins} bins of "
-          f"{hist.time_axis.dt_s * 1e12:g} ps, {len(truths)} target(s) at {truths} "
-          f"(nlos_cl's frame), noise: {noise}")
+          f"{hist.time_axis.dt_s * 1e12:g} ps, {len(truths)} target(s) at "
+          f"{in_capture_frame(truths)}, noise: {noise}")
     return 0
+
+
+def in_capture_frame(points) -> str:
+    """Scene points (the scene file's x, y, z) as the capture file and every command reading it
+    gives them: y-tal's X, Y, Z."""
+    from ..io.ytal.frames import YTAL
+    file = [[round(float(v), 4) + 0.0 for v in YTAL.from_internal(p)] for p in points]
+    return (f"(X, Y, Z) = {file} m in the capture's y-tal frame (the scene file's x, y, z "
+            "as X = -x, Y = z, Z = y)")

@@ -1,14 +1,16 @@
-"""`nlos-cl track SEQUENCE.h5 [--json] [--video out.gif|mp4]`: follow hidden targets through a
-sequence file (a plain y-tal capture is one frame), with the library's track_sequence
-(nlos_cl/tracking/sequences.py).
+"""`nlos-cl track SEQUENCE.h5 [--json] [--csv FILE.csv] [--video out.gif|mp4]`: follow hidden
+targets through a sequence file (a plain y-tal capture is one frame), with the library's
+track_sequence (nlos_cl/tracking/sequences.py).
 
 Frames are read one at a time; each goes through (background removal) -> Gauss filter ->
-locate -> Kalman tracker (nlos_cl.tracking.Tracker). Positions, velocities and covariances are
-reported in the file's own frame (as `nlos-cl locate`): `--json` prints one object per frame,
-{"frame", "t_s", "tracks": [{"id", "status", "position", "velocity", "covariance"}],
-"measurements": [positions]}. A progress bar goes to stderr. `--video` writes an animation
-of the joint map with the tracks while tracking (nlos_cl/apps/track_video.py).
-`--smooth` (offline): the JSON lines come after the last frame, each track's position, velocity
+locate -> Kalman tracker (nlos_cl.tracking.Tracker). Everything is in the file's own frame (as
+`nlos-cl locate`): each frame prints a line per track (position ± 1 sd per axis), or with
+`--json` one object {"frame", "t_s", "tracks": [{"id", "status", "position", "velocity",
+"covariance"}], "measurements": [positions], "truths", "detected"}; `--csv` keeps the same as a
+table (apps/track_output.py). A progress bar goes to stderr. `--video` writes an animation of
+the joint map with the tracks while tracking (apps/track_video.py). Exit status 3 (as locate's)
+where no frame held target signal.
+`--smooth` (offline): the lines come after the last frame, each track's position, velocity
 and covariance smoothed with the frames after it as well (Rauch-Tung-Striebel, Tracker.smooth),
 with "smoothed": true; the video and the summary stay causal (the filter's). `--lag L` (real
 time with a latency): frame k's line is printed after frame k + L, with each track's fixed-lag
@@ -17,14 +19,17 @@ get theirs at the end, from the frames there are (lag_frames L - 1, ..., 0).
 
 A sequence of ONE confocal spot (Keyhole's scans, as `nlos-cl convert` writes them) cannot place
 a target, only its range from the spot: it is tracked as a range (nlos_cl.tracking.ranges,
-`_range_main`), one JSON object per frame {"frame", "t_s", "range_m", "range_sd_m",
-"range_speed_m_s", "measured_range_m"} (with --smooth, smoothed and "smoothed": true), the
-options that place targets refused with a one-line reason.
+`_range_main`), one line per frame ({"frame", "t_s", "range_m", "range_sd_m",
+"range_speed_m_s", "measured_range_m", "detected"} with --json; null where a frame has no
+return: the filter coasts), with --smooth smoothed and "smoothed": true, the options that place
+targets refused with a one-line reason.
 """
 from __future__ import annotations
 
-import json
+import math
 import sys
+
+from .locate import NO_TARGET_STATUS
 
 
 def _h_s(args) -> float | None:
@@ -72,19 +77,21 @@ def _entry(frame, tracks, measurements, cframe, smoothed=None, mark=None) -> dic
                          "covariance": covariance_json(c, cframe)} for t, p, v, c in states],
              "measurements": [vector_json(x.position, cframe) for x in measurements],
              "truths": None if frame.truths is None else
-             [vector_json(p, cframe) for p in frame.truths]}
+             [vector_json(p, cframe) for p in frame.truths],
+             "detected": bool(measurements)}
     entry.update(mark or {})
     return entry
 
 
 def main(args) -> int:
     from ..ops.backend import resolve_backend
-    from ..io.safe_write import atomic_write
     from ..io.ytal.reading import read_sequence
     from ..core.errors import require
-    require(not (args.lag and (args.smooth or not args.json)), "--lag", "prints fixed-lag "
-            "lines with --json, and --smooth already uses every later frame",
-            "pass --json --lag N without --smooth")
+    require(not (args.lag and args.smooth), "--lag", "prints fixed-lag lines, and --smooth "
+            "already uses every later frame", "pass --lag N without --smooth")
+    if args.csv:
+        from .track_output import check_csv_path
+        check_csv_path(args)
     seq = read_sequence(args.file)
     backend = resolve_backend(args.device)
     from ..localization.ranges import is_single_confocal
@@ -96,29 +103,55 @@ def main(args) -> int:
     from ..tracking.sequences import track_sequence
     run = track_sequence(seq, max_frames=args.max_frames, progress=not args.no_progress,
                          **tracker_options(args, backend))
-    tracker, kept = run.tracker, []
-    if args.video:
-        from .track_video import Video
-
-        def write(tmp):  # the whole run writes the temporary: moved in only when complete
-            with Video(args.video, tmp, tracker) as video:
-                kept.extend(_loop(args, run, video))
-        # the same rule as check_video_path, applied again now that the video is complete
-        atomic_write(args.video, write, force=args.force, what="--video", kind="a video")
-    else:
-        kept = _loop(args, run, None)
-    if kept:
-        smoothed = {(tid, s.frame): s for tid, points in tracker.smooth().items()
-                    for s in points}
-        for frame, tracks, measurements in kept:
-            print(json.dumps(_entry(frame, tracks, measurements, seq.frame, smoothed,
-                                    {"smoothed": True})))
+    detected = _written(args, seq.frame, lambda video, out: _loop(args, run, video, out),
+                        video_of=args.video and (lambda path, tmp: _video(path, tmp, run)))
     if not args.json:
-        for t in tracker.tracks:
+        for t in run.tracker.tracks:
             where = [round(float(v), 3) for v in seq.frame.from_internal(t.position)]
             print(f"track {t.id} ({t.status}): at {where} m in the file's frame "
                   f"({seq.frame.name}), {len(t.history)} frames")
-    return 0
+    return _status(detected, len(run))
+
+
+def _status(detected: int, frames: int) -> int:
+    """0, or 3 (as `nlos-cl locate`) where no frame held target signal."""
+    if detected:
+        return 0
+    print(f"nlos-cl: no target signal in any of the {frames} frames", file=sys.stderr)
+    return NO_TARGET_STATUS
+
+
+def _written(args, frame, body, video_of=None, ranges: bool = False):
+    """body(video, outputs) inside the temporaries of --video (video_of(path, tmp): the Video)
+    and --csv (a range track's columns with `ranges`): each file is moved in only when the
+    whole run is complete (an interrupted run leaves no partial file). Returns body's value."""
+    from ..io.safe_write import atomic_write
+    from .track_output import Outputs
+    done = []
+
+    def with_csv(video):
+        if not args.csv:
+            return body(video, Outputs(args.json, frame.axes, ranges=ranges))
+
+        def write(tmp):
+            with open(tmp, "w", newline="") as fh:
+                done.append(body(video, Outputs(args.json, frame.axes, fh, ranges)))
+        atomic_write(args.csv, write, force=args.force, what="--csv", kind="a track table")
+        return done[-1]
+    if not video_of:
+        return with_csv(None)
+
+    def write(tmp):
+        with video_of(args.video, tmp) as video:
+            done.append(with_csv(video))
+    # the same rule as check_video_path, applied again now that the video is complete
+    atomic_write(args.video, write, force=args.force, what="--video", kind="a video")
+    return done[-1]
+
+
+def _video(path, tmp, run):
+    from .track_video import Video
+    return Video(path, tmp, run.tracker, run.sequence.frame)
 
 
 # what places targets, which one confocal spot cannot do: (flag, set?) for `_range_main`
@@ -132,7 +165,8 @@ RANGE_REFUSED = (("--video", lambda a: a.video), ("--estimator", lambda a: a.est
 
 def _range_main(args, seq, backend) -> int:
     """One confocal spot: the range per frame (localization.ranges), tracked by
-    tracking.ranges with --motion's models; JSON lines with --json, else a summary."""
+    tracking.ranges with --motion's models; a line per frame (JSON with --json; --csv rows),
+    and a summary in text; exit 3 where no frame holds a return."""
     from ..core.errors import require
     from ..tracking.ranges import track_frames
     from tqdm import tqdm
@@ -144,48 +178,74 @@ def _range_main(args, seq, backend) -> int:
                   file=sys.stderr, disable=args.no_progress)
     points, sigma = track_frames(frames, h_s=_h_s(args), motion=motion_model(args),
                                  smooth=args.smooth, backend=backend)
-    if args.json:
+    if not points:  # no frame with a return: each frame says so
+        points = [_no_range(k, f.t_s) for k, f in enumerate(seq.frames(0, stop))]
+
+    def emit(video, out):
         for p in points:
-            entry = {"frame": p.frame, "t_s": p.t_s, "range_m": p.range_m,
-                     "range_sd_m": p.range_sd_m, "range_speed_m_s": p.speed_m_s,
-                     "measured_range_m": p.measured_m}
-            print(json.dumps(entry | ({"smoothed": True} if args.smooth else {})))
-        return 0
-    spot = [round(float(v), 3) for v in seq.frame.from_internal(seq[0].histograms.laser_spots[0])]
-    last = points[-1]
-    print(f"range track of the confocal spot at {spot} m in the file's frame "
-          f"({seq.frame.name}): {len(points)} frames, last range {last.range_m:.4f} m "
-          f"(sd {last.range_sd_m:.4f}), measurement sd {sigma:.4f} m")
-    return 0
+            entry = {"frame": p.frame, "t_s": p.t_s, "range_m": _number(p.range_m),
+                     "range_sd_m": _number(p.range_sd_m),
+                     "range_speed_m_s": _number(p.speed_m_s),
+                     "measured_range_m": _number(p.measured_m),
+                     "detected": math.isfinite(p.measured_m)}
+            out.range(entry | ({"smoothed": True} if args.smooth else {}))
+        return sum(math.isfinite(p.measured_m) for p in points)
+    detected = _written(args, seq.frame, emit, ranges=True)
+    if not args.json and detected:
+        spot = [round(float(v), 3)
+                for v in seq.frame.from_internal(seq[0].histograms.laser_spots[0])]
+        last = next(p for p in reversed(points) if math.isfinite(p.range_m))
+        print(f"range track of the confocal spot at {spot} m in the file's frame "
+              f"({seq.frame.name}): {len(points)} frames, {detected} with a return, last "
+              f"range {last.range_m:.4f} m (sd {last.range_sd_m:.4f}), measurement sd "
+              f"{sigma:.4f} m")
+    return _status(detected, len(points))
 
 
-def _loop(args, run, video) -> list:
-    """Track the run's frames: JSON lines as they come (with --lag L, each frame's line L frames
-    later; with --smooth, each frame's header, tracks and measurements kept for after the last:
-    returned), a video frame each."""
+def _no_range(k, t_s):
+    from ..tracking.ranges import RangePoint
+    nan = float("nan")
+    return RangePoint(k, t_s, nan, nan, nan, nan)
+
+
+def _number(v: float):
+    """A JSON number, or null where there is none (NaN)."""
+    return v if math.isfinite(v) else None
+
+
+def _loop(args, run, video, out) -> int:
+    """Track the run's frames, each frame's entry to `out` (track_output.Outputs) as it comes
+    (with --lag L, L frames later; with --smooth, every frame's after the last, smoothed), a
+    video frame each. Returns how many frames held target signal."""
     from collections import deque
-    kept, lag, cframe = [], args.lag or 0, run.sequence.frame
+    kept, lag, cframe, detected = [], args.lag or 0, run.sequence.frame, 0
     recent = deque(maxlen=lag + 1)  # --lag: the frames whose lines wait for later frames
     for step in run:
         header = (step.frame, step.tracks, step.measurements)
-        if args.json and args.smooth:
+        detected += bool(step.measurements)
+        if args.smooth:
             kept.append(header)
-        elif args.json and lag:
+        elif lag:
             recent.append(header)
             if len(recent) > lag:
-                _print_lagged(recent[0], run.tracker.lagged(lag), lag, cframe)
-        elif args.json:
-            print(json.dumps(_entry(*header, cframe)), flush=True)
+                _lagged(out, recent[0], run.tracker.lagged(lag), lag, cframe)
+        else:
+            out.frame(_entry(*header, cframe))
         if video is not None:
             video.add(*header)
     waiting = list(recent)[1:] if len(recent) > lag else list(recent)
     for i, header in enumerate(waiting):  # the last frames: as many later frames as there are
         after = len(waiting) - 1 - i
-        _print_lagged(header, run.tracker.lagged(after), after, cframe)
-    return kept
+        _lagged(out, header, run.tracker.lagged(after), after, cframe)
+    if kept:
+        smoothed = {(tid, s.frame): s for tid, points in run.tracker.smooth().items()
+                    for s in points}
+        for header in kept:
+            out.frame(_entry(*header, cframe, smoothed, {"smoothed": True}))
+    return detected
 
 
-def _print_lagged(header, lagged, lag, cframe) -> None:
-    """A frame's line with its tracks' fixed-lag estimates ({id: Smoothed}, Tracker.lagged)."""
+def _lagged(out, header, lagged, lag, cframe) -> None:
+    """A frame's entry with its tracks' fixed-lag estimates ({id: Smoothed}, Tracker.lagged)."""
     smoothed = {(tid, s.frame): s for tid, s in lagged.items()}
-    print(json.dumps(_entry(*header, cframe, smoothed, {"lag_frames": lag})), flush=True)
+    out.frame(_entry(*header, cframe, smoothed, {"lag_frames": lag}))

@@ -1,7 +1,8 @@
 """`nlos-cl track --video`: the animation written while tracking (nlos_cl/apps/track.py drives
 it): each frame's joint map (the Locator's scores over the whole grid, shown as `_display`
-says) under the tracks (2-sigma error ellipses, trails), the measurements and the truths, in
-our frame's x/y plane, one frame in memory at a time; the file appears only when complete.
+says) under the tracks (2-sigma error ellipses, trails), the measurements and the truths, seen
+from above along the file's own axes (`TopView`: X across and Z from the wall for a y-tal file),
+one frame in memory at a time; the file appears only when complete.
 It scores the whole grid once more each frame (the tracker's own search need not score every
 cell), so --video costs that much extra per frame.
 """
@@ -79,6 +80,49 @@ def _display(scores, log_mode: bool, n_detectors: int):
         np.zeros_like(scores)
 
 
+class TopView:
+    """The video's plane in the file's frame: the file axes along ours x (across the wall) and y
+    (from it), each with its sign, where the frame permutes axes (a y-tal file: X = -x, Z = y);
+    a fitted wall's rotated frame is shown along the wall's own axes, so named."""
+
+    def __init__(self, frame):
+        import numpy as np
+        m = np.asarray(frame.matrix)
+        self.frame = frame
+        if frame.is_permutation:
+            self.lat, self.dep = (int(np.argmax(np.abs(m[j]))) for j in (0, 1))
+            self.signs = (float(m[0, self.lat]), float(m[1, self.dep]))
+            self.labels = (f"{frame.axes[self.lat]} (m), along the wall",
+                           f"{frame.axes[self.dep]} (m), distance from the wall")
+            self.up = frame.axes[int(np.argmax(np.abs(m[2])))]
+        else:
+            self.lat, self.dep, self.signs = None, None, (1.0, 1.0)
+            self.labels = ("along the wall (m), fitted wall's frame",
+                           "distance from the wall (m)")
+            self.up = "height"
+
+    def points(self, internal):
+        """(N, 2) view coordinates of points of ours (N, 3)."""
+        import numpy as np
+        p = np.atleast_2d(np.asarray(internal, dtype=np.float64))
+        if self.lat is None:
+            return p[:, :2]
+        return np.atleast_2d(self.frame.from_internal(p))[:, [self.lat, self.dep]]
+
+    def image(self, shown):
+        """A (ny, nx) map along ours as the view shows it (flipped where a sign is negative)."""
+        sx, sy = self.signs
+        return shown[::-1 if sy < 0 else 1, ::-1 if sx < 0 else 1]
+
+    def extent(self, grid):
+        """The image's (left, right, bottom, top) in view coordinates, increasing."""
+        (x, y, _), (dx, dy, _) = grid.axes(), grid.step
+        corners = [[x[0] - dx / 2, y[0] - dy / 2, 0.0], [x[-1] + dx / 2, y[-1] + dy / 2, 0.0]]
+        corners[0][2] = corners[1][2] = float(grid.origin[2])
+        (u0, v0), (u1, v1) = self.points(corners)
+        return (min(u0, u1), max(u0, u1), min(v0, v1), max(v0, v1))
+
+
 class Video:
     """`with Video(path, tmp, tracker) as v: v.add(frame, tracks, measurements)` after each
     tracker.update: each frame drawn and written as it comes (nothing kept per frame), into `tmp`
@@ -87,10 +131,12 @@ class Video:
 
     FPS, DPI = 10, 100
 
-    def __init__(self, path: str, tmp: str, tracker):
+    def __init__(self, path: str, tmp: str, tracker, frame=None):
         from ..core.limits import require_memory
+        from ..io.ytal.frames import INTERNAL
         from .plotting import pyplot
         self.tracker, self.grid, self.log_mode = tracker, tracker.grid, tracker.locator.log_mode
+        self.view = TopView(INTERNAL if frame is None else frame)
         # a frame's map: the device's scores, read back (float32, then float64), its z-maximum
         # and the picture (pooled, but first a few float64 planes of the whole grid)
         nx, ny, _ = self.grid.shape
@@ -145,16 +191,15 @@ class Video:
         import numpy as np
         from matplotlib import patheffects
         from matplotlib.lines import Line2D
-        (x, y, _), (sx, sy, _) = self.grid.axes(), self.grid.step
+        view = self.view
         image = self.ax.imshow(np.zeros(pooled_shape(self.grid.shape[1::-1])), origin="lower",
                                cmap="magma",
                                vmin=0.0, vmax=1.0, aspect="equal",  # (fine grids: smoothed)
-                               extent=(x[0] - sx / 2, x[-1] + sx / 2, y[0] - sy / 2,
-                                       y[-1] + sy / 2))
-        plane = "max over z" if self.grid.shape[2] > 1 else f"z = {self.grid.origin[2]:g} m"
+                               extent=view.extent(self.grid))
+        plane = f"max over {view.up}" if self.grid.shape[2] > 1 else "one height"
         self.fig.colorbar(image, ax=self.ax, shrink=0.8, label=f"(joint likelihood / frame's "
                           f"peak) ^ (1/{self.n_detectors}), {plane}")
-        self.ax.set(xlabel="x (m)", ylabel="y (m), distance from the wall")
+        self.ax.set(xlabel=view.labels[0], ylabel=view.labels[1])
         self.ax.set_title("frame 0, t = 0.00 s", fontsize=10)  # (laid out with a title)
         edge = [patheffects.withStroke(linewidth=2.5, foreground="black")]  # seen on the peak
         self.style = {"truth": dict(ls="", marker="+", color="lime", ms=10, mew=1.5),
@@ -172,26 +217,29 @@ class Video:
         shown = _display(None if scores is None else pooled(scores), self.log_mode,
                          self.n_detectors)
         self.image.set_data(np.zeros(pooled_shape(self.grid.shape[1::-1])) if shown is None
-                            else shown)
+                            else self.view.image(shown))
         for artist in self.overlay:
             artist.remove()
         ax, drawn, (truth, meas, track) = self.ax, [], self.style.values()
         ax.set_title(f"frame {frame.index}, t = {frame.t_s:.2f} s"
                      + (" (no map)" if shown is None else ""), fontsize=10)
+        view = self.view
         if frame.truths is not None:
-            drawn += ax.plot(frame.truths[:, 0], frame.truths[:, 1], **truth)
+            drawn += ax.plot(*view.points(frame.truths).T, **truth)
         for m in measurements:
-            drawn += ax.plot(*m.position[:2], **meas)
+            drawn += ax.plot(*view.points(m.position).T, **meas)
         ang = np.linspace(0, 2 * np.pi, 60)
         for t in tracks:  # trail: the last 30 positions; dotted ellipse: a tentative track
-            trail = np.array([(h[2], h[3]) for h in list(t.history)[-30:]]).reshape(-1, 2)
+            trail = np.array([h[2:5] for h in list(t.history)[-30:]]).reshape(-1, 3)
             w, v = np.linalg.eigh(t.covariance[:2, :2])
             ell = v @ (2 * np.sqrt(np.maximum(w, 0))[:, None] * [np.cos(ang), np.sin(ang)])
-            p = t.position
-            drawn += ax.plot(trail[:, 0], trail[:, 1], color="cyan", lw=0.8, alpha=0.8)
-            drawn += ax.plot(p[0] + ell[0], p[1] + ell[1], **track,
+            ring = np.column_stack([t.position[0] + ell[0], t.position[1] + ell[1],
+                                    np.full(ang.size, t.position[2])])
+            p = view.points(t.position)[0]
+            drawn += ax.plot(*view.points(trail).T, color="cyan", lw=0.8, alpha=0.8)
+            drawn += ax.plot(*view.points(ring).T, **track,
                              ls="-" if t.status == "confirmed" else ":")
-            drawn.append(ax.annotate(str(t.id), p[:2], color="cyan", fontsize=9,
+            drawn.append(ax.annotate(str(t.id), p, color="cyan", fontsize=9,
                                      xytext=(5, 5), textcoords="offset points",
                                      path_effects=track["path_effects"]))
         self.overlay = drawn

@@ -23,13 +23,28 @@ def is_single_confocal(histograms) -> bool:
 
 def confocal_range(histograms: HistogramSet, h_s: float | None = None, *, backend=None) -> float:
     """The range (m) from a single confocal spot to the middle of its strongest return."""
+    return detected_range(histograms, h_s, backend=backend, detect_target=False)[0]
+
+
+def detected_range(histograms: HistogramSet, h_s: float | None = None, *, backend=None,
+                   detect_target: bool = True) -> tuple:
+    """(range m, Detection or None): confocal_range, where the frame's detection (the
+    locator's test, over the whole record, with the unfiltered row's noise where the record has
+    no bins free of signal) finds a return; NaN where it finds none (noise, or an empty
+    record), whose strongest bin is no target's."""
     require(is_single_confocal(histograms), "histograms",
             "range-only location needs one confocal histogram (laser spot = detection spot)",
             "pass a frame of a single-spot confocal capture, or locate a wider one")
+    from .detection import detect, raw_floor_of
     from .measured.lobe import lobe_centroid
-    y = gauss_filter(histograms, h_s, backend=backend).histograms().data[0]
+    filtered = gauss_filter(histograms, h_s, backend=backend)
+    rows = filtered.histograms().data
+    found = detect(rows, raw=raw_floor_of(histograms, filtered)) if detect_target else None
+    if found is not None and not found.detected:
+        return float("nan"), found
+    y = rows[0]
     path = np.interp(lobe_centroid(y), np.arange(len(y)), histograms.hidden_path_axis()[0])
-    return 0.5 * float(path)
+    return 0.5 * float(path), found
 
 
 def confocal_ranges(frames, h_s: float | None = None, *, backend=None) -> np.ndarray:

@@ -21,7 +21,7 @@ import numpy as np
 
 from ..core.constants import SPEED_OF_LIGHT
 from ..core.errors import require
-from ..localization.ranges import confocal_range
+from ..localization.ranges import detected_range
 from . import kalman
 from .motion import Interacting
 from .scatter import robust_sigma
@@ -30,7 +30,8 @@ from .scatter import robust_sigma
 @dataclass(frozen=True)
 class RangePoint:
     """One frame of a range track: the filter's (or smoother's) range (m) from the spot, its sd,
-    its rate (m/s), and the frame's own measured range."""
+    its rate (m/s), and the frame's own measured range (NaN where the frame's detection found
+    no return: the filter coasts there; every value NaN before the first return)."""
 
     frame: int
     t_s: float
@@ -56,14 +57,17 @@ def range_sigma(measured, floor_m: float) -> float:
 def track_frames(frames, *, h_s: float | None = None, motion=None, smooth: bool = False, backend=None
                  ) -> tuple[list, float]:
     """(RangePoints, the measurement sd) of sequence frames (SequenceFrames of one confocal
-    spot, in time order): each frame's confocal_range, range_sigma over them all, then
-    track_ranges: what `nlos-cl track` does with such a file."""
+    spot, in time order): each frame's detected_range (NaN: no return), range_sigma over them
+    all, then track_ranges: what `nlos-cl track` does with such a file. No frame with a return:
+    ([], nan)."""
     measured, times, axis = [], [], None
     for frame in frames:
-        measured.append(confocal_range(frame.histograms, h_s, backend=backend))
+        measured.append(detected_range(frame.histograms, h_s, backend=backend)[0])
         times.append(frame.t_s)
         axis = frame.histograms.time_axis
     require(axis is not None, "frames", "is empty", "pass at least one frame")
+    if not np.isfinite(measured).any():
+        return [], float("nan")
     sigma = range_sigma(measured, range_floor(axis))
     return track_ranges(measured, times, motion=motion, sigma_m=sigma, smooth=smooth), sigma
 
@@ -72,7 +76,8 @@ def track_ranges(measured, times_s, *, motion=None, sigma_m: float, smooth: bool
                  ) -> list[RangePoint]:
     """The causal filter's range per frame (or, smooth=True, the RTS smoother's), from the
     measured ranges (m) at times_s (s, increasing); motion: the Tracker's models (default
-    Interacting()); sigma_m: the measurement sd (range_sigma)."""
+    Interacting()); sigma_m: the measurement sd (range_sigma). A NaN range (no return that
+    frame) is coasted over; frames before the first return have NaN states."""
     z, t = np.asarray(measured, np.float64), np.asarray(times_s, np.float64)
     require(z.ndim == 1 and z.shape == t.shape and len(z) >= 1, "measured",
             f"must be one range per frame time, got {z.shape} ranges for {t.shape} times",
@@ -81,29 +86,35 @@ def track_ranges(measured, times_s, *, motion=None, sigma_m: float, smooth: bool
             "pass the frames' timestamps in order")
     require(math.isfinite(sigma_m) and sigma_m > 0, "sigma_m",
             f"must be a positive number of metres, got {sigma_m!r}", "pass range_sigma(...)")
+    require(bool(np.isfinite(z).any()), "measured", "holds no range (no frame has a return)",
+            "pass at least one measured range")
     motion = Interacting() if motion is None else motion
+    first = int(np.argmax(np.isfinite(z)))
     R = np.array([[sigma_m ** 2]])
-    x = np.array([z[0], 0.0])
+    x = np.array([z[first], 0.0])
     P = np.diag([sigma_m ** 2, motion.initial_speed_sigma ** 2])
     modes = None
     if hasattr(motion, "switching"):
         mu = np.asarray(motion.initial_modes, float)
         modes = kalman.Modes(mu, np.repeat(x[None], len(mu), 0), np.repeat(P[None], len(mu), 0))
     filtered, predicted = [(x, P)], [None]
-    for k in range(1, len(z)):
+    for k in range(first + 1, len(z)):
         dt = float(t[k] - t[k - 1])
         F = motion.transition(dt, 1)
+        seen = bool(np.isfinite(z[k]))  # else a coast: the prediction stands
         m = kalman.Measurement(np.array([0]), z[k:k + 1], R, np.array([z[k], 0.0, 0.0]))
         if modes is None:
             xp, Pp = kalman.predict(x, P, F, motion.process_noise(dt, 1))
-            x, P = kalman.update(xp, Pp, m)
+            x, P = kalman.update(xp, Pp, m) if seen else (xp, Pp)
         else:
             pred = kalman.predict_modes(modes, F, motion.mode_noises(dt, 1), motion.switching(dt))
             xp, Pp = pred.combined()
-            modes = kalman.update_modes(pred, m)
+            modes = kalman.update_modes(pred, m) if seen else pred
             x, P = modes.combined()
         filtered.append((x, P))
         predicted.append((F, xp, Pp))
     states = kalman.rts_smooth(filtered, predicted) if smooth else filtered
-    return [RangePoint(k, float(t[k]), float(s[0]), math.sqrt(max(float(c[0, 0]), 0.0)),
-                       float(s[1]), float(z[k])) for k, (s, c) in enumerate(states)]
+    nan = float("nan")
+    return [RangePoint(k, float(t[k]), nan, nan, nan, float(z[k])) for k in range(first)] + [
+        RangePoint(k, float(t[k]), float(s[0]), math.sqrt(max(float(c[0, 0]), 0.0)),
+                   float(s[1]), float(z[k])) for k, (s, c) in enumerate(states, start=first)]

@@ -63,7 +63,7 @@ def test_track_command_prints_fixed_lag_lines(walk_file, capsys):
     assert max(abs(np.array(a["tracks"][0]["position"]) - b["tracks"][0]["position"]).max()
                for a, b in zip(lagged[3:9], causal[3:9])) > 1e-4
     with pytest.raises(nl.InputError, match="--lag"):
-        track.main(parser().parse_args(["track", str(walk_file), "--lag", "2"]))  # without --json
+        track.main(parser().parse_args(["track", str(walk_file), "--lag", "2", "--smooth"]))
 
 
 def test_track_command_motion_options():
@@ -104,3 +104,24 @@ def test_a_run_yields_each_frame_and_agrees_with_the_command(walk_file, capsys):
     first = [s for s in steps if s.tracks][0].tracks[0]
     last = steps[-1].tracks[0]
     assert first.id == last.id and np.linalg.norm(first.position - last.position) > 0.1
+
+
+def test_a_sequence_without_target_signal_exits_3_and_says_so_per_frame(walk_file, tmp_path,
+                                                                         capsys):
+    """The walk's layout and record with noise alone: every line "detected": false, no
+    track, exit 3 (as `nlos-cl locate`), where the command used to exit 0."""
+    from nlos_cl.apps.cli import main
+    seq = read_sequence(walk_file)
+    rng = np.random.default_rng(0)
+    noise = [(f.t_s, nl.HistogramSet(rng.normal(0.0, 1e-9, f.histograms.data.shape),
+                                     f.histograms.time_axis, f.histograms.detector_spots,
+                                     f.histograms.laser_spot, f.histograms.calibration))
+             for f in seq]
+    path = nl.write_sequence(tmp_path / "noise.h5", noise)
+    capsys.readouterr()
+    assert main(["track", str(path), "--json", "--no-progress"]) == 3
+    out = capsys.readouterr()
+    lines = [json.loads(x) for x in out.out.splitlines() if x.startswith("{")]
+    assert len(lines) == len(seq) and not any(e["detected"] for e in lines)
+    assert all(e["tracks"] == [] for e in lines)
+    assert "no target signal in any of the 12 frames" in out.err

@@ -124,3 +124,38 @@ def test_one_laser_on_one_sensor_is_confocal_one_elsewhere_is_not(tmp_path):
         [back] = nl.read_capture(path)
         assert back.paired is paired
         assert is_single_confocal(back) is paired
+
+
+def _noisy_spot(tmp_path, returns, seed=0):
+    """A one-spot confocal sequence of white noise, with a return (at 2 x 1.5 m of path) only
+    in the frames where `returns` is True."""
+    axis = nl.TimeAxis(0.0, 16e-12, 768)
+    centres = axis.t0_s + axis.dt_s * (np.arange(axis.n_bins) + 0.5)
+    rng = np.random.default_rng(seed)
+    frames = []
+    for k, seen in enumerate(returns):
+        y = rng.normal(0.0, 0.1, (1, axis.n_bins))
+        if seen:
+            y += np.exp(-0.5 * ((centres * C - 3.0) / 0.02) ** 2)
+        frames.append((float(k), nl.HistogramSet(y, axis, [(0.0, 0.0, 0.0)], [(0.0, 0.0, 0.0)],
+                                                 nl.PathCalibration(C, [0.0]))))
+    return write_sequence(tmp_path / "noise.h5", frames, fps=1.0)
+
+
+def test_a_spot_without_a_return_is_no_target_and_a_missing_frame_is_coasted(tmp_path, capsys):
+    """Noise alone: no range (null), "detected": false on every line, exit 3 as `locate`'s
+    (the strongest noise bin was reported as a range before). One frame without its return in
+    a run of returns: measured null there, the filter's range carried over it."""
+    path = _noisy_spot(tmp_path, [False] * 6)
+    assert cli(["track", str(path), "--json", "--no-progress"]) == 3
+    out = capsys.readouterr()
+    lines = [json.loads(x) for x in out.out.splitlines()]
+    assert len(lines) == 6 and not any(e["detected"] for e in lines)
+    assert all(e["range_m"] is None and e["measured_range_m"] is None for e in lines)
+    assert "no target signal in any of the 6 frames" in out.err
+    path = _noisy_spot(tmp_path, [True, True, True, False, True, True])
+    assert cli(["track", str(path), "--json", "--no-progress"]) == 0
+    lines = [json.loads(x) for x in capsys.readouterr().out.splitlines()]
+    assert [e["detected"] for e in lines] == [True, True, True, False, True, True]
+    assert lines[3]["measured_range_m"] is None
+    assert all(abs(e["range_m"] - 1.5) < 0.01 for e in lines)
