@@ -5,7 +5,9 @@ checked against a byte budget before it is allocated, whatever the container say
 
 Readers above this layer (meshes, dataset readers) call `open_regular` for every file they or
 the file itself name, and `read_all` for the bytes of a possibly compressed file, with a budget
-from `core.limits` scaled by what parsing those bytes costs."""
+from `core.limits` scaled by what parsing those bytes costs; `budget` and `too_big` are the one
+budget and message every reader uses (HDF5 containers: nlos_cl.io.hdf5_gate, which adds links,
+external storage and compressed chunks)."""
 from __future__ import annotations
 
 import io
@@ -59,11 +61,23 @@ def container(head: bytes) -> str | None:
     return "tar" if head[257:262] == TAR_MAGIC_AT_257 else None
 
 
-def _too_big(where: str, limit: int, what: str) -> InputError:
+def budget(max_bytes: int | None = None) -> tuple[int, str]:
+    """(bytes a reader may hold, where that number comes from): `max_bytes` where the caller
+    passes one, else the memory budget (core.limits.memory_limit)."""
+    if max_bytes is not None:
+        return int(max_bytes), "max_bytes"
+    from .limits import _budget
+    return _budget()
+
+
+def too_big(where: str, limit: int, what: str, fix: str = "", why: str = "") -> InputError:
+    """The one message of every reader's budget: what the input declares or expands to, the
+    budget and (`why`) where it comes from, and a fix."""
     return InputError(f"{where}: {what} more than the {limit / 2**20:.4g} MiB this reader may "
-                      "hold (a decompression bomb, or a file far larger than any this reader "
-                      "expects). Fix: pass a smaller file, or raise NLOS_CL_MEMORY_LIMIT if it "
-                      "is genuine")
+                      f"hold{f' ({why})' if why else ''}: a decompression bomb, or a file far "
+                      f"larger than any this reader expects. Fix: {fix or 'pass a smaller file'}"
+                      ", or raise NLOS_CL_MEMORY_LIMIT if it is genuine")
+
 
 
 def read_bounded(fh, limit: int, where: str, what: str = "holds") -> bytes:
@@ -75,7 +89,7 @@ def read_bounded(fh, limit: int, where: str, what: str = "holds") -> bytes:
             return bytes(out)
         out += block
         if len(out) > limit:
-            raise _too_big(where, limit, what)
+            raise too_big(where, limit, what)
 
 
 def _decompressor(kind: str):
@@ -104,7 +118,7 @@ def decompress_bounded(raw: bytes, kind: str, limit: int, where: str) -> bytes:
                 data = engine.unconsumed_tail if kind == "gzip" else b""
                 out += block
                 if len(out) > limit:
-                    raise _too_big(where, limit, "decompresses to")
+                    raise too_big(where, limit, "decompresses to")
                 if not block and not data and (kind == "gzip" or engine.needs_input):
                     break
             require(engine.eof, where, f"is a {kind} stream cut short (truncated)",
@@ -129,7 +143,7 @@ def zip_members(raw: bytes, limit: int, where: str) -> dict[str, bytes]:
                      and not stat.S_ISLNK(i.external_attr >> 16)]
             declared = sum(i.file_size for i in infos)
             if declared > limit:
-                raise _too_big(where, limit, f"declares {declared / 2**20:.4g} MiB of members,")
+                raise too_big(where, limit, f"declares {declared / 2**20:.4g} MiB of members,")
             out = {}
             for info in infos:
                 with z.open(info) as fh:
@@ -167,7 +181,7 @@ def read_all(path, limit: int, where: str, fix: str) -> tuple[dict[str, bytes], 
     with open_regular(path, where, fix) as fh:
         size = os.fstat(fh.fileno()).st_size
         if size > limit:
-            raise _too_big(where, limit, f"is {size / 2**20:.4g} MiB,")
+            raise too_big(where, limit, f"is {size / 2**20:.4g} MiB,")
         raw = read_bounded(fh, limit, where, "holds")
     kind = container(raw[:512])
     if kind is None:

@@ -358,7 +358,7 @@ CASES = [
      lambda: nl.read_capture(existing_file("cut.h5", capture_file().read_bytes()[:-1]))),
     ("a capture path that is not an HDF5 file", "not an HDF5 file",
      lambda: nl.read_capture(existing_file("notes.h5", b"just some text, long enough"))),
-    ("a capture declaring H far larger than memory", "H: the file declares 33.5 GiB",
+    ("a capture declaring H far larger than memory", "H: declares 3.433e+04 MiB of data",
      lambda: nl.read_capture(huge_declared_capture(), max_bytes=2 ** 30)),
     ("a capture whose laser point is a sensor point", "sensor_grid_xyz: a detector spot "
      "coincides with the laser spot", lambda: nl.read_capture(capture_file(replace_field(

@@ -11,7 +11,6 @@ geometry. Pairings follow y-tal (pairing.py): one laser point -> one set; paired
 from __future__ import annotations
 
 import io
-
 import math
 from pathlib import Path
 
@@ -19,10 +18,21 @@ import numpy as np
 
 from ...core.errors import InputError, require
 from ...core.histograms import HistogramSet
-from .fields import (GRID_FORMATS, H_FORMATS, REQUIRED,  # noqa: F401  (the format enums, for users)
-                     check_complete, check_memory, check_regular, check_storage, dataset,
-                     is_capture, to_histograms, write_fields)
 from .checks import unreadable
+from .fields import (  # noqa: F401  (the enums, for users)
+    FIELDS,
+    GRID_FORMATS,
+    H_FORMATS,
+    REQUIRED,
+    check_complete,
+    check_memory,
+    check_regular,
+    check_storage,
+    dataset,
+    is_capture,
+    to_histograms,
+    write_fields,
+)
 from .frames import YTAL, CaptureFrame, check_wall_spots, from_ytal, to_ytal  # noqa: F401
 
 
@@ -100,7 +110,7 @@ def read_capture_with_frame(path, *, max_bytes: int | None = None, joint: bool =
                     "frame_t_s), not one capture", "track it with `nlos-cl track`, or "
                     "nlos_cl.tracking.read_sequence(path)[k] for frame k")
             check_memory(f, path, max_bytes)
-            fields = {k: dataset(f, k, path) for k in f.keys() if k != "H"}
+            fields = {k: dataset(f, k, path) for k in FIELDS if k in f}
             sets, frame = to_histograms(fields, f["H"], path, joint=joint, with_frame=True)
     except InputError:
         raise

@@ -1,6 +1,6 @@
-"""What a y-tal field may hold, checked where it enters, and what went wrong when HDF5 could not
-read one: a lock, a missing compression filter and a cut-off file each get their own fix,
-rather than all being called "corrupted"."""
+"""What a y-tal field may hold, checked where it enters. What went wrong when HDF5 could not read
+one (a lock, a missing compression filter and a cut-off file each get their own fix, rather
+than all being called "corrupted") is the input gate's: nlos_cl.io.hdf5_gate.unreadable."""
 from __future__ import annotations
 
 import copy
@@ -9,6 +9,7 @@ import functools
 import numpy as np
 
 from ...core.errors import InputError, require
+from ..hdf5_gate import unreadable  # noqa: F401  (the one wording, for the readers here)
 
 MAX_WALL_SPAN_M = 50.0  # a relay wall's scanned spots span metres; 1000x that is millimetres
 MAX_BIN_M = 1.5  # delta_t: 1.5 m of optical path is a 5 ns bin; 1000x a ps bin is millimetres
@@ -32,16 +33,6 @@ def flag(value, field: str, path, what: str = "capture") -> bool:
     return bool(item)
 
 
-def _filters(dataset) -> str:
-    """The names of a dataset's compression filters ('' when unknown)."""
-    try:
-        plist = dataset.id.get_create_plist()
-        return ", ".join(plist.get_filter(i)[3].decode("ascii", "replace")
-                         for i in range(plist.get_nfilters()))
-    except Exception:  # noqa: BLE001 - a name for a message; none is fine
-        return ""
-
-
 def check_wall_scale(points, field: str, path) -> None:
     """Wall points (file frame) spread over more than MAX_WALL_SPAN_M: millimetres, likely."""
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
@@ -55,34 +46,6 @@ def check_bin(delta_t: float, path) -> None:
     require(delta_t <= MAX_BIN_M, f"capture {path}: delta_t", f"is {delta_t:.4g} m of optical "
             f"path per bin (a {delta_t / 0.299792458:.3g} ns bin): that looks like millimetres",
             "store delta_t and t_start in metres (divide by 1000)")
-
-
-def unreadable(exc: BaseException, path, field: str | None = None, what: str = "capture",
-               dataset=None) -> InputError:
-    """The InputError for an exception h5py raised while opening `path` or reading `field`
-    (`dataset`: the h5py.Dataset it was reading, to name its compression filters)."""
-    where = f"{what} {path}" + (f": {field}" if field else "")
-    text = " ".join(str(exc).split())
-    low = text.lower()
-    filters = _filters(dataset)
-    if isinstance(exc, BlockingIOError) or "unable to lock file" in low:
-        return InputError(f"{where}: is locked: another program has it open for writing "
-                          "(HDF5 file locking). Fix: let that program finish or close the "
-                          "file; to read it while it is written anyway, set "
-                          "HDF5_USE_FILE_LOCKING=FALSE")
-    # HDF5 looks for a filter it lacks in its plugin directory, and says only that it is gone
-    if ("filter" in low and ("not registered" in low or "not available" in low)) or \
-            "can't open directory" in low or "plugin" in low:
-        return InputError(f"{where}: is compressed with an HDF5 filter this h5py does not have "
-                          f"({filters or text[:200]}). Fix: pip install hdf5plugin (then import "
-                          "hdf5plugin before reading), or rewrite it with gzip or no "
-                          "compression (h5repack -f GZIP=4 IN OUT)")
-    if "external" in low and "link" in low:
-        return InputError(f"{where}: is an external link to another file ({text[:200]}). Fix: "
-                          "copy the linked data into the file itself")
-    return InputError(f"{where}: cannot be read, the file is incomplete or corrupted "
-                      f"({type(exc).__name__}: {text[:300]}). Fix: copy or write the {what} "
-                      "again")
 
 
 def our_metadata(info, path=""):
@@ -120,4 +83,4 @@ def _parsed(text: str):
     import yaml
 
     from ..yamlfile import yaml_loader
-    return yaml.load(text, Loader=yaml_loader())  # noqa: S506 - a SafeLoader subclass
+    return yaml.load(text, Loader=yaml_loader())  # a SafeLoader subclass

@@ -4,8 +4,6 @@ memory, types, geometry) into HistogramSets. docs/captures.md has the field-by-f
 from __future__ import annotations
 
 import math
-import os
-import stat
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +24,11 @@ GRID_FORMATS = {"UNKNOWN": 0, "N_3": 1, "X_Y_3": 2}
 
 REQUIRED = ("H", "H_format", "sensor_grid_xyz", "laser_grid_xyz", "delta_t", "t_start",
             "t_accounts_first_and_last_bounces")
+
+
+# the fields other than H that readers use (and read in full); any other dataset is left unread
+FIELDS = REQUIRED[1:] + ("sensor_grid_format", "laser_grid_format", "scene_info", "laser_xyz",
+                         "sensor_xyz", "sensor_grid_normals", "laser_grid_normals")
 
 
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
@@ -78,10 +81,10 @@ def is_capture(path: Path) -> bool:
     """Whether `path` is a regular file holding a capture's H and H_format (a FIFO or device is
     not: opening one could block or consume it)."""
     import h5py
+
+    from ...core.gate import open_regular
     try:
-        if not stat.S_ISREG(os.stat(path).st_mode):
-            return False
-        with open(path, "rb") as fh:
+        with open_regular(path, f"{path}", "") as fh:
             if fh.read(8) != HDF5_SIGNATURE:
                 return False
         with h5py.File(path, "r") as f:
@@ -93,9 +96,12 @@ def is_capture(path: Path) -> bool:
 def check_complete(path: Path) -> None:
     """An HDF5 superblock declares the file's end (base + EOF address): a shorter file was cut
     off. Superblock versions 0-1 hold it after 24/28 bytes and 2 offsets, 2-3 after 12."""
-    where, size = f"capture {path}", path.stat().st_size
-    with open(path, "rb") as fh:
-        head = fh.read(4096)
+    import os
+
+    from ...core.gate import open_regular
+    where = f"capture {path}"
+    with open_regular(path, where, "pass the path of an .h5 file") as fh:
+        size, head = os.fstat(fh.fileno()).st_size, fh.read(4096)
     version = head[:19].decode("ascii", "replace") + (": HDF5 inside" * (b"7.3" in head[:20]))
     require(not head.startswith(b"MATLAB"), where, f"is a MATLAB .mat file ({version}), not a "
             "y-tal capture", "convert it first: nlos-cl convert FILE.mat --out F.h5 "
@@ -120,53 +126,34 @@ def check_complete(path: Path) -> None:
 
 
 def check_regular(path: Path, what: str = "capture") -> None:
-    """A capture is a regular file: a FIFO would block the read (forever, if nobody writes),
-    a device would be read without end, a folder is no capture."""
-    from ..safe_write import require_file
-    require_file(path, f"{what} {path}", "pass the path of an .h5 file (copy a stream to a "
+    """A capture is a regular file (the input gate's rule, nlos_cl.core.gate): a FIFO would
+    block the read (forever, if nobody writes), a device would be read without end, a folder
+    is no capture."""
+    from ...core.gate import regular_size
+    regular_size(path, f"{what} {path}", "pass the path of an .h5 file (copy a stream to a "
                  "file first)")
 
 
 def check_storage(f, path, what: str = "capture") -> None:
-    """Every field's data is inside the file, checked before any is opened or read: an HDF5
-    external link or soft link resolves to another file or object, external raw storage
-    (dataset.external) reads the bytes of any file named in the capture (a crafted capture
-    pointing H at /etc/passwd or ~/.ssh/id_rsa would read it), and a virtual dataset maps
-    other files in. y-tal writes none of these."""
-    import h5py
-    for key in f.keys():
-        link = f.get(key, getlink=True)
-        kind = ("an external link (to another file)" if isinstance(link, h5py.ExternalLink)
-                else "a soft link" if isinstance(link, h5py.SoftLink) else None)
-        require(kind is None, f"{what} {path}: {key}", f"is {kind}, not data stored in the "
-                "capture", "write the field's data into the capture itself (h5py: copy it)")
-        obj = f[key]
-        if not isinstance(obj, h5py.Dataset):
-            continue
-        plist = obj.id.get_create_plist()
-        external = plist.get_external_count() > 0
-        virtual = plist.get_layout() == h5py.h5d.VIRTUAL
-        kind = ("external raw storage (its bytes are read from other files)" if external
-                else "a virtual dataset (mapped from other files)" if virtual else None)
-        require(kind is None, f"{what} {path}: {key}", f"uses {kind}; nlos_cl reads only data "
-                "stored in the capture itself", "write the data into the capture (h5py: "
-                "f.create_dataset(name, data=...)), or convert it with y-tal")
+    """Every link in the file is data stored in it (nlos_cl.io.hdf5_gate.check_links): an HDF5
+    external or soft link resolves to another file or object, external raw storage reads the
+    bytes of any file named in the capture (H pointed at /etc/passwd or ~/.ssh/id_rsa), and a
+    virtual dataset maps other files in. y-tal writes none of these."""
+    from ..hdf5_gate import check_links
+    check_links(f, f"{what} {path}", what)
 
 
-def check_memory(f, path, max_bytes) -> None:
-    """Declared sizes against memory, before anything is read: H becomes float64 sets (8 bytes
-    a value) beside one laser point's slice as stored; the other fields are read as stored."""
-    import h5py
-
-    from ...core.limits import memory_limit
-    limit = memory_limit() if max_bytes is None else int(max_bytes)
-    sets = [(k, f[k]) for k in f.keys()]
-    need = sum(int(np.prod(o.shape, dtype=np.float64)) * (o.dtype.itemsize + 8 * (k == "H"))
-               for k, o in sets if isinstance(o, h5py.Dataset) and o.shape is not None)
-    require(need <= limit, f"capture {path}: H", f"the file declares {need / 2**30:.3g} GiB of "
-            f"data (H {f['H'].shape} {f['H'].dtype}), more than the {limit / 2**30:.3g} GiB allowed"
-            f" ({'half the memory available' if max_bytes is None else 'max_bytes'})", "crop the "
-            "capture (fewer bins or sensor points), or read it on a machine with more memory")
+def check_memory(f, path, max_bytes, what: str = "capture", frames: bool = False) -> None:
+    """What the reader will hold, through the input gate (nlos_cl.io.hdf5_gate.check_budget),
+    before anything is read: H as float64 (8 bytes a value) beside its slice as stored (for a
+    sequence one frame at a time, and one frame's truths), the fields read as stored; each
+    compressed chunk's expansion too. Fields nlos_cl does not read are not counted (nor read)."""
+    from ..hdf5_gate import Read, check_budget
+    row = 1 if frames else None
+    reads = {"H": Read(8, row), **{k: Read() for k in FIELDS},
+             **({"frame_t_s": Read(), "frame_truths": Read(0, 1)} if frames else {})}
+    check_budget(f, f"{what} {path}", reads, max_bytes, f"crop the {what} (fewer bins or "
+                 "sensor points), or read it on a machine with more memory")
 
 
 def dataset(f, key, path):

@@ -36,6 +36,24 @@ def _sequence_info(scene_info, path) -> dict:
             "sequence": info if isinstance(info, dict) else {}}
 
 
+# what h5py raises on damaged bytes, besides InputError from the checks
+READ_ERRORS = (OSError, RuntimeError, LookupError, ValueError, TypeError, AttributeError,
+               OverflowError)
+
+
+def _declared_frames(f, where) -> int:
+    """H's frame count, as declared: a leading frame axis, at most MAX_FRAMES frames."""
+    import h5py
+
+    from ...core.limits import MAX_FRAMES, require_count
+    H = f["H"]
+    require(isinstance(H, h5py.Dataset) and H.ndim is not None and H.ndim >= 3, f"{where}: H",
+            f"has shape {getattr(H, 'shape', None)}, expected a leading frame axis (F, T, S)",
+            "write it with nlos_cl.tracking.write_sequence")
+    return require_count(f"{where}: H", int(H.shape[0]), MAX_FRAMES, "frames declared",
+                         "split the recording into sequences of fewer frames")
+
+
 def _frame_times(f, where, n_frames) -> np.ndarray:
     """frame_t_s: (F,) finite seconds, strictly increasing, spaced like a frame rate."""
     import h5py
@@ -94,20 +112,32 @@ class Sequence:
         import h5py
 
         from .capture import read_capture_with_frame
-        from .fields import check_complete, check_regular, check_storage, dataset
+        from .fields import (
+            check_complete,
+            check_memory,
+            check_regular,
+            check_storage,
+            dataset,
+        )
         self.path = Path(path)
         where = f"sequence {self.path}"
         check_regular(self.path, "sequence")
         check_complete(self.path)
         try:
             with h5py.File(self.path, "r") as f:
-                check_storage(f, self.path)  # links, external storage: refused before any field
+                check_storage(f, self.path, "sequence")  # links, external storage: refused first
                 require("H" in f, where, "has no field H",
                         "write it with nlos_cl.tracking.write_sequence")
                 stacked = "frame_t_s" in f
+                if stacked:  # what a frame holds (count, sizes, chunks) before any field is read
+                    self.n_frames = _declared_frames(f, where)
+                check_memory(f, self.path, max_frame_bytes if stacked else None, "sequence",
+                             frames=stacked)
                 info = _sequence_info(dataset(f, "scene_info", self.path) if "scene_info" in f
                                       else None, self.path)
-        except (OSError, RuntimeError) as exc:  # a lock, a file HDF5 cannot open
+        except InputError:
+            raise
+        except READ_ERRORS as exc:  # a lock, a file HDF5 cannot open, damaged bytes
             raise unreadable(exc, self.path, what="sequence") from None
         self.metadata = {k: v for k, v in info["metadata"].items() if k != "sequence"}
         self.fps = info["sequence"].get("fps")
@@ -123,35 +153,19 @@ class Sequence:
             self.n_frames = 1
             return
         self._single = None
-        self._open_stacked(where, max_frame_bytes)
+        self._open_stacked(where)
 
-    def _open_stacked(self, where, max_frame_bytes):
+    def _open_stacked(self, where):
         import h5py
 
-        from ...core.limits import MAX_FRAMES, memory_limit, require_count
-        from .fields import REQUIRED, dataset, to_histograms
+        from .fields import FIELDS, REQUIRED, dataset, to_histograms
         try:
             with h5py.File(self.path, "r") as f:
                 missing = [k for k in REQUIRED if k not in f]
                 require(not missing, where, f"missing field(s) {missing}",
                         "write every field of y-tal's NLOSCaptureData (see nlos_cl.io.ytal.capture)")
                 H = f["H"]
-                require(isinstance(H, h5py.Dataset) and H.ndim >= 3, f"{where}: H",
-                        f"has shape {getattr(H, 'shape', None)}, expected a leading frame "
-                        "axis (F, T, S)", "write it with nlos_cl.tracking.write_sequence")
-                per_frame = 12.0 * int(np.prod(H.shape[1:], dtype=np.float64))
-                limit = memory_limit() if max_frame_bytes is None else int(max_frame_bytes)
-                require(per_frame <= limit, f"{where}: H", f"one frame needs {per_frame / 2**30:.3g}"
-                        f" GiB, more than the {limit / 2**30:.3g} GiB allowed", "crop the frames")
-                fields = {k: dataset(f, k, self.path) for k in REQUIRED + ("scene_info",)
-                          if k in f and k != "H"}
-                for k in ("laser_xyz", "sensor_xyz", "sensor_grid_format", "laser_grid_format",
-                          "sensor_grid_normals", "laser_grid_normals"):  # the wall's frame
-                    if k in f:
-                        fields[k] = dataset(f, k, self.path)
-                self.n_frames = require_count(f"{where}: H", int(H.shape[0]), MAX_FRAMES,
-                                              "frames declared", "split the recording into "
-                                              "sequences of fewer frames")
+                fields = {k: dataset(f, k, self.path) for k in FIELDS if k in f}
                 self.t_s = _frame_times(f, where, self.n_frames)
                 _frame_truths(f, where, self.n_frames)
                 sets, frame = to_histograms(fields, _FrameView(H, 0), self.path, with_frame=True)
@@ -162,7 +176,7 @@ class Sequence:
                         "write each frame's first Stokes channel (S0) only")
         except InputError:
             raise
-        except (OSError, RuntimeError, LookupError, ValueError, TypeError) as exc:
+        except READ_ERRORS as exc:
             raise unreadable(exc, self.path, what="sequence") from None
         self._first, self.frame = sets[0], frame
         self.layout = sets[0].layout
