@@ -64,23 +64,9 @@ def motion_model(args):
 
 
 def _entry(frame, tracks, measurements, cframe, smoothed=None, mark=None) -> dict:
-    """One frame's JSON object; `smoothed`: {(id, frame): Smoothed} replaces the filter's
-    position, velocity and covariance where it holds the track; `mark`: keys added (what
-    replaced them: {"smoothed": true} or {"lag_frames": L})."""
-    from ..io.json_format import covariance_json, vector_json
-    states = [(t, (smoothed or {}).get((t.id, frame.index))) for t in tracks]
-    states = [(t, s.position, s.velocity, s.covariance) if s is not None else
-              (t, t.position, t.velocity, t.position_covariance) for t, s in states]
-    entry = {"frame": frame.index, "t_s": frame.t_s,
-             "tracks": [{"id": t.id, "status": t.status, "position": vector_json(p, cframe),
-                         "velocity": vector_json(v, cframe, direction=True),
-                         "covariance": covariance_json(c, cframe)} for t, p, v, c in states],
-             "measurements": [vector_json(x.position, cframe) for x in measurements],
-             "truths": None if frame.truths is None else
-             [vector_json(p, cframe) for p in frame.truths],
-             "detected": bool(measurements)}
-    entry.update(mark or {})
-    return entry
+    """One frame's JSON object (tracking.sequences.frame_json: the library's)."""
+    from ..tracking.sequences import frame_json
+    return frame_json(frame, tracks, measurements, cframe, smoothed, mark)
 
 
 def main(args) -> int:

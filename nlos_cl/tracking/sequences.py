@@ -2,14 +2,15 @@
 Sequence) with the defaults `nlos-cl track` uses, and to run it frame by frame.
 
     for step in nl.track_sequence("walk.h5"):
-        print(step.frame.index, [t.position for t in step.tracks])
+        print(step.frame.index, step.positions)     # the file's frame (y-tal's X, Y, Z)
 
     run = nl.track_sequence("walk.h5", targets=2, max_frames=50)
     steps = list(run)                 # every frame's tracks and measurements
     smoothed = run.tracker.smooth()   # offline: Rauch-Tung-Striebel over the frames run
 
-Positions are in the internal frame (the Tracker's); `run.sequence.frame.from_internal`
-gives the file's. A sequence of one confocal spot gives a range per frame, not a position:
+Each step's `positions`, `covariances` and `as_json()` are in the file's own frame (as
+`nlos-cl track` prints them); its `tracks` and `measurements` are the Tracker's objects, in
+ours (`run.sequence.frame.from_internal` converts). A sequence of one confocal spot gives a range per frame, not a position:
 nlos_cl.tracking.ranges.track_frames follows it.
 """
 from __future__ import annotations
@@ -136,10 +137,54 @@ def _remover(background, running_mean, spread, grid, backend, names, say):
 @dataclass(frozen=True)
 class TrackedFrame:
     """One frame's result: the frame's header (its histograms dropped), copies of the tracks
-    as they stood after it, and the measurements the estimator gave."""
+    as they stood after it (ours), the measurements the estimator gave (ours), and the file's
+    frame (`capture_frame`) that `positions`, `covariances` and `as_json` report in."""
     frame: object
     tracks: list
     measurements: list
+    capture_frame: object = None  # io.ytal.frames.CaptureFrame; None: ours
+
+    @property
+    def _frame(self):
+        from ..io.ytal.frames import INTERNAL
+        return INTERNAL if self.capture_frame is None else self.capture_frame
+
+    @property
+    def positions(self) -> list:
+        """Each track's position (file frame, m)."""
+        return [self._frame.from_internal(t.position) for t in self.tracks]
+
+    @property
+    def covariances(self) -> list:
+        """Each track's position covariance (file frame, m^2)."""
+        from ..io.json_format import covariance_in
+        return [covariance_in(t.position_covariance, self._frame) for t in self.tracks]
+
+    def as_json(self, smoothed=None, mark=None) -> dict:
+        """The frame as `nlos-cl track --json` prints it (frame_json)."""
+        return frame_json(self.frame, self.tracks, self.measurements, self._frame, smoothed,
+                          mark)
+
+
+def frame_json(frame, tracks, measurements, cframe, smoothed=None, mark=None) -> dict:
+    """One frame's JSON object in `cframe` (the file's frame): tracks (id, status, position,
+    velocity, covariance), measurements, truths, detected. `smoothed`: {(id, frame index):
+    Smoothed} replaces the filter's position, velocity and covariance where it holds the track;
+    `mark`: keys added (what replaced them: {"smoothed": true} or {"lag_frames": L})."""
+    from ..io.json_format import covariance_json, vector_json
+    states = [(t, (smoothed or {}).get((t.id, frame.index))) for t in tracks]
+    states = [(t, s.position, s.velocity, s.covariance) if s is not None else
+              (t, t.position, t.velocity, t.position_covariance) for t, s in states]
+    entry = {"frame": frame.index, "t_s": frame.t_s,
+             "tracks": [{"id": t.id, "status": t.status, "position": vector_json(p, cframe),
+                         "velocity": vector_json(v, cframe, direction=True),
+                         "covariance": covariance_json(c, cframe)} for t, p, v, c in states],
+             "measurements": [vector_json(x.position, cframe) for x in measurements],
+             "truths": None if frame.truths is None else
+             [vector_json(p, cframe) for p in frame.truths],
+             "detected": bool(measurements)}
+    entry.update(mark or {})
+    return entry
 
 
 class SequenceRun:
@@ -165,7 +210,8 @@ class SequenceRun:
                 tracks = self.tracker.update(frame.histograms, frame.t_s)
                 yield TrackedFrame(replace(frame, histograms=None),
                                    [copy.copy(t) for t in tracks],
-                                   list(self.tracker.last_measurements))
+                                   list(self.tracker.last_measurements),
+                                   getattr(self.sequence, "frame", None))
                 bar.update(1)
         finally:
             bar.close()

@@ -1,7 +1,7 @@
 """One frame everywhere: a known target lands at the same coordinates, in the capture's own
 frame (y-tal's X, Y, Z = -x, z, y of ours), in every output a user sees or keeps: simulate's
 message, locate's text, JSON and --map arrays, the Python API's locate_capture (its Location
-included), track's text, JSON and --csv lines, and the video's view. The target sits off every
+included) and track_sequence steps, track's text, JSON and --csv lines, and the video's view. The target sits off every
 axis (X < 0, Y > 0, Z > 0, all different), so a sign or a swapped axis anywhere shows."""
 import csv
 import json
@@ -86,6 +86,10 @@ def test_a_tracked_target_has_the_same_coordinates_in_every_track_output(walk_fi
     assert len(lines) == len(seq) == 12
     rows = list(csv.DictReader(table.open()))
     assert list(rows[0])[:8] == ["frame", "t_s", "kind", "id", "status", "X", "Y", "Z"]
+    for step, e in zip(nl.track_sequence(walk_file), lines):  # the API: the file's frame too
+        assert step.as_json() == e
+        np.testing.assert_allclose(step.positions, [t["position"] for t in e["tracks"]],
+                                   atol=1e-5)
     status, text = _run(capsys, "track", str(walk_file), "--no-progress")
     said = [tuple(float(v) for v in m) for m in
             re.findall(rf"X {NUMBER} ± \S+, Y {NUMBER} ± \S+, Z {NUMBER} ± ", text)]
