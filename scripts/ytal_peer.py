@@ -10,6 +10,11 @@
       declares (`frame`; none declared = the file's frame, as issue 10 requires);
     - the Python API: nl.locate_capture(path, estimator="paper") (the derived region, coarse
       -> zoom -> fine where its step was coarsened), positions in the file's frame.
+(c) a confocal scan in LCT's published layout (a .mat with rect_data (Nx, Ny, T) and width,
+    made here by an independent model of a small patch), converted by `nlos-cl convert`, is
+    read by y-tal as the grid it is (T_Sx_Sy, X_Y_3, confocal) and reconstructed as it stands
+    by tal.reconstruct.fk (f-k migration, which needs that grid) and tal.reconstruct.bp: both
+    must peak at the patch (see check_ytal_reconstructs_converted_scan).
 Exit 1 when any error exceeds TOLERANCE_M (or the backprojection misses); 0 otherwise.
 """
 from __future__ import annotations
@@ -22,6 +27,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+import scipy.io
 import yaml
 from scipy.special import erf
 
@@ -220,12 +226,80 @@ def check_nlos_reads_ytal(folder: Path) -> bool:
     return ok
 
 
+# (c): a 32 x 32 confocal scan over +-0.4 m in LCT's 4 ps bins, of a 4 cm patch at PATCH
+# (y-tal's frame); LCT's rule (nlos_cl.io.datasets.lct): rect_data[i, j] at the wall's
+# (X, Y) = (-u_i, u_j), u = linspace(-width, width), photons at path 2 r, t = 0 the wall bounce
+SCAN_N, SCAN_T, SCAN_WIDTH, SCAN_DT = 32, 1024, 0.4, 4e-12
+PATCH = np.array([0.12, -0.08, 0.45])
+
+
+def lct_scan(path, seed=7, size=0.04, cell=0.005, sigma_m=0.003):
+    """An LCT .mat of the patch facing the wall (normal -Z): each cell a Gaussian pulse at the
+    round trip 2 r, weighted by the two cosines and 1 / r^4, integrated over each bin; 2 %
+    white noise. Independent of nlos_cl's code."""
+    c = 299792458.0
+    u = np.linspace(-SCAN_WIDTH, SCAN_WIDTH, SCAN_N)
+    X, Y = np.meshgrid(-u, u, indexing="ij")
+    wall = np.stack([X, Y, np.zeros_like(X)], axis=-1)
+    ticks = (np.arange(round(size / cell)) + 0.5) * cell - size / 2
+    edges = np.arange(SCAN_T + 1) * c * SCAN_DT
+    cube = np.zeros((SCAN_N, SCAN_N, SCAN_T))
+    for a in ticks:
+        for b in ticks:
+            d = wall - (PATCH + [a, b, 0.0])
+            r = np.linalg.norm(d, axis=-1)
+            weight = (-d[..., 2] / r) ** 2 * cell ** 2 / r ** 4
+            cdf = 0.5 * (1 + erf((edges - 2 * r[..., None]) / (np.sqrt(2) * sigma_m)))
+            cube += weight[..., None] * np.diff(cdf, axis=-1)
+    cube += np.random.default_rng(seed).normal(0, 0.02 * cube.max(), cube.shape)
+    scipy.io.savemat(path, {"rect_data": cube, "width": np.array([[SCAN_WIDTH]])})
+
+
+def check_ytal_reconstructs_converted_scan(folder: Path) -> bool:
+    """`nlos-cl convert` of lct_scan, read by tal.io.read_capture: it must be y-tal's confocal
+    grid, and f-k migration (voxel (k, i, j): depth k delta_t / 2 over grid point (i, j)) and
+    backprojection (a plane at the patch's Y, 1 cm voxels) must peak within TOLERANCE_M of it."""
+    scan, out = folder / "lct_scan.mat", folder / "lct_scan.h5"
+    lct_scan(scan)
+    made = run_nlos("-m", "nlos_cl.apps.cli", "convert", str(scan), "--out", str(out))
+    if made.returncode != 0:
+        print(f"(c) nlos-cl convert failed: {made.stderr.strip()[-400:]}")
+        return False
+    data = tal.io.read_capture(str(out))
+    layout = (f"H {data.H.shape} {data.H_format.name}, grids {data.sensor_grid_format.name}, "
+              f"confocal {data.is_confocal()}")
+    if data.H_format != HFormat.T_Sx_Sy or data.sensor_grid_format != GridFormat.X_Y_3 \
+            or not data.is_confocal():
+        print(f"(c) y-tal read the converted scan as {layout}: FAIL (f-k needs a T_Sx_Sy "
+              "confocal X_Y_3 grid)")
+        return False
+    fk = np.asarray(tal.reconstruct.fk.solve(data))
+    k, i, j = np.unravel_index(int(np.argmax(fk)), fk.shape)
+    fk_peak = data.sensor_grid_xyz[i, j] + [0.0, 0.0, k * float(data.delta_t) / 2]
+    xs, zs = np.arange(-0.4, 0.4 + 1e-9, 0.01), np.arange(0.2, 0.7 + 1e-9, 0.01)
+    A, B = np.meshgrid(xs, zs, indexing="ij")
+    volume = np.stack([A, np.full_like(A, PATCH[1]), B], axis=-1).reshape(-1, 3)
+    bp = tal.reconstruct.bp.solve(data, volume_xyz=volume.astype(np.float32),
+                                  volume_format=VolumeFormat.N_3,
+                                  camera_system=CameraSystem.DIRECT_LIGHT, progress=False)
+    bp_peak = volume[int(np.argmax(np.abs(np.asarray(bp).reshape(-1))))]
+    ok = True
+    for name, peak in (("f-k migration", fk_peak), ("backprojection", bp_peak)):
+        err = float(np.linalg.norm(peak - PATCH))
+        ok &= err <= TOLERANCE_M
+        print(f"(c) y-tal read `nlos-cl convert`'s LCT scan as {layout}; its {name} peaks at "
+              f"{np.round(peak, 3).tolist()} vs the patch {PATCH.tolist()}: {err:.3f} m (limit "
+              f"{TOLERANCE_M} m: {'ok' if err <= TOLERANCE_M else 'FAIL'})")
+    return bool(ok)
+
+
 def main() -> int:
     with tempfile.TemporaryDirectory() as tmp:
         a = check_ytal_reads_nlos(Path(tmp))
         b = check_nlos_reads_ytal(Path(tmp))
-    print("ytal_peer: " + ("PASS" if a and b else "FAIL"))
-    return 0 if a and b else 1
+        c = check_ytal_reconstructs_converted_scan(Path(tmp))
+    print("ytal_peer: " + ("PASS" if a and b and c else "FAIL"))
+    return 0 if a and b and c else 1
 
 
 if __name__ == "__main__":

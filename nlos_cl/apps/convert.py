@@ -38,10 +38,13 @@ def _convert(args) -> int:
     read = read_dataset(args.src, name, **given)
     if isinstance(read, tuple):  # a sequence format's (frames, metadata)
         return _sequence(args, read, meta)
-    from ..io.ytal.capture import write_capture
+    from ..io.ytal.grid_write import write_scan
     h = read
-    path = write_capture(args.out, h, metadata=meta, force=args.force)
-    print(f"wrote {path}: {name}, {_describe(h)}")
+    # a confocal grid scan as y-tal writes grids (T_Sx_Sy, X_Y_3), anything else T_Si
+    path, grid = write_scan(args.out, h, metadata=meta, force=args.force)
+    layout = (f"y-tal grid {grid.shape[0]} x {grid.shape[1]} (H_format T_Sx_Sy)" if grid
+              else "y-tal list of spots (H_format T_Si)")
+    print(f"wrote {path}: {name}, {_describe(h)}; {layout}")
     return 0
 
 
@@ -74,7 +77,8 @@ def arguments(p):
                    "of volume_*.npz frames or a Keyhole folder (scan_*.mat; both written as "
                    "sequences)")
     p.add_argument("--out", required=True, help="the y-tal .h5 capture (or sequence) to write "
-                   "(atomically)")
+                   "(atomically); a confocal scan on a regular grid as y-tal's grid (H_format "
+                   "T_Sx_Sy, X_Y_3 grids), anything else as a list of spots (T_Si)")
     from ..io.datasets import FORMATS  # the readers' registry (a dict: no reader imported)
     p.add_argument("--format", choices=sorted(FORMATS), default=None,
                    help="the dataset's format (default: detected)")

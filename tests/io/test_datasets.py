@@ -150,7 +150,8 @@ def test_convert_lct_round_trip(tmp_path):
     assert cli(["convert", str(path), "--out", str(out), "--flip", "z"]) == 0
     (back,) = nl.read_capture(out)
     assert back.paired and np.allclose(back.laser_spots, back.detector_spots, atol=1e-7)
-    assert np.array_equal(back.data, cube.reshape(12, 50))
+    # written as y-tal's grid, X (= -x) and Y (= z) increasing: --flip z reverses both axes
+    assert np.array_equal(back.data, cube[::-1, ::-1].reshape(12, 50))
 
 
 @pytest.mark.skipif(not (REAL / "ccsocr-figure4" / "sparse").is_dir(),
