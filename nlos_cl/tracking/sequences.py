@@ -172,9 +172,9 @@ def frame_json(frame, tracks, measurements, cframe, smoothed=None, mark=None) ->
     Smoothed} replaces the filter's position, velocity and covariance where it holds the track;
     `mark`: keys added (what replaced them: {"smoothed": true} or {"lag_frames": L})."""
     from ..io.json_format import covariance_json, vector_json
-    states = [(t, (smoothed or {}).get((t.id, frame.index))) for t in tracks]
+    found = [(t, (smoothed or {}).get((t.id, frame.index))) for t in tracks]
     states = [(t, s.position, s.velocity, s.covariance) if s is not None else
-              (t, t.position, t.velocity, t.position_covariance) for t, s in states]
+              (t, t.position, t.velocity, t.position_covariance) for t, s in found]
     entry = {"frame": frame.index, "t_s": frame.t_s,
              "tracks": [{"id": t.id, "status": t.status, "position": vector_json(p, cframe),
                          "velocity": vector_json(v, cframe, direction=True),
