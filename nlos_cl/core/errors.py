@@ -15,6 +15,24 @@ def require(condition: bool, field: str, problem: str, fix: str) -> None:
         raise InputError(f"{field}: {problem}. Fix: {fix}")
 
 
+SHOWN_CHARS = 60  # an echoed value fits in one line beside its field and the fix
+
+
+def shown(value, limit: int = SHOWN_CHARS) -> str:
+    """`value` as an error message echoes it: its repr on one line, at most `limit` characters,
+    a longer one cut and its full length said. Every echo of what a user gave goes through
+    here, so no message grows with the input (a 100 kB string, a 10^6-element array)."""
+    import reprlib
+    r = reprlib.Repr()
+    r.maxstring = r.maxother = r.maxlong = limit + 2
+    r.maxlist = r.maxtuple = r.maxset = r.maxfrozenset = r.maxdeque = r.maxarray = 6
+    r.maxdict, r.maxlevel = 4, 3
+    if isinstance(value, (str, bytes)) and len(value) > limit:  # its start, and its length
+        return " ".join(repr(value[:limit]).split())[:limit] + f"... ({len(value):,} characters)"
+    text = " ".join(r.repr(value).split())
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
 def spelled(name: str, value) -> str:
     """How a user writes option `name` = `value`: a flag and its value (`--estimator paper`),
     or a keyword (`estimator='paper'`); errors name options the way their caller spells them."""

@@ -20,7 +20,7 @@ import math
 import re
 from pathlib import Path
 
-from ..core.errors import InputError, require
+from ..core.errors import InputError, require, shown
 
 ALIAS_NODES = 10_000  # nodes all aliases together may add (a scene or study needs a few dozen)
 MAX_DEPTH = 64  # nested lists/mappings (a scene file needs about 6)
@@ -67,8 +67,8 @@ def yaml_loader():
 
         def _alias(self, anchor, line):
             if anchor in self._open:
-                raise YamlLimit(f"the alias *{anchor} (line {line}) is inside its own anchor "
-                                f"&{anchor}, a structure that contains itself",
+                raise YamlLimit(f"the alias *{_name(anchor)} (line {line}) is inside its own "
+                                f"anchor &{_name(anchor)}, a structure that contains itself",
                                 "write the values out instead of the alias")
             if anchor in self.anchors:
                 nodes, chars = _size(self.anchors[anchor], self._sizes)
@@ -77,7 +77,7 @@ def yaml_loader():
                 what = (f"{ALIAS_NODES} values" if self._added[0] > ALIAS_NODES else
                         f"{MAX_BYTES >> 20} MiB of text")
                 raise YamlLimit(f"its aliases expand to more than {what} (line {line}, "
-                                f"*{anchor}): an alias may repeat a block, not multiply it",
+                                f"*{_name(anchor)}): an alias may repeat a block, not multiply it",
                                 "write the values out, or use fewer nested aliases")
 
         def construct_mapping(self, node, deep=False):
@@ -115,10 +115,26 @@ def _no_duplicate_keys(loader, node) -> None:
         except TypeError:  # an unhashable key: PyYAML's own error follows
             continue
         if again:
-            raise YamlLimit(f"the key {key!r} appears twice in one mapping (lines {seen[key]} "
+            raise YamlLimit(f"the key {shown(key)} appears twice in one mapping (lines {seen[key]} "
                             f"and {line}); YAML would silently keep only the last",
                             "keep one of them (merge the two entries)")
         seen[key] = line
+
+
+def _name(anchor) -> str:
+    """An anchor's name as messages echo it (a name may be 100 kB long)."""
+    text = shown(str(anchor))
+    return text[1:-1] if text[:1] in "'\"" and text[-1:] == text[:1] else text
+
+
+def _yaml_problem(exc) -> str:
+    """PyYAML's error as what and where, without its quote of the line (a line may be a
+    100 kB value); the problem's own echo shortened."""
+    problem = getattr(exc, "problem", None) or getattr(exc, "context", None) or str(exc)
+    mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
+    place = f" on line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+    text = " ".join(str(problem).split())
+    return (text if len(text) <= 120 else shown(text, 120)) + place
 
 
 def decode(data: bytes, where: str) -> str:
@@ -145,12 +161,12 @@ def load_text(text, where: str):
     if isinstance(text, (bytes, bytearray)):
         text = decode(bytes(text), where)
     try:
-        return yaml.load(text, Loader=yaml_loader())  # noqa: S506 - a SafeLoader subclass
+        return yaml.load(text, Loader=yaml_loader())
     except YamlLimit as exc:
         raise InputError(f"{where}: {exc.problem}. Fix: {exc.fix}") from None
     except yaml.YAMLError as exc:
-        raise InputError(f"{where}: is not valid YAML ({' '.join(str(exc).split())[:300]}). "
-                         "Fix: check the indentation and brackets near that line") from None
+        raise InputError(f"{where}: is not valid YAML ({_yaml_problem(exc)}). Fix: check the "
+                         "indentation and brackets near that line") from None
 
 
 def read_yaml(path, what: str = "scene file") -> dict:
@@ -184,7 +200,7 @@ def dump_json_yaml(data: dict) -> str:
     import yaml
     try:
         text = "{" + ", ".join(f"{_json_key(k)}: {_json(v)}" for k, v in data.items()) + "}"
-        if json.loads(text) == yaml.load(text, Loader=getattr(yaml, "CSafeLoader",  # noqa: S506
+        if json.loads(text) == yaml.load(text, Loader=getattr(yaml, "CSafeLoader",
                                                               yaml.SafeLoader)):
             return text + "\n"
     except (TypeError, ValueError, yaml.YAMLError):
@@ -272,5 +288,5 @@ def whole_number(where: str, value, low=1, high=1 << 16, example=8) -> int:
     import numpy as np
     ok = isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
     require(ok and low <= value <= high, where, f"expected a whole number in {low}..{high}, got "
-            f"{value!r}", f"write e.g. {example}")
+            f"{shown(value)}", f"write e.g. {example}")
     return int(value)

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...core.errors import InputError, require
+from ...core.errors import InputError, require, shown
 from ...core.histograms import HistogramSet
 from .checks import unreadable
 from .fields import (  # noqa: F401  (the enums, for users)
@@ -73,7 +73,7 @@ def check_writable(h: HistogramSet, device_distance_m) -> None:
             "differs between detectors, but a y-tal capture has a single t_start",
             "write one file per group of detectors that share an offset")
     require(isinstance(device_distance_m, (int, float)) and 0 < device_distance_m < math.inf,
-            "device_distance_m", f"must be a positive distance, got {device_distance_m!r}", "20.0")
+            "device_distance_m", f"must be a positive distance, got {shown(device_distance_m)}", "20.0")
 
 
 def read_capture(path, *, max_bytes: int | None = None, joint: bool = False

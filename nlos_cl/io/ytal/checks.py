@@ -8,7 +8,7 @@ import functools
 
 import numpy as np
 
-from ...core.errors import InputError, require
+from ...core.errors import InputError, require, shown
 from ..hdf5_gate import unreadable  # noqa: F401  (the one wording, for the readers here)
 
 MAX_WALL_SPAN_M = 50.0  # a relay wall's scanned spots span metres; 1000x that is millimetres
@@ -28,7 +28,7 @@ def flag(value, field: str, path, what: str = "capture") -> bool:
     ok = item is not None and not isinstance(item, str) and (
         isinstance(item, (bool, np.bool_)) or (np.issubdtype(arr.dtype, np.number)
                                                and float(item) in (0.0, 1.0)))
-    require(ok, f"{what} {path}: {field}", f"expected a boolean, got {value!r}",
+    require(ok, f"{what} {path}: {field}", f"expected a boolean, got {shown(value)}",
             "store True/False (or 1/0, or the text true/false)")
     return bool(item)
 

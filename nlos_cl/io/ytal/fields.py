@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ...core.constants import SPEED_OF_LIGHT
-from ...core.errors import InputError, require
+from ...core.errors import InputError, require, shown
 from ...core.histograms import HistogramSet, PathCalibration, TimeAxis
 from .checks import check_bin, check_wall_scale, flag, our_metadata, unreadable
 from .frames import check_wall_spots, to_ytal
@@ -177,10 +177,10 @@ def enum_name(value, members, field, path):
     name, arr = value, np.ravel(np.asarray(value))
     if not isinstance(value, str):
         require(arr.size == 1 and np.issubdtype(arr.dtype, np.integer), f"capture {path}: {field}",
-                f"expected an enum (integer), got {value!r}", "write y-tal's enum value")
+                f"expected an enum (integer), got {shown(value)}", "write y-tal's enum value")
         name = {v: k for k, v in members.items()}.get(int(arr[0]), "UNKNOWN")
     require(name in members and name != "UNKNOWN", f"capture {path}: {field}",
-            f"value {value!r} is not one of {[k for k in members if k != 'UNKNOWN']}",
+            f"value {shown(value)} is not one of {[k for k in members if k != 'UNKNOWN']}",
             "write a known y-tal enum value")
     return name
 
@@ -188,7 +188,7 @@ def enum_name(value, members, field, path):
 def scalar(value, field, path):
     arr = np.ravel(np.asarray(value))
     require(arr.size == 1 and np.issubdtype(arr.dtype, np.number), f"capture {path}: {field}",
-            f"expected one number, got {value!r}", "store a float32 scalar")
+            f"expected one number, got {shown(value)}", "store a float32 scalar")
     x = float(arr[0])
     require(math.isfinite(x), f"capture {path}: {field}", f"is {x}", "store a finite number")
     return x
@@ -274,7 +274,7 @@ def restore(ours, axis, calibration, path=""):
         return axis, calibration, None, True, None
     truth = ours.get("truth")
     require(truth is None or _is_point(truth), f"capture {path}: scene_info nlos_cl.truth",
-            f"expected [x, y, z] or null, got {truth!r}", "write it again with nl.write_capture")
+            f"expected [x, y, z] or null, got {shown(truth)}", "write it again with nl.write_capture")
     negative = flag(ours.get("allow_negative", True), "scene_info nlos_cl.allow_negative", path)
     return exact, exact_cal, truth, negative, stored_truths(ours, truth, path)
 
@@ -298,5 +298,5 @@ def stored_truths(ours, truth, path=""):
         truths, field = old, "metadata.targets"
     require(isinstance(truths, list) and bool(truths) and all(map(_is_point, truths)),
             f"capture {path}: scene_info nlos_cl.{field}", f"expected a list of [x, y, z], got "
-            f"{truths!r}", "write it again with nl.write_capture")
+            f"{shown(truths)}", "write it again with nl.write_capture")
     return np.asarray(truths, dtype=np.float64)

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...core.errors import InputError, require
+from ...core.errors import InputError, require, shown
 from .checks import unreadable
 from .sequence import SequenceFrame, check_frame_times
 
@@ -89,7 +89,7 @@ def _single_frame(seq: dict, where) -> tuple:
     t_s, truths = seq.get("t_s") or [0.0], (seq.get("truths") or [None])[0]
     ok = isinstance(t_s, list) and len(t_s) >= 1 and isinstance(t_s[0], (int, float)) and \
         not isinstance(t_s[0], bool) and np.isfinite(t_s[0])
-    require(ok, f"{where}: scene_info sequence.t_s", f"expected [time in seconds], got {t_s!r}",
+    require(ok, f"{where}: scene_info sequence.t_s", f"expected [time in seconds], got {shown(t_s)}",
             "write the frame again with nl.tracking.write_sequence")
     if truths is None:
         return np.array(t_s[:1], dtype=np.float64), None
@@ -230,7 +230,7 @@ class Sequence:
 
     def __getitem__(self, k: int) -> SequenceFrame:
         require(isinstance(k, (int, np.integer)) and -self.n_frames <= k < self.n_frames,
-                "frame", f"index {k!r} outside 0..{self.n_frames - 1}", "pass a valid index")
+                "frame", f"index {shown(k)} outside 0..{self.n_frames - 1}", "pass a valid index")
         k = int(k) % self.n_frames
         return next(self.frames(k, k + 1))
 

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...core.errors import require
+from ...core.errors import require, shown
 from ...core.stats import median
 
 FORMAT_VERSION = 1
@@ -99,9 +99,9 @@ def write_sequence(path, frames, *, fps: float | None = None, device_distance_m:
     from ..safe_write import atomic_write
     from .fields import is_capture
     require(compression in range(10), "compression", f"must be a gzip level 0-9, got "
-            f"{compression!r}", "pass 0 (none) or 4")
+            f"{shown(compression)}", "pass 0 (none) or 4")
     require(fps is None or (isinstance(fps, (int, float)) and math.isfinite(fps) and fps > 0),
-            "fps", f"must be a positive frame rate, got {fps!r}", "pass e.g. 10")
+            "fps", f"must be a positive frame rate, got {shown(fps)}", "pass e.g. 10")
 
     def write(tmp):
         _write(tmp, iter(frames), fps, device_distance_m, metadata, compression)
