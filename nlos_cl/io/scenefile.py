@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.errors import InputError, require
+from ..core.errors import InputError, require, shown
 from ..core.tuning import FACET_M
 from .yamlfile import is_number, whole_number
 
@@ -94,9 +94,9 @@ def _trajectory(where: str, spec):
     raw = _keys(f"{where}.trajectory", spec["trajectory"], {"t_s", "positions"})
     t_s, positions = raw.get("t_s"), raw.get("positions")
     require(isinstance(t_s, list) and all(is_number(t) for t in t_s), f"{where}.trajectory.t_s",
-            f"expected a list of times in seconds, got {t_s!r}", "write e.g. t_s: [0, 5]")
+            f"expected a list of times in seconds, got {shown(t_s)}", "write e.g. t_s: [0, 5]")
     require(isinstance(positions, list), f"{where}.trajectory.positions", f"expected a list "
-            f"of [x, y, z], got {positions!r}", "write e.g. positions: [[2, 4, 0], [5, 1, 0]]")
+            f"of [x, y, z], got {shown(positions)}", "write e.g. positions: [[2, 4, 0], [5, 1, 0]]")
     positions = [_point(f"{where}.trajectory.positions[{i}]", p) for i, p in enumerate(positions)]
     try:
         return Trajectory(t_s, positions)
@@ -116,7 +116,8 @@ def _keys(where: str, mapping, allowed: set) -> dict:
 def _vector(where: str, value, n=3) -> np.ndarray:
     ok = isinstance(value, (list, tuple, np.ndarray)) and len(value) == n and \
         all(is_number(v) for v in value)
-    require(ok, where, f"expected {n} finite numbers, got {value!r}", f"write e.g. {[0.0] * n}")
+    require(ok, where, f"expected {n} finite numbers, got {shown(value)}",
+            f"write e.g. {[0.0] * n}")
     return np.asarray(value, dtype=np.float64)
 
 
@@ -124,8 +125,8 @@ def _point(where: str, value) -> np.ndarray:
     """A position (m): within MAX_SCENE_M of the origin, or it is likely millimetres."""
     p = _vector(where, value)
     far = float(np.abs(p).max())
-    require(far <= MAX_SCENE_M, where, f"{value!r} lies {far:.4g} m from the origin, beyond the "
-            f"{MAX_SCENE_M:g} m a scene spans: that looks like millimetres",
+    require(far <= MAX_SCENE_M, where, f"{shown(value)} lies {far:.4g} m from the origin, "
+            f"beyond the {MAX_SCENE_M:g} m a scene spans: that looks like millimetres",
             f"write metres ({[round(float(v) / 1000, 6) for v in p]} if it was mm)")
     return p
 
@@ -138,7 +139,7 @@ def _number(where: str, value, field: str | None = None) -> float:
     ok = is_number(value) and (value >= low if closed else value > low) and value <= high
     unit = next((u for end, u in UNITS if key.endswith(end)), "")
     require(ok, where, f"expected a number{unit} in {'[' if closed else '('}{low:g}, {high:g}], "
-            f"got {value!r}", f"write e.g. {example:g}")
+            f"got {shown(value)}", f"write e.g. {example:g}")
     return float(value)
 
 
@@ -152,8 +153,8 @@ def _spots(value):
     if isinstance(value, dict):
         require(len(value) == 1 and next(iter(value)) in ("line", "circle", "spad_patch"),
                 "setup.detector_spots", f"a generator must be one of line, circle, spad_patch, "
-                f"got {sorted(value)}", "write e.g. {circle: {centre: [-1, 0, 0], radius_m: 0.5,"
-                " count: 8}}")
+                f"got {shown(sorted(value))}",
+                "write e.g. {circle: {centre: [-1, 0, 0], radius_m: 0.5, count: 8}}")
         (kind, params), = value.items()
         where = f"setup.detector_spots.{kind}"
         params = dict(_keys(where, params, {"line": {"start", "stop", "count"},
@@ -161,7 +162,8 @@ def _spots(value):
                                             "spad_patch": {"centre", "counts", "pitch_m"}}[kind]))
         return getattr(layouts, kind)(**_generator(where, kind, params))
     require(isinstance(value, list) and len(value) >= 1, "setup.detector_spots", f"expected a "
-            f"list of [x, y, z] spots or a generator, got {value!r}", "write e.g. [[-0.5, 0, 0]]")
+            f"list of [x, y, z] spots or a generator, got {shown(value)}",
+            "write e.g. [[-0.5, 0, 0]]")
     return [_point(f"setup.detector_spots[{i}]", p) for i, p in enumerate(value)]
 
 
@@ -179,7 +181,7 @@ def _generator(where: str, kind: str, params: dict) -> dict:
     if "counts" in params:
         counts = params["counts"]
         ok = isinstance(counts, list) and len(counts) == 2
-        require(ok, f"{where}.counts", f"expected [along x, along z], got {counts!r}",
+        require(ok, f"{where}.counts", f"expected [along x, along z], got {shown(counts)}",
                 "write e.g. counts: [32, 32]")
         params["counts"] = [whole_number(f"{where}.counts[{i}]", c, 1, MAX_SPOTS)
                             for i, c in enumerate(counts)]
@@ -227,7 +229,7 @@ def _rotation(where: str, degrees) -> np.ndarray:
 def _mesh(where: str, spec: dict, base: Path, cell: float):
     from ..physics import meshes
     shape = spec.get("shape")
-    require(shape in SHAPES, f"{where}.shape", f"unknown shape {shape!r}",
+    require(shape in SHAPES, f"{where}.shape", f"unknown shape {shown(shape)}",
             f"use one of {sorted(SHAPES)}")
     _keys(where, spec, COMMON | SHAPES[shape])
     if shape == "rectangle":
@@ -250,7 +252,7 @@ def _target(i: int, spec, base: Path, cell: float):
     bounding-box centre moved to `position` (or to where its trajectory starts)."""
     from ..physics.scene import Target
     where = f"targets[{i}]"
-    require(isinstance(spec, dict), where, f"expected a mapping, got {spec!r}",
+    require(isinstance(spec, dict), where, f"expected a mapping, got {shown(spec)}",
             "write e.g. {shape: sphere, radius_m: 0.3, position: [2, 4, 0]}")
     mesh = _mesh(where, spec, base, cell)
     centre = mesh.bounds.mean(axis=0)
@@ -325,7 +327,8 @@ def load_scene(source) -> SceneSpec:
             "target", "add e.g. `targets: [{shape: rectangle, position: [4, 2, 0]}]`")
     placed, paths = zip(*[_target(i, t, base, cell) for i, t in enumerate(targets)])
     occlusion = raw.get("occlusion", True)
-    require(isinstance(occlusion, bool), "occlusion", f"must be true or false, got {occlusion!r}",
+    require(isinstance(occlusion, bool), "occlusion",
+            f"must be true or false, got {shown(occlusion)}",
             "write occlusion: true (the default) or false")
     scene = Scene(setup, placed[0], cell, more_targets=tuple(placed[1:]), occlusion=occlusion)
     noise, seed = _noise(raw.get("noise"))

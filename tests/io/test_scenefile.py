@@ -100,3 +100,28 @@ def test_a_moving_scene_file_simulates_a_sequence(tmp_path):
 def test_bad_trajectories_name_the_key(target, field):
     with pytest.raises(nl.InputError, match=field.replace("[", r"\[").replace("]", r"\]")):
         load_scene({"targets": [target]})
+
+
+@pytest.mark.parametrize("field, bad", [
+    ("targets.0.position", "[" + ", ".join(["1"] * 20000) + "]"),
+    ("targets.0.shape", "'" + "x" * 100000 + "'"),
+    ("occlusion", "'" + "y" * 100000 + "'"),
+    ("setup.detector_spots", "'" + "z" * 100000 + "'"),
+])
+def test_a_huge_value_is_echoed_in_one_short_line(tmp_path, field, bad):
+    """Every echo of a scene file's value goes through core.errors.shown: a 100 kB value gives
+    a message of one line and a bounded size, whatever field holds it."""
+    from nlos_cl.io.scenefile import load_scene
+    text = {"targets.0.position": f"targets:\n  - {{shape: rectangle, size_m: [0.3, 0.3], "
+            f"position: {bad}}}\n",
+            "targets.0.shape": f"targets:\n  - {{shape: {bad}, position: [3, 2, 0]}}\n",
+            "occlusion": f"occlusion: {bad}\ntargets:\n  - {{shape: rectangle, "
+            "size_m: [0.3, 0.3], position: [3, 2, 0]}\n",
+            "setup.detector_spots": f"setup: {{detector_spots: {bad}}}\ntargets:\n  - "
+            "{shape: rectangle, size_m: [0.3, 0.3], position: [3, 2, 0]}\n"}[field]
+    path = tmp_path / "scene.yaml"
+    path.write_text(text)
+    with pytest.raises(nl.InputError) as err:
+        load_scene(path)
+    message = str(err.value)
+    assert "\n" not in message and len(message) < 400, message[:500]
