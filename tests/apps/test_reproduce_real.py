@@ -77,3 +77,46 @@ def test_quick_run_writes_the_page_and_its_figures(tmp_path):
         assert f"(real/{figure})" in page and (doc.parent / "real" / figure).stat().st_size > 0
     assert "| Keyhole K | corr >= 0.95, RMS <= 0.02 m | " + keyhole[0]["corr"] in page
     assert "Not in this run (--quick leaves it out)." in page  # LCT
+
+
+def _ccsocr_dataset(root, signal: bool):
+    """A tiny CC-SOCR folder at real.yaml's place (ccsocr-figure4/full): 24 scanned laser
+    points, one detection point, Poisson noise (3 counts a bin) and, with `signal`, one hidden
+    point's photons at the README's bins (as tests/io/test_datasets.py builds them)."""
+    import numpy as np
+    import scipy.io
+    folder = root / "ccsocr-figure4" / "full"
+    folder.mkdir(parents=True)
+    rng = np.random.default_rng(1)
+    n, n_t = 24, 600
+    c_i = np.column_stack([np.zeros(n), rng.permutation(40)[:n], rng.permutation(40)[:n]])
+    c_d = np.tile((0, 20, 15), (n, 1))
+    to_m = lambda idx: np.column_stack([-idx[:, 1], 0 * idx[:, 0], idx[:, 2]]) * 0.01  # noqa: E731
+    hidden = np.array([0.3, 0.9, 0.4])
+    path = np.linalg.norm(hidden - to_m(c_i), axis=1) + np.linalg.norm(hidden - to_m(c_d), axis=1)
+    sig = rng.poisson(3.0, size=(n, n_t)).astype(np.uint16)
+    if signal:
+        sig[np.arange(n), (path / (nl.SPEED_OF_LIGHT * 16e-12)).astype(int)] += 100
+    for name, value in (("sub_Sig", sig), ("C_i", c_i.astype(np.uint8)),
+                        ("C_d", c_d.astype(np.uint8))):
+        scipy.io.savemat(folder / f"{name}.mat", {name: value})
+
+
+@pytest.mark.parametrize("signal", [False, True])
+def test_noise_is_reported_as_not_detected(tmp_path, signal):
+    """Issue 59 item 3: a noise-only version of a dataset is 'not detected' in the CSV, the
+    goals and the page (no position from the argmax of noise, the goal not met); the same
+    folder with a hidden point is detected."""
+    from nlos_cl.apps.reproduce.common import Settings
+    _ccsocr_dataset(tmp_path / "data", signal)
+    result = real.real(Settings.make(quick=True), tmp_path / "out", data=tmp_path / "data")
+    rows = result.summary["sections"]["ccsocr"]
+    assert [r["detected"] for r in rows] == [signal] * len(rows) and rows
+    page = (tmp_path / "out" / "real-data.md").read_text()
+    if not signal:
+        assert all(r["position_m"] is None and r["depth_m"] is None and not r["met"]
+                   for r in rows)
+        assert "not detected (no return above the noise) | **not met**" in page
+        assert {r["detected"] for r in _rows(tmp_path / "out" / "real-ccsocr.csv")} == {"False"}
+    else:
+        assert all(r["position_m"] is not None for r in rows)

@@ -61,6 +61,12 @@ def _yes(ok) -> str:
     return "met" if ok else "**not met**"
 
 
+def _found(row, measured: str) -> str:
+    """What a located case measured, or that nothing was detected (no position is made up
+    from the argmax of noise)."""
+    return measured if row.get("detected", True) else "not detected (no return above the noise)"
+
+
 def goals(summary) -> list[tuple]:
     """(dataset, goal, measured, met) per goal of real.yaml that the run measured."""
     cfg, sec, out = summary["config"], summary["sections"], []
@@ -69,10 +75,10 @@ def goals(summary) -> list[tuple]:
         for r in sec["ccsocr"]:
             out.append(("CC-SOCR " + r["case"], f"depth {low}-{high} m in <= "
                         f"{cfg['ccsocr']['goal']['max_s']:g} s",
-                        f"{r['depth_m']} m in {r['seconds']} s", _yes(r["met"])))
+                        _found(r, f"{r['depth_m']} m in {r['seconds']} s"), _yes(r["met"])))
     for r in sec.get("lct") or []:
         out.append(("LCT " + r["case"], f"depth within {cfg['lct']['goal']['depth_m']} m of "
-                    "the backprojection", f"{r['depth_error_m']} m", _yes(r["met"])))
+                    "the backprojection", _found(r, f"{r['depth_error_m']} m"), _yes(r["met"])))
     g = cfg["keyhole"]["goal"]
     for r in sec.get("keyhole") or []:
         out.append(("Keyhole " + r["case"], f"corr >= {g['corr']}, RMS <= {g['rms_m']} m",

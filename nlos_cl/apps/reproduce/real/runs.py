@@ -26,11 +26,13 @@ def _timed(call):
 
 
 def _located(h):
-    """locate_capture with its defaults; warnings (e.g. 'paired captures get the paper's
-    argmax by default') are kept in the answer, not printed."""
+    """locate_capture's position with its defaults, or None where it detected nothing (noise:
+    `nlos-cl locate` exits 3; the argmax of noise is no location); warnings (e.g. 'paired
+    captures get the paper's argmax by default') are kept in the answer, not printed."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return nl.locate_capture(h).points[0].location.position
+        location = nl.locate_capture(h).points[0].location
+    return location.position if location.detected else None
 
 
 def ccsocr(cfg: dict, root: Path) -> dict:
@@ -46,12 +48,14 @@ def ccsocr(cfg: dict, root: Path) -> dict:
     rows = []
     for name, count, h in cases:
         position, seconds = _timed(lambda: _located(h))
-        depth = float(position[1])
-        rows.append({"case": name, "scan_points": count, "position_m": _r(position),
-                     "depth_m": round(depth, 3),
-                     "error_m": round(max(low - depth, depth - high, 0.0), 3),
+        depth = None if position is None else float(position[1])
+        rows.append({"case": name, "scan_points": count, "detected": position is not None,
+                     "position_m": _r(position), "depth_m": _round(depth, 3),
+                     "error_m": None if depth is None else
+                     round(max(low - depth, depth - high, 0.0), 3),
                      "seconds": round(seconds, 2),
-                     "met": bool(low <= depth <= high and seconds <= cfg["goal"]["max_s"])})
+                     "met": bool(depth is not None and low <= depth <= high
+                                 and seconds <= cfg["goal"]["max_s"])})
     return {"rows": rows, "read_s": round(read_s, 2)}
 
 
@@ -62,12 +66,14 @@ def lct(cfg: dict, root: Path) -> dict:
         h, read_s = _timed(lambda: nl.read_dataset(root / name))
         position, seconds = _timed(lambda: _located(h))
         reference, bp_s = _timed(lambda: backprojection_peak(h, **cfg["backprojection"]))
-        error = abs(float(position[1] - reference[1]))
-        rows.append({"case": Path(name).stem, "position_m": _r(position),
-                     "reference_m": _r(reference), "depth_error_m": round(error, 3),
+        error = None if position is None else abs(float(position[1] - reference[1]))
+        rows.append({"case": Path(name).stem, "detected": position is not None,
+                     "position_m": _r(position), "reference_m": _r(reference),
+                     "depth_error_m": _round(error, 3),
                      "seconds": round(seconds, 2), "read_s": round(read_s, 2),
                      "backprojection_s": round(bp_s, 1),
-                     "met": bool(position[1] > 0.1 and error <= cfg["goal"]["depth_m"])})
+                     "met": bool(error is not None and position[1] > 0.1
+                                 and error <= cfg["goal"]["depth_m"])})
     return {"rows": rows}
 
 
@@ -97,7 +103,9 @@ def keyhole(cfg: dict, root: Path) -> dict:
         lateral, rms_lateral = _letter_lateral(ours, meta)
         rules = {f"rms_{name}_m": round(_rms_after_offset(r, stage), 4)
                  for name, r in range_rules(frames, nl.PAPER_H_S).items()}
-        rows.append({"case": letter, "exposures": len(frames), "corr": round(corr, 3),
+        rows.append({"case": letter, "exposures": len(frames),
+                     "frames_detected": int(np.isfinite(measured).sum()),  # noise: none
+                     "corr": round(corr, 3),
                      "rms_m": round(rms, 4), "rms_measured_m": round(rms_measured, 4),
                      "offset_m": round(offset, 3),
                      "letter_lateral_m": round(lateral, 3),
@@ -222,5 +230,10 @@ def _path(top) -> float:
     return round(float(np.sum(steps[np.isfinite(steps)])), 1)
 
 
-def _r(v) -> list:
-    return [round(float(x), 3) for x in v]
+def _r(v) -> list | None:
+    return None if v is None else [round(float(x), 3) for x in v]
+
+
+def _round(x, digits: int):
+    """A finite number rounded, else None (nothing measured: the table says '-')."""
+    return round(float(x), digits) if x is not None and np.isfinite(x) else None
