@@ -9,13 +9,13 @@ from __future__ import annotations
 
 import json
 import sys
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from ..io.json_format import covariance_in, covariance_json, rounded, vector_json
 from ..localization.posterior import ArgmaxSpread
+from .terminal import Elapsed
 
 MANY_HISTOGRAMS = 256  # the paired model fit's cost: seconds below, minutes at 4,096
 
@@ -293,12 +293,13 @@ def locate(args) -> int:
     h_s = None if args.h_ns is None else args.h_ns * 1e-9
     sets, frame = read_capture_with_frame(args.file)  # the sets keep every target's truth
     estimator, note = _estimator(args, sets)
-    found = locate_capture(sets, frame=frame, region=region, step_m=args.step, h_s=h_s,
-                           pulses=args.pulses, estimator=estimator, targets=args.targets,
-                           log_mode=True if args.log else None, background=args.background,
-                           negatives=args.negatives, calibration=args.calibration,
-                           return_map=bool(args.map), backend=args.device,
-                           names=("--region", "--step"))
+    with Elapsed(f"locating ({getattr(estimator, 'name', estimator or 'model')} estimator)"):
+        found = locate_capture(sets, frame=frame, region=region, step_m=args.step, h_s=h_s,
+                               pulses=args.pulses, estimator=estimator, targets=args.targets,
+                               log_mode=True if args.log else None,
+                               background=args.background, negatives=args.negatives,
+                               calibration=args.calibration, return_map=bool(args.map),
+                               backend=args.device, names=("--region", "--step"))
     found = replaced(found, source=args.file)
     entries = []
     for point, hist in zip(found.points, sets):

@@ -92,3 +92,41 @@ def leave(code) -> None:
     except (OSError, ValueError):
         sys.exit(code)
     os._exit(code or 0)
+
+
+class Elapsed:
+    """`with Elapsed("locating"):` a line on a terminal's stderr that counts the seconds of work
+    that lasts longer than `after_s` (a model fit on thousands of histograms takes minutes),
+    updated once a second from a thread and cleared at the end; nothing where stderr is not a
+    terminal (pipes, logs, tests)."""
+
+    def __init__(self, what: str, after_s: float = 2.0, stream=None):
+        self.what, self.after_s = what, after_s
+        self.stream = sys.stderr if stream is None else stream
+        self._stop, self._thread = None, None
+
+    def __enter__(self):
+        import threading
+        if not getattr(self.stream, "isatty", lambda: False)():
+            return self
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._tick, daemon=True)
+        self._thread.start()
+        return self
+
+    def _tick(self) -> None:
+        import time
+        start, shown = time.monotonic(), False
+        while not self._stop.wait(self.after_s if not shown else 1.0):
+            shown = True
+            self.stream.write(f"\r{self.what}: {time.monotonic() - start:.0f} s")
+            self.stream.flush()
+        if shown:
+            self.stream.write("\r\033[K")
+            self.stream.flush()
+
+    def __exit__(self, *exc):
+        if self._thread is not None:
+            self._stop.set()
+            self._thread.join()
+        return False

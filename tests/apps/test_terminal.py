@@ -140,3 +140,34 @@ def test_redteam_runs_a_few_inputs(tmp_path):
     assert len(rows) == 3
     assert all(r.split("|")[4].strip() in redteam.OUTCOMES for r in rows)
     assert "summary:" in done.stdout and "(3 inputs)" in done.stdout
+
+
+class _Terminal:
+    def __init__(self, tty):
+        self.tty, self.text = tty, []
+
+    def isatty(self):
+        return self.tty
+
+    def write(self, s):
+        self.text.append(s)
+
+    def flush(self):
+        pass
+
+
+def test_long_work_shows_its_elapsed_seconds_on_a_terminal_only():
+    """A long locate (a model fit on thousands of histograms: minutes) counts its seconds on
+    a terminal's stderr and clears the line at the end; short work and pipes see nothing."""
+    import time
+    from nlos_cl.apps.terminal import Elapsed
+    tty, pipe, quick = _Terminal(True), _Terminal(False), _Terminal(True)
+    for stream in (tty, pipe):
+        with Elapsed("locating (model estimator)", after_s=0.05, stream=stream):
+            time.sleep(0.3)
+    with Elapsed("locating", after_s=5.0, stream=quick):
+        pass
+    assert any(t.startswith("\rlocating (model estimator): ") and t.endswith(" s")
+               for t in tty.text)
+    assert tty.text[-1] == "\r\033[K"
+    assert pipe.text == [] and quick.text == []
