@@ -116,8 +116,7 @@ def _keys(where: str, mapping, allowed: set) -> dict:
 def _vector(where: str, value, n=3) -> np.ndarray:
     ok = isinstance(value, (list, tuple, np.ndarray)) and len(value) == n and \
         all(is_number(v) for v in value)
-    require(ok, where, f"expected {n} finite numbers, got {shown(value)}",
-            f"write e.g. {[0.0] * n}")
+    require(ok, where, f"expected {n} finite numbers, got {shown(value)}", f"write e.g. {[0.0] * n}")
     return np.asarray(value, dtype=np.float64)
 
 
@@ -327,9 +326,8 @@ def load_scene(source) -> SceneSpec:
             "target", "add e.g. `targets: [{shape: rectangle, position: [4, 2, 0]}]`")
     placed, paths = zip(*[_target(i, t, base, cell) for i, t in enumerate(targets)])
     occlusion = raw.get("occlusion", True)
-    require(isinstance(occlusion, bool), "occlusion",
-            f"must be true or false, got {shown(occlusion)}",
-            "write occlusion: true (the default) or false")
+    require(isinstance(occlusion, bool), "occlusion", f"must be true or false, got "
+            f"{shown(occlusion)}", "write occlusion: true (the default) or false")
     scene = Scene(setup, placed[0], cell, more_targets=tuple(placed[1:]), occlusion=occlusion)
     noise, seed = _noise(raw.get("noise"))
     text = raw.get("description", "")
