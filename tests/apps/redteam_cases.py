@@ -623,3 +623,8 @@ CASES += [
 from redteam_studies import STUDY_CASES  # beside this file; it imports the names above
 
 CASES += STUDY_CASES
+
+# ---- issue 59: the HDF5 gate, bounded messages, noise in reproduce real (redteam_gate.py)
+from redteam_gate import GATE_CASES  # beside this file; it imports the names above
+
+CASES += GATE_CASES

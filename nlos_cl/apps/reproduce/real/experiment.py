@@ -57,6 +57,14 @@ def _present(section: str, cfg: dict, root: Path) -> bool:
     return all((root / p).exists() for p in paths)
 
 
+def _detected(row: dict) -> bool:
+    """Whether a case found a target: located (CC-SOCR, LCT), a return in some frame (Keyhole),
+    a confirmed track in some frame (the walk); noise is none of these."""
+    if "detected" in row:
+        return bool(row["detected"])
+    return bool(row.get("frames_detected", row.get("frames_confirmed", 1)))
+
+
 def real(s: Settings, out: Path, data=None) -> Result:
     """Run real.yaml's sections on the datasets in `data` (see data_root); s.quick: one case
     of each (seconds)."""
@@ -73,6 +81,7 @@ def real(s: Settings, out: Path, data=None) -> Result:
         seconds = time.perf_counter() - start
         write_csv(out / f"{NAME}-{name}.csv", sections[name]["rows"])
         index.extend({"section": name, "case": row["case"], "section_s": round(seconds, 1),
+                      "detected": _detected(row),
                       "met": all(row["met"].values()) if isinstance(row["met"], dict)
                       else row["met"]} for row in sections[name]["rows"])
     figures = report.figures(sections, out)
