@@ -13,8 +13,17 @@ from pathlib import Path
 
 import h5py
 import numpy as np
-
-from redteam_cases import LOC, MEM, SEC, SWEEP0, VAGUE, WRONG, Case, edited_capture, study
+from redteam_cases import (
+    LOC,
+    MEM,
+    SEC,
+    SWEEP0,
+    VAGUE,
+    WRONG,
+    Case,
+    edited_capture,
+    study,
+)
 
 LONG = "v" * 100_000  # a 100 kB value
 
