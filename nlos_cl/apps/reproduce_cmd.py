@@ -70,7 +70,7 @@ def _record_outputs(out: Path, names) -> None:
 
 
 def _write_doc(rp, args, settings, results, wall) -> None:
-    if args.name in ("tracking", "draws", "flood"):  # own writers (tracking: between markers)
+    if args.name in ("tracking", "draws", "flood", "scenarios"):  # own writers (tracking: markers)
         if args.doc:
             from importlib import import_module
             writer = import_module(f".reproduce.{args.name}", __package__).write_doc

@@ -15,7 +15,8 @@ The other experiments are one subpackage each, with their own data files, and 'a
 none of them: `beyond` sets the paper's estimator against the model-based one and writes its own
 report; `tracking` the tracker's tables of docs/tracking.md; `real` the measured datasets;
 `draws` random draws (the draws themselves: nlos_cl.simulation.draws); `flood` a multizone
-sensor's flood read as confocal.
+sensor's flood read as confocal; `scenarios` first-use scenes run through the command line with
+no option.
 """
 from __future__ import annotations
 
@@ -26,7 +27,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 from ...core.errors import require
-from . import beyond, draws, flood, real, tracking
+from . import beyond, draws, flood, real, scenarios, tracking
 from .common import (PAPER, Result, Settings, fwhm_ns, paper_target, run_trials, stats,
                      write_csv)
 from .paper import fig5, fig6, fig8, fig10, sweeps
@@ -41,6 +42,7 @@ EXPERIMENTS["tracking"] = tracking.tracking  # docs/tracking.md's tables; not in
 EXPERIMENTS["real"] = real.real  # the measured datasets (docs/results/real-data/); not in 'all'
 EXPERIMENTS["draws"] = draws.draws  # random draws (docs/results/draws/draws.md); not in 'all'
 EXPERIMENTS["flood"] = flood.flood  # the flood study (docs/results/flood/flood.md); not in 'all'
+EXPERIMENTS["scenarios"] = scenarios.scenarios  # first-use scenes, CLI with no option; not in 'all'
 
 
 def run(name: str, s: Settings, out: Path, **options) -> list[Result]:
@@ -52,7 +54,7 @@ def run(name: str, s: Settings, out: Path, **options) -> list[Result]:
         for option in options:
             require(option in taken, f"--{option}", f"is not an option of {n}",
                     "leave it out (beyond takes --only; tracking --only and --cold; draws "
-                    "--only, --draws and --jobs; real --data; flood --draws)")
+                    "--only, --draws and --jobs; real --data; flood and scenarios --draws)")
     out.mkdir(parents=True, exist_ok=True)
     results = []
     for n in tqdm(names, desc="reproduce", disable=len(names) == 1):
