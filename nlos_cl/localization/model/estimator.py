@@ -24,7 +24,7 @@ from .forward.likelihood import Problem
 from .options import GROUPS, FitBudget, Instrument, check_options, model_reflectance
 from .policy.depth import unseen_note
 from .policy.filtered_search import searched, smooth_observation
-from .policy.sanity import checked, fit_checks, unfittable_line
+from .policy.sanity import checked, fit_checks, leftover_note, unfittable_line
 from .policy.warm import checked_sizes, hidden_diagnostics
 from .shapes import plate
 from .shapes.lattices import lattice_for
@@ -153,6 +153,8 @@ class ModelEstimator:
             history = fitted.history
             info = _reported(chosen, result, free, cov_all, info, warm_info)
             notes = _notes(held, chosen.shape, result, cov_all, info)
+            if self.sanity and (left := leftover_note(chosen, result, self.targets)):
+                notes.append(left)
             for note in notes:
                 warn(note)
             self.timings = _stages(clock, fitted.problem)

@@ -68,7 +68,8 @@ def accepts(problem, before, after, free) -> tuple[bool, dict]:
     apart = separate(after.params)
     ok = gain > penalty and share >= MIN_ANY_SHARE and (adequate or share >= MIN_SHARE or apart)
     return ok, {"bic_gain": gain - penalty, "share": share, "birge_after": birge,
-                "explains_data": bool(adequate), "apart": apart}
+                "explains_data": bool(adequate), "apart": apart,
+                "cost_drop": float((before.cost - after.cost) / max(before.cost, TINY))}
 
 
 def separate(params) -> bool:

@@ -80,6 +80,31 @@ def fit_checks(chosen, result, free, cov_all, info) -> dict:
             unseen_note(chosen.shape, result, cov_all, info) is not None}
 
 
+def leftover_note(problem, result, targets) -> str | None:
+    """Where the fit's residual still holds a return (the locator's detection test, at its
+    false-alarm rate, on the residual in noise units): what it may be and how to look for it;
+    None where the residual is noise. Gaussian noise only (the counts' Pearson residuals are
+    not Gaussian at a few counts a bin). A one-target fit to two plates' capture left one plate
+    unexplained without a word (docs/scenes/two_squares.yaml: residual statistic 285 against
+    its threshold 39), while plate captures at 0-30 dB leave 2-4. On random draws with the
+    default K = 1 (reproduce draws' families, indices 0-10/12): said on 11 of 11 multi draws
+    (2-3 plates), 0 of 11 `one` and 0 of 13 `closed` draws, 7 of 13 `mismatch` draws (the model
+    lacks their pulse, tail, BRDF or background), the two mismatch failures among them."""
+    from ...detection import detect
+    obs = problem.obs
+    if obs.mode != "gauss":
+        return None
+    cols = problem.columns(result.params)
+    z = (obs.y - problem.mean(cols, result.linear)) / obs.noise[:, None]
+    if not detect(np.where(obs.valid, z, 0.0)).detected:
+        return None
+    more = ("look for more targets with targets='auto' (nlos-cl: --targets auto)"
+            if targets != "auto" else "no further target passed the model selection")
+    return ("the data hold signal the fitted target(s) do not explain (the detection's test on "
+            "the fit's residual): another target, or light the model does not describe (a "
+            f"shape, reflectance, background or instrument tail); {more}")
+
+
 def closed_centre_guessed(shape: str, checks: dict) -> bool:
     """A closed shape whose misfit ratio is above MISFIT_BIRGE and whose depth is unseen or
     that explains less than EXPLAINED_MIN of the signal (`fit_checks`' fields): `doubt`
