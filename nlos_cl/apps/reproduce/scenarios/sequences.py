@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from . import draws as dr
+from . import objects as dr
 
 
 def at(o: dict, t_s: float, span_s: float) -> np.ndarray:
@@ -29,8 +29,8 @@ def _mover(rng, cfg, fam, spots, span_s: float) -> dict | None:
     facing O and every spot from both ends of it."""
     o = {"role": "target", **dr.sized(str(rng.choice(fam["shapes"])), rng, cfg)}
     start = dr.centre_in(rng, cfg)
-    heading = dr._u(rng, (0.0, 2 * math.pi))
-    length = dr._u(rng, fam["speed_m_s"]) * span_s
+    heading = dr.u(rng, (0.0, 2 * math.pi))
+    length = dr.u(rng, fam["speed_m_s"]) * span_s
     end = start + length * np.array([math.cos(heading), math.sin(heading), 0.0])
     if not _in_region(end, cfg):
         return None
@@ -61,9 +61,9 @@ def _furniture(rng, cfg, fam, spots, movers, times, span_s) -> dict | None:
     a, b = (np.asarray(p, float) for p in m["path"])
     way = (b - a) / max(np.linalg.norm(b - a), 1e-9)
     side = np.cross([0.0, 0.0, 1.0], way) * (1 if rng.random() < 0.5 else -1)
-    gap = dr._u(rng, fam["gap_m"])
+    gap = dr.u(rng, fam["gap_m"])
     centre = a + (b - a) * rng.random() + side * (m["bound_m"] + o["bound_m"] + gap)
-    centre[2] = dr._u(rng, cfg["region"]["z"])
+    centre[2] = dr.u(rng, cfg["region"]["z"])
     p = dr.placed(o, centre, rng, cfg, spots)
     if p is None or not _clear_of(p, movers, times, span_s, 0.05):
         return None
@@ -85,7 +85,7 @@ def sequence(rng, cfg, fam, cycle: int, lay) -> dict:
                 return None
             out.append(m)
         return out
-    movers = dr._tries(make_movers, f"{k} movers")
+    movers = dr.tries(make_movers, f"{k} movers")
     count = int(rng.integers(fam["furniture"][0], fam["furniture"][1] + 1))
 
     def make_furniture():
@@ -96,6 +96,6 @@ def sequence(rng, cfg, fam, cycle: int, lay) -> dict:
                 return None
             out.append(f)
         return out
-    furniture = dr._tries(make_furniture, "furniture")
+    furniture = dr.tries(make_furniture, "furniture")
     frames = {k: fam[k] for k in ("frames", "fps", "first_frame")}
     return {"objects": movers + furniture, "sequence": frames}
