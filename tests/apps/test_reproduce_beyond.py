@@ -23,7 +23,7 @@ def test_beyond_is_an_experiment_but_not_part_of_all():
     assert "beyond" in rp.EXPERIMENTS
     assert "beyond" not in rp.PAPER_EXPERIMENTS
     assert set(rp.PAPER_EXPERIMENTS) == set(rp.EXPERIMENTS) - {"beyond", "tracking", "real",
-                                                               "draws", "flood"}
+                                                               "draws", "flood", "scenarios"}
 
 
 def test_cases_come_from_the_yaml_and_quick_is_a_subset():
