@@ -199,9 +199,8 @@ def _track_args(p):
                    "the tracks; paper: the argmax, faster; mean: the mean and covariance of "
                    "the paper's likelihood; default: model, paper for paired "
                    "and confocal captures)")
-    p.add_argument("--targets", type=_number("targets", "pass a count, e.g. 1", minimum=1,
-                                             integer=True, maximum=MAX_TARGETS),
-                   default=1, help="targets to follow")
+    p.add_argument("--targets", type=_targets, default=1, help="targets to follow: a count, "
+                   "or 'auto' (found and ended from the data, model estimator)")
     _reflectance_arg(p)
     p.add_argument("--region", type=_number("region", "pass finite ranges in metres"), nargs=6,
                    default=None, metavar=("A0", "A1", "B0", "B1", "C0", "C1"),

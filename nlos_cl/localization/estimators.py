@@ -72,11 +72,12 @@ def choose_estimator(estimator=None, *, targets=1, reflectance=None, paired: boo
     `names`: how errors name the options (the CLI passes its flags)."""
     note = None
     if estimator is None and paired and reflectance is None:
-        estimator = ("mean" if targets == 1 else "paper") if tracking else "paper"
+        estimator = ("mean" if targets in (1, "auto") else "paper") if tracking else "paper"
         note = PAIRED_TRACK_NOTES[estimator] if tracking else PAIRED_LOCATE_NOTE
     if tracking and isinstance(estimator, str) and estimator != "model":
         flag = names["estimator"]
-        require(estimator != "mean" or targets == 1, flag, "mean gives one position a frame, "
+        require(estimator != "mean" or targets in (1, "auto"), flag, "mean gives one position "
+                "a frame, "
                 "the likelihood's mean over the region, which lies between two targets",
                 f"pass {spelled(flag, 'paper')} or model with {names['targets']} above 1")
     if reflectance is not None:

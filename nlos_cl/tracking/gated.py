@@ -33,8 +33,8 @@ def search_box(tracker, predictions) -> tuple | None:
     slots hold confirmed tracks measured last frame (or it is off, or no time was given)."""
     if not tracker.gated_search or predictions is None:
         return None
-    return box_of(predictions, tracker.tracks, tracker.max_tracks, tracker.gate_probability,
-                  tracker.fallback_sigma_m, tracker.grid)
+    return box_of(predictions, tracker.tracks, getattr(tracker, "slots", tracker.max_tracks),
+                  tracker.gate_probability, tracker.fallback_sigma_m, tracker.grid)
 
 
 def box_of(predictions, tracks, max_tracks: int, gate_probability: float, sigma_m: float,

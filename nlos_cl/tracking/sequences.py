@@ -66,7 +66,7 @@ def sampled_frames(seq) -> list:
     return [seq[int(i)].histograms for i in picks]
 
 
-def tracker_for(seq, *, estimator=None, targets: int = 1, reflectance=None, region=None,
+def tracker_for(seq, *, estimator=None, targets: int | str = 1, reflectance=None, region=None,
                 step_m: float | None = None, h_s: float | None = None, background=None,
                 running_mean: float | None = None, motion: MotionModel | None = None,
                 full_search: bool = False, backend=None,
@@ -74,8 +74,9 @@ def tracker_for(seq, *, estimator=None, targets: int = 1, reflectance=None, regi
     """A Tracker for `seq` (an opened Sequence) on the search region `nlos-cl locate` would use
     for its first frame, reaching as far as the signal of frames spread over the sequence.
 
-    estimator: None (the default policy, localization.estimators.choose_estimator: the model
-    fit, warm-started from the tracks; for paired and confocal captures the mean of the paper's
+    targets: how many targets to follow, or 'auto' (the model fit finds them per frame, up to
+    its max_targets: tracking.births). estimator: None (the default policy,
+    localization.estimators.choose_estimator: the model fit, warm-started from the tracks; for paired and confocal captures the mean of the paper's
     likelihood with one target and its argmax with several, with a warning), a name or an
     object. region: three (low, high) ranges along the file's axes, or a Grid; step_m with it.
     background: None (default: the static returns learned from frames spread over the
@@ -99,8 +100,11 @@ def tracker_for(seq, *, estimator=None, targets: int = 1, reflectance=None, regi
     if getattr(chosen, "name", None) == "paper" and remover is None:
         from .scatter import sequence_scatter
         sigma = sequence_scatter(seq, grid, h_s=h_s, backend=backend)
+    counted = getattr(chosen, "targets", None) == "auto"  # births from the data (births.py)
+    most = int(getattr(chosen, "max_targets", 1)) if counted else \
+        targets if isinstance(targets, int) else 1
     return Tracker(seq, grid, estimator=chosen, h_s=h_s, background=remover,
-                   motion=motion_for() if motion is None else motion, max_tracks=targets,
+                   motion=motion_for() if motion is None else motion, max_tracks=most,
                    frame_interval_s=interval, backend=backend,
                    noise=MeasurementNoise(fallback_sigma_m=sigma),
                    plan=SearchPlan(gated_search=not full_search))

@@ -30,6 +30,7 @@ import numpy as np
 from ..core.errors import InputError, refuse_moved, require
 from ..core.tuning import auto_log_mode
 from . import association, gated, kalman, warm
+from .births import TargetCount, supported
 from .lifecycle import Lifecycle
 from .recovery import Recovery
 from .motion import MEMBERS as MOTION_MEMBERS, Interacting
@@ -76,7 +77,10 @@ class Tracker:
             bool(plan.log_mode)
         self.gauss = GaussFilter(h_s, layout.time_axis, backend=backend)
         self.estimator = as_estimator(estimator)
-        self.warm_start = bool(plan.warm_start) and warm.can_start(self.estimator)
+        # targets='auto': how many to fit is chosen per frame (tracking.births)
+        self.count = TargetCount(max_tracks) \
+            if getattr(self.estimator, "targets", None) == "auto" else None
+        self.warm_start = bool(plan.warm_start) and warm.can_start(self.estimator, fixed=True)
         self.locator = Locator(layout, grid, estimator=self.estimator, log_mode=log_mode,
                                backend=backend, search=plan.search)
         self.layout, self.grid, self.motion, self.background = layout, grid, motion, background
@@ -85,6 +89,9 @@ class Tracker:
         self.lifecycle = Lifecycle(motion, self.dims, self.plane_z, confirm=rules.confirm,
                                    max_misses=rules.max_misses, max_history=rules.max_history)
         self.max_tracks, self.gate_probability = int(max_tracks), float(rules.gate_probability)
+        # the targets this frame may hold: the gated box's count, and where every slot is
+        # taken a free measurement is a lost target re-found (recovery), not a birth
+        self.slots = self.max_tracks
         self.recovery = Recovery(self.lifecycle, motion, self.gate_probability) \
             if rules.reacquire else None
         self.frame_interval_s, self.backend = float(frame_interval_s), backend
@@ -148,14 +155,39 @@ class Tracker:
             if getattr(self.background, "alpha", 0) > 0 and self.background.frames_seen == 1:
                 self.last_location, self.last_measurements, self.last_filtered = None, [], None
                 return []  # a running mean's first frame: nothing learnt to subtract yet
+        if self.count is not None:
+            targets, most = self.count.for_frame(self.tracks)
+            self.estimator.targets, self.estimator.max_targets = targets, most
+            self.slots = most
+        fixed = isinstance(getattr(self.estimator, "targets", 1), int)
         starters = warm.starters(predictions, self.estimator.targets) \
-            if self.warm_start and predictions is not None else None
+            if self.warm_start and fixed and predictions is not None else None
         box = gated.search_box(self, predictions)  # None: the whole region
         location, found = self._locate(sig, starters and warm.prior(starters), box)
         if starters is not None and warm.outside_gates(found, starters, self.gate_probability):
             location, found = warm.better((location, found), self._locate(sig, None))  # cold
+        if self.count is not None:
+            found = supported(found)
+            if self.count.try_more(location, self.estimator.targets):
+                location, found = self._one_more(sig, location, found)
+            # as many tracks as the data hold targets now: a free measurement beyond the
+            # live tracks is a birth, one among them a lost target to re-find (recovery)
+            self.slots = max(1, min(self.max_tracks, len(found)))
         self.last_location, self.last_measurements = location, found
         return found
+
+    def _one_more(self, sig, location, found):
+        """The frame fitted again cold over the whole region with 'auto', up to one target
+        more than `found` (tracking.births): kept where it found more."""
+        k = self.estimator.targets
+        self.estimator.targets, self.estimator.max_targets = "auto", k + 1
+        try:
+            again = self._locate(sig, None)
+        finally:
+            self.estimator.targets, self.estimator.max_targets = k, k
+        more = len(again[1]) > len(found)
+        self.count.tried(more)
+        return again if more else (location, found)
 
     def _locate(self, sig, prior, within=None):
         """(Location or None, measurements), from `prior`, the argmax `within` a box, if given."""
@@ -185,7 +217,7 @@ class Tracker:
         paired = {id(tr) for tr, _ in pairs}
         if self.recovery is not None:  # a lost target re-found continues its track
             recovered, free = self.recovery.step(self.tracks, paired, free, t, self.frame_index,
-                                                 len(self.tracks) >= self.max_tracks)
+                                                 len(self.tracks) >= self.slots)
             paired |= recovered
         _bury_and_bear(self, paired, free, t)
         self.t_s = t
@@ -199,7 +231,7 @@ def _bury_and_bear(tracker, paired: set, free: list, t: float) -> None:
             tracker.tracks.remove(track)
             tracker.finished = (tracker.finished + [track])[-100:]
     for m in free:
-        if len(tracker.tracks) < tracker.max_tracks:
+        if len(tracker.tracks) < tracker.slots:
             tracker.tracks.append(tracker.lifecycle.birth(m, t, tracker.frame_index))
 
 def _next_time(previous, t_s, interval):

@@ -20,10 +20,19 @@ from ..localization.estimate import Prior, capabilities_of
 from . import kalman
 
 
-def can_start(estimator) -> bool:
+def can_start(estimator, fixed: bool = False) -> bool:
     """Does the tracker warm-start this estimator? Where it says it can
-    (`Capabilities.warm_start`: the model estimator with a fixed number of targets)."""
-    return capabilities_of(estimator).warm_start
+    (`Capabilities.warm_start`: the model estimator with a fixed number of targets); fixed:
+    as it says with a fixed number (a tracker choosing the number per frame fixes it on the
+    frames it warm-starts: tracking.births)."""
+    targets = getattr(estimator, "targets", None)
+    if not fixed or targets != "auto":
+        return capabilities_of(estimator).warm_start
+    estimator.targets = 1
+    try:
+        return capabilities_of(estimator).warm_start
+    finally:
+        estimator.targets = targets
 
 
 def plate_of(measurement):

@@ -24,6 +24,7 @@ from .forward.likelihood import Problem
 from .options import GROUPS, FitBudget, Instrument, check_options, model_reflectance
 from .policy.depth import unseen_note
 from .policy.filtered_search import searched, smooth_observation
+from .policy.criteria import support
 from .policy.sanity import checked, fit_checks, leftover_note, unfittable_line
 from .policy.warm import checked_sizes, hidden_diagnostics
 from .shapes import plate
@@ -159,6 +160,8 @@ class ModelEstimator:
                 warn(note)
             self.timings = _stages(clock, fitted.problem)
             hidden = hidden_diagnostics(chosen, result, prior)
+            for h, kept in zip(hidden, support(chosen, result, free, info.get("birge_ratio"))):
+                h["support"] = kept  # K >= 2: the BIC gain of keeping each plate
             located = [self._target(result, cov_all, k, dict(info, **hidden[k]), notes,
                                     obs, history, observable, chosen.shape)
                        for k in _order(result)]

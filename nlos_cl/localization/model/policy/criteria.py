@@ -114,3 +114,25 @@ def plate_energies(problem, result) -> np.ndarray:
     cols = problem.columns(result.params)
     lin = np.asarray(result.linear[:len(cols)], float)
     return np.einsum("k,kdn->k", lin ** 2, cols ** 2)
+
+
+def support(problem, result, free, birge) -> list:
+    """Per plate of a fit with two or more, the BIC gain of keeping it (the test `accepts`
+    applies to a plate more, run backwards: the cost without it, the others' amplitudes
+    profiled, against the fit's, in units of its residual variance, less the plate's
+    penalty): below 0 the data do not hold that plate. A fixed number of plates warm-started
+    from tracks places one even where its target has gone (a walker's turn: a plate at the
+    old track's prediction kept that track alive for 5 frames, tracking.births)."""
+    params = np.asarray(result.params, float)
+    if len(params) < 2 or problem.obs.mode != "gauss":
+        return [None] * len(params)
+    k = kappa(problem.obs)
+    n_eff = max(result.n_residuals / k, 2.0)
+    penalty = (int(np.count_nonzero(free)) + 1) * math.log(n_eff)
+    scale = k * max(1.0, float(birge or 1.0))
+    out = []
+    for j in range(len(params)):
+        cols = problem.columns(np.delete(params, j, axis=0))
+        r = problem.residual(cols, problem.linear(cols))
+        out.append(float((float(r @ r) - result.cost) / scale - penalty))
+    return out
