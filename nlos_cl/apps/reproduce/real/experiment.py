@@ -1,7 +1,7 @@
 """`nlos-cl reproduce real`: nlos_cl on measured datasets that other groups recorded (CC-SOCR
 figure 4, LCT, Keyhole E/K/Y, the consumer-nlos walk), each read as `nlos-cl convert` reads it
 and located or tracked with the library's defaults, against the truth or reference it ships,
-timed in the same run (runs). The cases, the geometry facts and issue 21's goals are in
+timed in the same run (runs). The cases, the geometry facts and the targets checked are in
 real.yaml. Writes OUT/real.csv (a row per case), OUT/real-<section>.csv, OUT/real-*.png and
 OUT/real-data.md; `--doc docs/results/real-data/real-data.md` writes the page there, its figures
 beside it in real/ (report). Not part of `reproduce all`: it needs ../shared/realdata."""

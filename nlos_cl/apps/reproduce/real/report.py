@@ -58,7 +58,7 @@ def _table(header, rows) -> list[str]:
 
 
 def _yes(ok) -> str:
-    return "met" if ok else "**not met**"
+    return "yes" if ok else "**no**"
 
 
 def _found(row, measured: str) -> str:
@@ -106,8 +106,8 @@ def page(result, fig_dir: str) -> str:
              "Each dataset is read as `nlos-cl convert` reads it (`nl.read_dataset`) and "
              "located (`nl.locate_capture`) or tracked (`nlos-cl track`'s Tracker) with the "
              "library's defaults; every time is measured in this run, on this machine.", "",
-             "## Goals (issue 21)", "",
-             *_table(["dataset", "goal", "measured", ""], goals(s))]
+             "## Targets, checked on this run", "",
+             *_table(["dataset", "target", "measured", "check"], goals(s))]
     for name, title in SECTION_TITLES.items():
         lines += [f"## {title}", ""]
         rows = s["sections"].get(name)
