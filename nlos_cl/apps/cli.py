@@ -174,10 +174,11 @@ def _estimator_args(p):
                    "a covariance (docs/model-estimator.md); paper: the paper's argmax; mean: "
                    "the mean and covariance of the paper's likelihood "
                    "(default: model; paper for paired and confocal captures)")
-    p.add_argument("--targets", type=_targets, default=1,
+    p.add_argument("--targets", type=_targets, default=None,
                    help="targets to fit (model estimator): a count, or 'auto' (every target the "
                    "data support, up to 3: a plate more is fitted while one fewer misses the "
-                   "data and the BIC takes it)")
+                   "data and the BIC takes it); default: one, and more where the fit's residual "
+                   "holds separate objects")
     _reflectance_arg(p)
 
 

@@ -162,7 +162,8 @@ def _estimator(args, sets):
             max(h.n_detectors for h in sets))
     if args.reflectance is None:
         return args.estimator, None
-    return choose_estimator(args.estimator, targets=args.targets, reflectance=args.reflectance,
+    return choose_estimator(args.estimator, targets=args.targets or 1,
+                            reflectance=args.reflectance,
                             names=OPTION_FLAGS)[0], None
 
 

@@ -30,6 +30,7 @@ from .estimate import Location, capabilities_of
 from .estimators import choose_estimator
 from .paper import PaperArgmax
 from .posterior import ArgmaxSpread
+from .separate import more_if_separate
 from .region import default_region, on_region_edge, region_step, zoom_region
 
 REGION_NAMES = ("region", "step_m")  # how errors name the region options (a CLI: its flags)
@@ -263,7 +264,7 @@ def _spread(hist, filtered, h_s, backend):
 
 
 def locate_capture(capture, *, region=None, step_m: float | None = None,
-                   h_s: float | None = None, estimator=None, targets=1, log_mode=None,
+                   h_s: float | None = None, estimator=None, targets=None, log_mode=None,
                    background=None, negatives: str = "keep", calibration=None,
                    return_map: bool = False, backend=None, frame: CaptureFrame | None = None,
                    names=REGION_NAMES, pulses: int | None = None,
@@ -273,7 +274,8 @@ def locate_capture(capture, *, region=None, step_m: float | None = None,
     capture: a y-tal file's path, or HistogramSet(s) (ours; `frame` says which frame to report
     in, default ours). region: None (derived from the capture), three (low, high) ranges along
     the file's axes at step_m, or a Grid of ours. estimator: 'model' (with `targets` plates, or
-    'auto': every target the data support, up to 3), 'paper', an estimator object, or None: 'model', and the paper's argmax for paired
+    'auto': every target the data support, up to 3; None: one, and more where the data hold
+    separate objects, localization.separate), 'paper', an estimator object, or None: 'model', and the paper's argmax for paired
     and confocal captures (estimators.PAIRED_LOCATE_NOTE says why, in the point's warnings). log_mode: None = auto_log_mode(detectors).
     background: a target-free capture (path or sets) subtracted first, bins below 0 handled by
     `negatives`; calibration: a CSV of (path m, peak time s) pairs (Eq. 26), a PathCalibration
@@ -290,6 +292,7 @@ def locate_capture(capture, *, region=None, step_m: float | None = None,
             f"the filter window must be a positive time in seconds, got {h_s!r}",
             "pass e.g. 0.65e-9 (the paper's h)")
     from ..ops.backend import resolve_backend
+    given, targets = targets, 1 if targets is None else targets
     est, _ = choose_estimator(estimator, targets=targets)  # checked before any work
     sets, frame, source = _sets(capture, frame)
     sets, reports, h_s = measured_processing(
@@ -304,9 +307,15 @@ def locate_capture(capture, *, region=None, step_m: float | None = None,
                            if estimator is None and hist.paired else (est, None))
         if isinstance(estimator, str | None) and isinstance(point_est, PaperArgmax):
             point_est = ArgmaxSpread()  # the paper's answer, with its likelihood's spread
-        points.append(_locate_point(i, hist, frame, grid, derived, h_s=h_s,
-                                    estimator=point_est, log_mode=log_mode,
-                                    return_map=bool(return_map), backend=backend, names=names,
-                                    notes=[note] if note else [], processing=reports[i]))
+        def located(chosen, i=i, hist=hist, grid=grid, derived=derived, note=note):
+            return _locate_point(i, hist, frame, grid, derived, h_s=h_s, estimator=chosen,
+                                 log_mode=log_mode, return_map=bool(return_map),
+                                 backend=backend, names=names, notes=[note] if note else [],
+                                 processing=reports[i])
+        point = located(point_est)
+        if given is None and estimator in (None, "model"):  # one, or separate objects
+            point = more_if_separate(point, lambda k: located(choose_estimator(
+                "model", targets=k)[0]))
+        points.append(point)
     return CaptureLocation(tuple(points), frame, source, getattr(backend, "name", str(backend)),
                            h_s, cal)

@@ -195,8 +195,9 @@ def test_a_fit_that_leaves_a_target_unexplained_says_so():
     """One plate fitted to two squares' capture left the other square unexplained without a
     word; the residual's detection test says so (and how to look for it). A one-square capture
     at the same noise leaves noise only: no such note."""
-    two = nl.locate_capture(_squares([(3.5, 1.5, 0.0), (2.0, 3.0, 0.0)], 3)).points[0]
-    one = nl.locate_capture(_squares([(3.5, 1.5, 0.0)], 4)).points[0]
+    two = nl.locate_capture(_squares([(3.5, 1.5, 0.0), (2.0, 3.0, 0.0)], 3),
+                            targets=1).points[0]
+    one = nl.locate_capture(_squares([(3.5, 1.5, 0.0)], 4), targets=1).points[0]
     said = "the data hold signal the fitted target(s) do not explain"
     assert any(w.startswith(said) and "targets='auto'" in w for w in two.warnings)
     assert not any(w.startswith(said) for w in one.warnings)
