@@ -200,8 +200,9 @@ def _track_args(p):
                    "the tracks; paper: the argmax, faster; mean: the mean and covariance of "
                    "the paper's likelihood; default: model, paper for paired "
                    "and confocal captures)")
-    p.add_argument("--targets", type=_targets, default=1, help="targets to follow: a count, "
-                   "or 'auto' (found and ended from the data, model estimator)")
+    p.add_argument("--targets", type=_targets, default="auto", help="targets to follow: a "
+                   "count, or 'auto' (the default: found and ended from the data by the model "
+                   "fit, up to 3)")
     _reflectance_arg(p)
     p.add_argument("--region", type=_number("region", "pass finite ranges in metres"), nargs=6,
                    default=None, metavar=("A0", "A1", "B0", "B1", "C0", "C1"),

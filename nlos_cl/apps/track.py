@@ -142,7 +142,7 @@ def _video(path, tmp, run):
 
 # what places targets, which one confocal spot cannot do: (flag, set?) for `_range_main`
 RANGE_REFUSED = (("--video", lambda a: a.video), ("--estimator", lambda a: a.estimator),
-                 ("--targets", lambda a: a.targets != 1), ("--region", lambda a: a.region),
+                 ("--targets", lambda a: a.targets not in (1, "auto")), ("--region", lambda a: a.region),
                  ("--step", lambda a: a.step), ("--reflectance", lambda a: a.reflectance),
                  ("--background", lambda a: a.background),
                  ("--running-mean", lambda a: a.running_mean is not None),

@@ -66,7 +66,8 @@ def sampled_frames(seq) -> list:
     return [seq[int(i)].histograms for i in picks]
 
 
-def tracker_for(seq, *, estimator=None, targets: int | str = 1, reflectance=None, region=None,
+def tracker_for(seq, *, estimator=None, targets: int | str = "auto", reflectance=None,
+                region=None,
                 step_m: float | None = None, h_s: float | None = None, background=None,
                 running_mean: float | None = None, motion: MotionModel | None = None,
                 full_search: bool = False, backend=None,
@@ -74,8 +75,8 @@ def tracker_for(seq, *, estimator=None, targets: int | str = 1, reflectance=None
     """A Tracker for `seq` (an opened Sequence) on the search region `nlos-cl locate` would use
     for its first frame, reaching as far as the signal of frames spread over the sequence.
 
-    targets: how many targets to follow, or 'auto' (the model fit finds them per frame, up to
-    its max_targets: tracking.births). estimator: None (the default policy,
+    targets: how many targets to follow, or 'auto' (the default: the model fit finds them per
+    frame, up to its max_targets, births and deaths from the data: tracking.births). estimator: None (the default policy,
     localization.estimators.choose_estimator: the model fit, warm-started from the tracks; for paired and confocal captures the mean of the paper's
     likelihood with one target and its argmax with several, with a warning), a name or an
     object. region: three (low, high) ranges along the file's axes, or a Grid; step_m with it.
