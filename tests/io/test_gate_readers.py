@@ -243,3 +243,26 @@ def test_mat_v5_tags_that_crashed_scipy_are_refused(tmp_path, at, flip, said):
                          timeout=60, check=False,
                          env=dict(os.environ, PYTHONPATH=str(Path(__file__).parents[2])))
     assert run.returncode == 0 and f"x.mat: rect_data: {said}" in run.stdout, run
+
+
+def test_a_v73_chunk_that_inflates_past_its_size_is_refused(tmp_path, monkeypatch):
+    """A MATLAB v7.3 variable of 2,400 bytes whose one deflate chunk inflates to 400 MB (a
+    400 kB file), under a 64 MiB budget: refused in one line before HDF5 inflates it, as a
+    capture's chunks are (HDF5 inflates a chunk to the end of its stream)."""
+    import zlib
+    monkeypatch.setenv("NLOS_CL_MEMORY_LIMIT", "64M")
+    from nlos_cl.io.datasets.matfile import load
+    path = tmp_path / "bomb.mat"
+    with h5py.File(path, "w", userblock_size=512) as f:
+        d = f.create_dataset("rect_data", (300,), dtype=np.float64, chunks=(300,),
+                             compression="gzip")
+        d.id.write_direct_chunk((0,), zlib.compress(bytes(400 << 20), 9), filter_mask=0)
+        d.attrs["MATLAB_class"] = np.bytes_(b"double")
+    with open(path, "r+b") as fh:
+        fh.write(b"MATLAB 7.3 MAT-file, Platform: GLNXA64, HDF5 schema 1.00 .".ljust(116)
+                 + bytes(8) + b"\x00\x02IM")
+    assert path.stat().st_size < 1 << 20
+    with pytest.raises(InputError) as info:
+        load(path, "rect_data", 1)
+    text = str(info.value)
+    assert "\n" not in text and "inflates to more than the 2,400 bytes" in text, text

@@ -83,6 +83,13 @@ def h5_array(f, name: str, path) -> np.ndarray:
                    f"reading {name} {shape}", "read it on a machine with more memory")
     if d.attrs.get("MATLAB_empty", 0):
         return np.zeros(shape)
+    from ...core import gate
+    from ..hdf5_gate import check_chunks
+    held = float(np.prod(shape, dtype=np.float64)) * d.dtype.itemsize
+    # what each compressed chunk may expand to, as every capture's chunks (a deflate chunk
+    # inflates to the end of its stream, whatever size it declares)
+    check_chunks(d, f"{path}: {name}", gate.budget(None)[0] - 3 * held, held,
+                 "pass the dataset's own, unmodified file")
     try:
         return np.asarray(d[()], dtype=np.float64).T  # MATLAB's axis order again
     except (OSError, RuntimeError, ValueError, TypeError) as exc:
