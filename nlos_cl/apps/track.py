@@ -92,9 +92,11 @@ def main(args) -> int:
     detected = _written(args, seq.frame, lambda video, out: _loop(args, run, video, out),
                         video_of=args.video and (lambda path, tmp: _video(path, tmp, run)))
     if not args.json:
+        from ..tracking.static import holds_still
         for t in run.tracker.tracks:
             where = [round(float(v), 3) for v in seq.frame.from_internal(t.position)]
-            print(f"track {t.id} ({t.status}): at {where} m in the file's frame "
+            still = ", static: furniture or a target standing still" if holds_still(t) else ""
+            print(f"track {t.id} ({t.status}{still}): at {where} m in the file's frame "
                   f"({seq.frame.name}), {len(t.history)} frames")
     return _status(detected, len(run))
 

@@ -69,7 +69,8 @@ class Outputs:
         if self.writer is not None:
             head, how = [entry["frame"], entry["t_s"]], _estimate(entry)
             for t in entry["tracks"]:
-                self.writer.writerow([*head, "track", t["id"], t["status"], *t["position"],
+                status = "static" if t.get("static") else t["status"]
+                self.writer.writerow([*head, "track", t["id"], status, *t["position"],
                                       *_sds(t["covariance"]), *t["velocity"], how])
             for m in entry["measurements"]:
                 self.writer.writerow([*head, "measurement", "", "", *m, *[""] * 6, ""])
@@ -82,7 +83,8 @@ class Outputs:
             return f"{head}: no track" + ("" if entry["detected"] else " (no target signal)")
         how = _estimate(entry)
         return "\n".join(
-            f"{head}: track {t['id']} ({t['status']}{'' if how == 'filter' else ', ' + how}) "
+            f"{head}: track {t['id']} ({t['status']}{', static' if t.get('static') else ''}"
+            f"{'' if how == 'filter' else ', ' + how}) "
             + ", ".join(_axis(a, v, s) for a, v, s in
                         zip(self.axes, t["position"], _sds(t["covariance"]))) + " m"
             for t in entry["tracks"])

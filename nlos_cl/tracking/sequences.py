@@ -172,16 +172,19 @@ class TrackedFrame:
 
 
 def frame_json(frame, tracks, measurements, cframe, smoothed=None, mark=None) -> dict:
-    """One frame's JSON object in `cframe` (the file's frame): tracks (id, status, position,
-    velocity, covariance), measurements, truths, detected. `smoothed`: {(id, frame index):
+    """One frame's JSON object in `cframe` (the file's frame): tracks (id, status, static (a
+    confirmed track that has not moved: static.holds_still, reported apart from the movers),
+    position, velocity, covariance), measurements, truths, detected. `smoothed`: {(id, frame index):
     Smoothed} replaces the filter's position, velocity and covariance where it holds the track;
     `mark`: keys added (what replaced them: {"smoothed": true} or {"lag_frames": L})."""
     from ..io.json_format import covariance_json, vector_json
+    from .static import holds_still
     found = [(t, (smoothed or {}).get((t.id, frame.index))) for t in tracks]
     states = [(t, s.position, s.velocity, s.covariance) if s is not None else
               (t, t.position, t.velocity, t.position_covariance) for t, s in found]
     entry = {"frame": frame.index, "t_s": frame.t_s,
-             "tracks": [{"id": t.id, "status": t.status, "position": vector_json(p, cframe),
+             "tracks": [{"id": t.id, "status": t.status, "static": holds_still(t),
+                         "position": vector_json(p, cframe),
                          "velocity": vector_json(v, cframe, direction=True),
                          "covariance": covariance_json(c, cframe)} for t, p, v, c in states],
              "measurements": [vector_json(x.position, cframe) for x in measurements],

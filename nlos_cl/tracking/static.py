@@ -63,3 +63,20 @@ def holds_target(background: HistogramSet, grid) -> bool:
     filtered = gauss_filter(background)
     window = reachable_bins(background.layout, grid)
     return detect(filtered.values(), window, raw=raw_floor_of(background, filtered)).detected
+
+
+# A confirmed track is a static one (furniture, or a target standing still), reported apart
+# from the movers, where its last STILL_FRAMES positions all lie within STILL_M of their median
+# (a walker at 1 m/s and 10 frames/s moves 0.5 m in five frames; a still plate's track
+# scatters by its measurement noise, ~0.01-0.05 m). The short sequences that learn no static
+# returns (fewer than MIN_FRAMES) are where furniture gets tracks of its own.
+STILL_FRAMES = 5
+STILL_M = 0.1
+
+
+def holds_still(track) -> bool:
+    """Has this confirmed track stayed in place over its last STILL_FRAMES frames?"""
+    if track.status != "confirmed" or len(track.history) < STILL_FRAMES:
+        return False
+    last = np.array([h[2:5] for h in list(track.history)[-STILL_FRAMES:]], float)
+    return bool(np.all(np.linalg.norm(last - np.median(last, axis=0), axis=1) <= STILL_M))

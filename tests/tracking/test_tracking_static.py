@@ -89,3 +89,22 @@ def test_a_background_with_dark_rows_is_tested_not_located():
     data[1] = -np.abs(data[1])  # a zone darker than its median everywhere
     assert isinstance(holds_target(clean.with_data(data), nl.Grid()), bool)  # (the measured
     # walk that raised: tests/realdata/test_realdata_consumer.py)
+
+
+def test_a_track_that_stays_in_place_is_static_and_a_walker_is_not():
+    """A confirmed track whose last 5 positions lie within 0.1 m of their median is reported
+    static (apart from the movers: furniture the short sequences cannot learn); a walker at
+    1 m/s and 10 frames/s, a tentative track and a young one are not."""
+    from types import SimpleNamespace
+
+    from nlos_cl.tracking.static import STILL_FRAMES, holds_still
+
+    def track(xs, status="confirmed"):
+        return SimpleNamespace(status=status, history=[(k, 0.1 * k, x, 2.0, 0.0, True)
+                                                       for k, x in enumerate(xs)])
+    rng = np.random.default_rng(0)
+    still = 3.0 + rng.normal(0, 0.03, 8)
+    assert holds_still(track(still))
+    assert not holds_still(track(3.0 + 0.1 * np.arange(8)))  # walking
+    assert not holds_still(track(still, "tentative"))
+    assert not holds_still(track(still[:STILL_FRAMES - 1]))
