@@ -117,3 +117,19 @@ def walk_file(tmp_path_factory):
     frames = simulate_sequence(setup, target, n_frames=12, fps=10, noise=nl.AWGN(10), seed=0,
                                facet_size_m=0.03, time_axis=nl.default_time_axis(setup, 1e-11))
     return nl.write_sequence(tmp_path_factory.mktemp("walk") / "walk.h5", frames)
+
+
+@pytest.fixture(scope="session")
+def squares_capture():
+    """squares_capture(positions, seed): 0.3 m squares at `positions` seen by 8 spots on a
+    0.5 m circle, 10 ps bins, 10 dB (docs/scenes/two_squares.yaml's setup), as histograms."""
+    def make(positions, seed):
+        from nlos_cl.physics import layouts
+        setup = nl.paper_setup(detector_spots=layouts.circle((-1.0, 0.0, 0.0), 0.5, 8))
+        targets = [nl.Target(nl.rectangle(centre=p, width_m=0.3, height_m=0.3,
+                                          normal=(-1.0, -0.6, 0.0), cell_m=0.02))
+                   for p in positions]
+        scene = nl.Scene(setup, targets[0], 0.02, more_targets=tuple(targets[1:]))
+        return nl.add_noise(nl.simulate(scene, nl.default_time_axis(setup, 10e-12)), 10.0,
+                            seed=seed).histograms()
+    return make

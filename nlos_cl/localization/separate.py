@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
+# how model.policy.sanity.leftover_note's warning begins (it is built from this), which the
+# tracker's births read too
 LEFTOVER = "the data hold signal the fitted target(s) do not explain"
 
 

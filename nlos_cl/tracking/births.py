@@ -19,9 +19,10 @@ misses.
 """
 from __future__ import annotations
 
+from ..localization.separate import LEFTOVER
+
 BIRTH_FRAMES = 2
 COOL_FRAMES = 10
-LEFTOVER = "the data hold signal the fitted target(s) do not explain"
 
 
 class TargetCount:

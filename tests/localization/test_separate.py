@@ -8,27 +8,16 @@ import nlos_cl as nl
 from nlos_cl.localization.separate import LEFTOVER, more_if_separate
 
 
-def _squares(positions, seed):
-    from nlos_cl.physics import layouts
-    setup = nl.paper_setup(detector_spots=layouts.circle((-1.0, 0.0, 0.0), 0.5, 8))
-    targets = [nl.Target(nl.rectangle(centre=p, width_m=0.3, height_m=0.3,
-                                      normal=(-1.0, -0.6, 0.0), cell_m=0.02))
-               for p in positions]
-    scene = nl.Scene(setup, targets[0], 0.02, more_targets=tuple(targets[1:]))
-    return nl.add_noise(nl.simulate(scene, nl.default_time_axis(setup, 10e-12)), 10.0,
-                        seed=seed).histograms()
-
-
-def test_two_squares_are_both_reported_and_one_square_stays_as_it_was():
+def test_two_squares_are_both_reported_and_one_square_stays_as_it_was(squares_capture):
     """Two squares 2.1 m apart: both found, each within 2 cm (one plate 0.24 m off and no
     word before). One square: the same answer as targets=1, no second fit."""
     truths = np.array([(3.5, 1.5, 0.0), (2.0, 3.0, 0.0)])
-    two = nl.locate_capture(_squares(truths, 3)).points[0]
+    two = nl.locate_capture(squares_capture(truths, 3)).points[0]
     found = np.array(two.positions)
     assert len(found) == 2
     for t in truths:
         assert np.min(np.linalg.norm(found - t, axis=1)) < 0.02
-    one = _squares(truths[:1], 4)
+    one = squares_capture(truths[:1], 4)
     default, fixed = nl.locate_capture(one).points[0], nl.locate_capture(one, targets=1).points[0]
     assert len(default.positions) == 1
     np.testing.assert_array_equal(default.position, fixed.position)

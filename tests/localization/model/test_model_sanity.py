@@ -180,24 +180,13 @@ def test_a_tilted_line_of_spots_gets_the_argmax_and_says_why():
     assert np.allclose(point.location.position, paper.location.position)
 
 
-def _squares(positions, seed):
-    from nlos_cl.physics import layouts
-    setup = nl.paper_setup(detector_spots=layouts.circle((-1.0, 0.0, 0.0), 0.5, 8))
-    targets = [nl.Target(nl.rectangle(centre=p, width_m=0.3, height_m=0.3,
-                                      normal=(-1.0, -0.6, 0.0), cell_m=0.02))
-               for p in positions]
-    scene = nl.Scene(setup, targets[0], 0.02, more_targets=tuple(targets[1:]))
-    return nl.add_noise(nl.simulate(scene, nl.default_time_axis(setup, 10e-12)), 10.0,
-                        seed=seed).histograms()
-
-
-def test_a_fit_that_leaves_a_target_unexplained_says_so():
+def test_a_fit_that_leaves_a_target_unexplained_says_so(squares_capture):
     """One plate fitted to two squares' capture left the other square unexplained without a
     word; the residual's detection test says so (and how to look for it). A one-square capture
     at the same noise leaves noise only: no such note."""
-    two = nl.locate_capture(_squares([(3.5, 1.5, 0.0), (2.0, 3.0, 0.0)], 3),
+    two = nl.locate_capture(squares_capture([(3.5, 1.5, 0.0), (2.0, 3.0, 0.0)], 3),
                             targets=1).points[0]
-    one = nl.locate_capture(_squares([(3.5, 1.5, 0.0)], 4), targets=1).points[0]
+    one = nl.locate_capture(squares_capture([(3.5, 1.5, 0.0)], 4), targets=1).points[0]
     said = "the data hold signal the fitted target(s) do not explain"
     assert any(w.startswith(said) and "targets='auto'" in w for w in two.warnings)
     assert not any(w.startswith(said) for w in one.warnings)

@@ -33,6 +33,7 @@ import numpy as np
 from ....core.errors import warn
 from ....core.tuning import ARGMAX_MARGIN_M, EXPLAINED_MIN, MAX_EXTENT_M, MISFIT_BIRGE
 from ...estimate import LocatedTarget
+from ...separate import LEFTOVER
 from ...region import line_direction, unseen_axis
 
 
@@ -100,7 +101,7 @@ def leftover_note(problem, result, targets) -> str | None:
         return None
     more = ("look for more targets with targets='auto' (nlos-cl: --targets auto)"
             if targets != "auto" else "no further target passed the model selection")
-    return ("the data hold signal the fitted target(s) do not explain (the detection's test on "
+    return (f"{LEFTOVER} (the detection's test on "
             "the fit's residual): another target, or light the model does not describe (a "
             f"shape, reflectance, background or instrument tail); {more}")
 
