@@ -148,10 +148,10 @@ def _markdown_tables(text: str) -> list[list[list[str]]]:
 
 
 def _dict_rows(dicts, limit: int = 40) -> list[list[str]]:
-    """Dicts (a result's rows or checks) as a header row and one row each (the first `limit`)."""
+    """Dicts (a result's rows) as a header row and one row each (the first `limit`)."""
     columns = list(dict.fromkeys(k for d in dicts for k in d
                                  if not isinstance(d[k], (dict, list))))
-    return [[("check" if c == "goal" else c) for c in columns]] + [
+    return [columns] + [
         [_cell(d.get(c, "")) for c in columns] for d in dicts[:limit]]
 
 
@@ -167,12 +167,10 @@ def aligned(rows: list[list[str]], indent: str = "  ") -> str:
 
 def headline_tables(r: Result) -> list[list[list[str]]]:
     """What the terminal shows of one experiment: the paper's numbers beside ours (the paper's
-    experiments), the targets checked (beyond, draws), the page's first table per section
-    (flood, tracking), else the result's rows."""
+    experiments), the page's first table per section (beyond, draws, flood, tracking), else
+    the result's rows. The targets' checks stay in --json ("goals"), out of what is printed."""
     if r.name in SECTIONS:
         return _markdown_tables(_section(r))
-    if r.summary.get("goals"):
-        return [_dict_rows(r.summary["goals"])]
     pages = r.summary.get("markdown")
     pages = pages.values() if isinstance(pages, dict) else [pages] if pages else []
     tables = [t[0] for t in map(_markdown_tables, pages) if t]

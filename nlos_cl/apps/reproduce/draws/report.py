@@ -140,12 +140,6 @@ def goals(summ) -> list[dict]:
     return out
 
 
-def goal_table(rows) -> str:
-    return "\n".join(["| check | n | measured | target | met |", "|---|---|---|---|---|"] +
-                     [f"| {g['goal']} | {g['n']} | {g['measured']} | {g['target']} | "
-                      f"{'yes' if g['met'] else '**no**'} |" for g in rows])
-
-
 def breakdown_table(rows, failure_m: float, by: str) -> str:
     """Per family, estimator and `by` (layout or shapes): n, median, p90, failures."""
     lines = [f"| family | estimator | {by} | n | median (m) | p90 (m) | failures |",
