@@ -42,15 +42,22 @@ def write_capture(path, histograms: HistogramSet, *, device_distance_m: float = 
     """Write one HistogramSet as a y-tal capture (H_format T_Si, sensor grid N_3); one t_start
     for all sensors. A paired set (laser_spot (N, 3)) gets one laser_grid_xyz row per
     histogram, so y-tal reads it as is_laser_paired_to_sensor (is_confocal where laser =
-    detector point). Our exact time axis, calibration, truth and `metadata` ride in
+    detector point). A confocal scan on a regular grid is written as y-tal writes its grids
+    (T_Sx_Sy, X_Y_3: grid_write; read back in the grid's row order), so that y-tal's grid
+    reconstructions take it. Our exact time axis, calibration, truth and `metadata` ride in
     scene_info['nlos_cl']. Atomic (see nlos_cl.io.safe_write.atomic_write: Ctrl-C leaves the old file,
     a concurrent writer's file is never silently lost); a non-capture file needs force=True."""
     import h5py
 
     from ..safe_write import atomic_write
+    from .grid_write import scan_grid, write_grid_capture
 
     h = histograms
     check_writable(h, device_distance_m)
+    grid = scan_grid(h)
+    if grid is not None:
+        return write_grid_capture(path, h, grid, device_distance_m=device_distance_m,
+                                  metadata=metadata, compression=compression, force=force)
 
     def write(tmp):
         # built in memory, then written as plain bytes: a full disk is then an OSError that

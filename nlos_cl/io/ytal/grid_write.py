@@ -3,7 +3,8 @@ as y-tal writes its own scans (tal.render: H_format T_Sx_Sy, H (T, Sx, Sy), sens
 grids X_Y_3 with X increasing along the first grid axis and Y along the second), so that
 y-tal's grid reconstructions (tal.reconstruct.fk, pf_dev's convolutions, tal.plot.xy) take
 the file as it is. Whether a set is such a grid is decided from its spots alone (scan_grid);
-anything else is written flat (T_Si, N_3) by capture.write_capture.
+capture.write_capture and sequence.write_sequence write such a set so, anything else flat
+(T_Si, N_3).
 
 Reading the file back (capture.read_capture) gives the same histograms at the same spots, in
 the grid's order: row i * Sy + j is grid cell (i, j)."""
@@ -80,7 +81,7 @@ def in_grid_order(h: HistogramSet, grid: ScanGrid) -> HistogramSet:
     return g if h.calibration.b_m.size != 1 else replace(g, calibration=h.calibration)
 
 
-class _GridFile:
+class GridFile:
     """fields.write_fields' view of the file: the flat fields it writes (H (T, N), the grids and
     normals (N, 3)) are stored in the grid's shape; everything else passes through."""
 
@@ -105,6 +106,14 @@ class _GridFile:
         return getattr(self._f, name)
 
 
+def mark_grid(f) -> None:
+    """The enums of y-tal's grid layout in a file write_fields wrote through GridFile."""
+    from .fields import GRID_FORMATS, H_FORMATS
+    f["H_format"][0] = H_FORMATS["T_Sx_Sy"]
+    for key in ("sensor_grid_format", "laser_grid_format"):
+        f[key][0] = GRID_FORMATS["X_Y_3"]
+
+
 def write_grid_capture(path, h: HistogramSet, grid: ScanGrid, *, device_distance_m=20.0,
                        metadata: dict | None = None, compression: int = 4,
                        force: bool = False) -> Path:
@@ -115,7 +124,7 @@ def write_grid_capture(path, h: HistogramSet, grid: ScanGrid, *, device_distance
     from ...core.errors import require
     from ..safe_write import atomic_write
     from .capture import check_writable
-    from .fields import GRID_FORMATS, H_FORMATS, is_capture, write_fields
+    from .fields import is_capture, write_fields
 
     g = in_grid_order(h, grid)
     check_writable(g, device_distance_m)
@@ -123,11 +132,9 @@ def write_grid_capture(path, h: HistogramSet, grid: ScanGrid, *, device_distance
     def write(tmp):
         image = io.BytesIO()  # in memory first, as write_capture (a full disk: an OSError)
         with h5py.File(image, "w") as f:
-            write_fields(_GridFile(f, grid.shape), g, device_distance_m, metadata, compression)
-            f["H_format"][0] = H_FORMATS["T_Sx_Sy"]
-            for key in ("sensor_grid_format", "laser_grid_format"):
-                f[key][0] = GRID_FORMATS["X_Y_3"]
-            shapes = [f[k].shape for k in ("H",) + _GridFile.GRIDS]
+            write_fields(GridFile(f, grid.shape), g, device_distance_m, metadata, compression)
+            mark_grid(f)
+            shapes = [f[k].shape for k in ("H",) + GridFile.GRIDS]
             require(shapes[0][1:] == grid.shape and all(s == grid.shape + (3,)
                                                         for s in shapes[1:]),
                     "write_grid_capture", f"wrote H and the grids as {shapes}, not in the grid "
@@ -141,10 +148,7 @@ def write_grid_capture(path, h: HistogramSet, grid: ScanGrid, *, device_distance
 
 def write_scan(path, h: HistogramSet, *, metadata: dict | None = None, force: bool = False
                ) -> tuple[Path, ScanGrid | None]:
-    """A confocal grid scan as a y-tal grid capture, anything else as write_capture writes it
-    (T_Si); (the path, the grid or None)."""
+    """write_capture's file (a confocal grid scan as a y-tal grid capture, anything else
+    T_Si); (the path, the grid or None)."""
     from .capture import write_capture
-    grid = scan_grid(h)
-    if grid is None:
-        return write_capture(path, h, metadata=metadata, force=force), None
-    return write_grid_capture(path, h, grid, metadata=metadata, force=force), grid
+    return write_capture(path, h, metadata=metadata, force=force), scan_grid(h)

@@ -5,7 +5,7 @@ the same code) in which `H` gets a leading frame axis, plus two per-frame datase
 
 | field | dtype, shape | meaning |
 |---|---|---|
-| H | float32 (F, T, S), H_format T_Si (or (F, T, Sx, Sy) for T_Sx_Sy); chunked one frame per chunk | frame k's histograms, time first as in y-tal |
+| H | float32 (F, T, S), H_format T_Si; (F, T, Sx, Sy), T_Sx_Sy, for a confocal grid (grid_write.scan_grid); chunked one frame per chunk | frame k's histograms, time first as in y-tal |
 | frame_t_s | float64 (F,) | frame k's timestamp (s), e.g. k / fps |
 | frame_truths | float64 (F, K, 3), optional | the K targets' true centres per frame, nlos_cl's internal frame (as the capture's `truth`), NaN where unknown |
 | every other y-tal field | as in a capture | the same for all frames: the laser point (or one per histogram: paired, confocal), the sensor grid, delta_t, t_start, ... |
@@ -32,6 +32,7 @@ import numpy as np
 
 from ...core.errors import require, shown
 from ...core.stats import median
+from .grid_write import GridFile, in_grid_order, mark_grid, scan_grid
 
 FORMAT_VERSION = 1
 GROW = 256  # frames added to H's size at a time while writing
@@ -126,18 +127,20 @@ def _write(tmp, it, fps, device_distance_m, metadata, compression):
     require(first is not None, "frames", "is empty", "pass at least one frame")
     t0, h0, truths0 = _as_entry(first, 0, fps)
     _check_capture(h0, device_distance_m)
+    grid = scan_grid(h0)  # a confocal grid: y-tal's grid layout, as write_capture writes it
+    h0 = h0 if grid is None else in_grid_order(h0, grid)
     second = next(it, None)
     meta = dict(metadata or {})
     bare = replace(h0, truth=None, truths=None)
     if second is None:
         meta["sequence"] = _info(fps, 1, truths0, t0)
         with h5py.File(tmp, "w") as f:
-            _fields(f, bare, device_distance_m, meta, compression, keep_h=True)
+            _fields(f, bare, device_distance_m, meta, compression, True, grid)
         return 1
     meta["sequence"] = _info(fps, None, truths0)
     with h5py.File(tmp, "w") as f:
-        _fields(f, bare, device_distance_m, meta, compression, keep_h=False)
-        n = _stream(f, (first, second), it, fps, h0, truths0, compression)
+        _fields(f, bare, device_distance_m, meta, compression, False, grid)
+        n = _stream(f, (first, second), it, fps, h0, truths0, compression, grid)
     return n
 
 
@@ -146,24 +149,29 @@ def _check_capture(h, device_distance_m):
     check_writable(h, device_distance_m)
 
 
-def _fields(f, hist, device_distance_m, meta, compression, keep_h):
-    """capture.py's own writer, into memory; its fields copied (H only for a single frame)."""
+def _fields(f, hist, device_distance_m, meta, compression, keep_h, grid):
+    """capture.py's own writer, into memory; its fields copied (H only for a single frame);
+    with a grid (rows already in its order) in y-tal's grid layout, as grid_write writes it."""
     import h5py
 
     from .fields import write_fields
     with h5py.File(f"nlos_seq_{id(f)}", "w", driver="core", backing_store=False) as mem:
-        write_fields(mem, hist, device_distance_m, meta, compression)
+        write_fields(mem if grid is None else GridFile(mem, grid.shape), hist,
+                     device_distance_m, meta, compression)
+        if grid is not None:
+            mark_grid(mem)
         for key in mem:
             if keep_h or key != "H":
                 mem.copy(mem[key], f, name=key)
 
 
-def _stream(f, head, it, fps, h0, truths0, compression):
+def _stream(f, head, it, fps, h0, truths0, compression, grid):
     from itertools import chain
     n_s, n_t = h0.data.shape
+    frame = (n_t, n_s) if grid is None else (n_t,) + tuple(grid.shape)
     k_targets = 0 if truths0 is None else len(truths0)
-    H = f.create_dataset("H", (0, n_t, n_s), maxshape=(None, n_t, n_s), dtype=np.float32,
-                         chunks=(1, n_t, n_s), compression="gzip" if compression else None,
+    H = f.create_dataset("H", (0,) + frame, maxshape=(None,) + frame, dtype=np.float32,
+                         chunks=(1,) + frame, compression="gzip" if compression else None,
                          compression_opts=compression or None)
     T = f.create_dataset("frame_t_s", (0,), maxshape=(None,), dtype=np.float64, chunks=(4096,))
     R = None if not k_targets else f.create_dataset(
@@ -172,12 +180,14 @@ def _stream(f, head, it, fps, h0, truths0, compression):
     n, room = 0, _Room(f.filename, 4 * n_s * n_t)
     for k, item in enumerate(chain(head, it)):
         t, h, truths = _as_entry(item, k, fps)
+        if grid is not None and h.n_detectors == h0.n_detectors:  # else _same_layout refuses
+            h = in_grid_order(h, grid)
         _same_layout(h0, h, k)
         room.check(n)
         if n == H.shape[0]:
             for d in (H, T) + ((R,) if R is not None else ()):
                 d.resize(n + GROW, axis=0)
-        H[n] = np.ascontiguousarray(h.data.T, dtype=np.float32)
+        H[n] = np.ascontiguousarray(h.data.T, dtype=np.float32).reshape(frame)
         T[n] = t
         if R is not None:
             row = np.full((k_targets, 3), np.nan)
