@@ -1,12 +1,13 @@
 """What `nlos-cl bench` prints and writes reads as a table for a researcher: no NaN where a row
-has no twin or no probe, no issue numbers, each check against a target as 'target ...: yes/no'."""
+has no twin or no probe, no issue numbers, no check against a target (those go in the note)."""
 import math
 import re
 
 from nlos_cl.apps.bench import Row
 from nlos_cl.apps.bench.report import table
 
-USER_TEXT_BANS = (r"\bnan\b", r"\bissue\b", r"NOT met", r"\bgoal\b")
+USER_TEXT_BANS = (r"\bnan\b", r"\bissue\b", r"NOT met", r"\bgoal\b", r"\btarget [<>]=",
+                  r": (yes|no) \|")  # a target's check belongs in the note, not the table
 
 
 def banned(text: str) -> list[str]:
@@ -23,11 +24,10 @@ def test_a_row_without_twin_or_memory_prints_dashes():
 
 
 def test_the_smoke_bench_prints_no_nan_nor_issue_numbers():
-    """Every row of a smoke bench (seconds): the notes' checks read 'target ...: yes/no'."""
+    """Every row of a smoke bench (seconds): measurements only, no check against a target."""
     from nlos_cl.apps.bench import run
     text = run(smoke=True, say=lambda _: None)
     assert banned(text) == [], banned(text)
-    assert re.search(r"target >= 20 frames/s: (yes|no)", text)
     for line in text.splitlines():  # a note names a twin only where the row has one
         cells = [c.strip() for c in line.strip("|").split("|")]
         if len(cells) > 12 and "twin: one frame" in cells[12]:

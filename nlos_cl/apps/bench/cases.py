@@ -14,7 +14,7 @@ import nlos_cl as nl
 
 from ...ops import OPERATIONS
 from ...ops.backend import NumpyBackend
-from .harness import fraction_of_limit, measure_limits, spread, target, time_pair, timed
+from .harness import fraction_of_limit, measure_limits, spread, time_pair, timed
 
 
 @dataclass
@@ -183,8 +183,7 @@ def spad_model_row(rt, smoke, model_on="auto"):
     return Row("model", f"SPAD patch: {n * n} spots x {noisy.layout.time_axis.n_bins} bins, "
                f"one frame located by the model fit (nl.locate){how}", 1, k, math.nan,
                max(build - k, 0.0), 1 / k, "frames", math.nan, "-", math.nan, k_spread,
-               note=f"error {error:.4f} m; no twin"
-               + (f"; {target('<= 1 s', k <= 1.0)}" if n * n == 1024 else ""))
+               note=f"error {error:.4f} m; no twin")
 
 
 def all_rows(rt, smoke=False, say=print):

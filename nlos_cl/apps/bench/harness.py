@@ -79,7 +79,3 @@ def time_pair(kernel_fn, twin_fn, finish, repeats=5, twin_repeats=3):
     kernel = timed(kernel_fn, repeats, finish)
     return kernel, twin, max(first - statistics.median(kernel), 0.0), peak
 
-
-def target(what: str, met: bool) -> str:
-    """A row's check against its target, as the table prints it: 'target >= 20 frames/s: yes'."""
-    return f"target {what}: {'yes' if met else 'no'}"

@@ -29,10 +29,6 @@ import nlos_cl as nl
 
 from ...ops.backend import NumpyBackend
 from ...simulation.stream import stream_frames
-from .harness import target
-
-# frames/s the trackers should reach on the paper's scene (the model tracker warm-started)
-GOALS = {"tracker, paper estimator": 500.0, "tracker, model estimator": 100.0}
 
 
 def _cases(rt, clean, frames, grid, smoke):
@@ -107,19 +103,13 @@ def stream_rows(rt, smoke, Row):
             start = time.perf_counter()
             twin(1)
             twin_s = time.perf_counter() - start
-        goal = GOALS.get(label)
-        note = "per frame" + ("; twin: one frame" if twin is not None else "") + (
-            "; " + target(f">= {goal:.0f} frames/s", 1 / med >= goal) if goal else "")
+        # measurements only: a check against a target belongs in the session note
+        note = "per frame" + ("; twin: one frame" if twin is not None else "")
         rows.append(Row("stream", f"{label}: {n} frames x {repeats} repeats, 3 x 4096 bins, "
                         f"{size}x{size} cells", n, med, twin_s, 0.0, 1 / med, "frames",
                         math.nan, "-", 0.0, (max(times[label]) - min(times[label])) / med,
                         note=note))
     return rows
-
-
-# Target: the model estimate of the paper's scene <= 20 ms a frame in-process, and <= 15x the
-# paper's argmax on the same frames
-COLD_GOAL_S, COLD_GOAL_RATIO = 0.020, 15.0
 
 
 def cold_row(rt, smoke, Row):
@@ -149,16 +139,13 @@ def cold_row(rt, smoke, Row):
                 closed.add(k)
     med, med_paper = statistics.median(model), statistics.median(paper)
     q1, q3 = np.percentile(model, [25, 75])
-    met = med <= COLD_GOAL_S and med <= COLD_GOAL_RATIO * med_paper
     return Row("stream", f"model estimate, cold (nl.locate, default estimator): {len(pairs)} "
                f"frames x {len(model) // len(pairs)} repeats, 3 x 4096 bins, {size}x{size} "
                "cells", len(model), med, math.nan, 0.0, 1 / med, "frames", math.nan, "-", 0.0,
                (q3 - q1) / med,
                note=f"median frame; spread: IQR / median; the paper's argmax on the same "
                f"frames {1e3 * med_paper:.2f} ms ({med / med_paper:.0f}x); frames whose fit "
-               f"tried the closed shapes: {len(closed)} of {len(pairs)}; "
-               + target(f"<= {1e3 * COLD_GOAL_S:.0f} ms and <= {COLD_GOAL_RATIO:.0f}x the "
-                        "argmax", met))
+               f"tried the closed shapes: {len(closed)} of {len(pairs)}")
 
 
 CROSSING_DRAW = 1  # of `reproduce draws --only crossings` (master seed 2201): ids and RMS met
@@ -185,5 +172,4 @@ def crossing_row(rt, smoke, Row):
     return Row("stream", f"tracker, two targets crossing (crossing draw {CROSSING_DRAW}: 8 spots, "
                f"{len(times) + 1} frames, a 3-D region)", len(times), med, math.nan,
                out["setup_s"], 1 / med, "frames", math.nan, "-", 0.0, (q3 - q1) / med,
-               note="median frame after the first; spread: IQR / median; "
-               + target(">= 20 frames/s", 1 / med >= 20))
+               note="median frame after the first; spread: IQR / median")
