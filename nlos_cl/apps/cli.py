@@ -85,7 +85,8 @@ def _reproduce_args(p):
                    help="replace files in --out and --doc that nlos_cl did not write")
     p.add_argument("--only", nargs="+", default=None, metavar="SECTION",
                    help="beyond, tracking, draws: only these parts (tracking: speed memory "
-                   "lines synthetic box crossing; draws: one multi closed mismatch crossings)")
+                   "lines synthetic box crossing; draws: one multi closed mismatch crossings; "
+                   "scenarios: families, e.g. occluders)")
     p.add_argument("--cold", action="store_true",
                    help="tracking: trackers with warm_start=False (for comparison; not with --doc)")
     p.add_argument("--draws", type=_number("draws", "pass a count, e.g. 200", minimum=1,

@@ -253,7 +253,8 @@ def text_lines(r, frame) -> str:
     """One laser point's answer as text: a line, then one line per target."""
     head = f"laser point {r['laser_point']}: "
     if not r["detected"]:
-        return head + f"no target (argmax of noise {r['argmax_cell']} m)"
+        return head + (f"no target in the search region {_ranges(frame, r['region']['ranges_m'])}"
+                       f" (argmax of noise {r['argmax_cell']} m)")
     n = len(r["targets"])
     lines = [head + f"{n} target{'s' * (n != 1)} located by the {r['estimator']} estimator, "
              f"in the file's frame ({frame.name}), m, ± 1 sd:"]
@@ -267,7 +268,16 @@ def text_lines(r, frame) -> str:
         if t["truth"] is not None:
             line += f"; truth {t['truth']}, error {t['error_m']:.4f} m"
         lines.append(line)
+    for s in r.get("shadowed") or []:  # where a second target would return no light
+        if s["region_part_m"]:
+            lines.append(f"  a target behind target {s['target']}, "
+                         f"{_ranges(frame, s['region_part_m'])}, would be hidden from the "
+                         "laser spot")
     return "\n".join(lines)
+
+
+def _ranges(frame, ranges) -> str:
+    return ", ".join(f"{a} {lo:.2f} .. {hi:.2f}" for a, (lo, hi) in zip(frame.axes, ranges)) + " m"
 
 
 def _paired_note(n: int):

@@ -17,21 +17,22 @@ from pathlib import Path
 
 import numpy as np
 
-from ..ops.gauss_filter import filter_window
 from ..core.errors import InputError, require
+from ..core.geometry import farthest_points
 from ..core.grid import Grid
 from ..core.histograms import HistogramSet
-from ..core.geometry import farthest_points
 from ..core.tuning import SEARCH_DETECTORS, auto_log_mode
 from ..io.json_format import covariance_in, covariance_json, rounded, vector_json
 from ..io.ytal.frames import INTERNAL, CaptureFrame
+from ..ops.gauss_filter import filter_window
 from .api import gauss_filter, locate
 from .estimate import Location, capabilities_of
 from .estimators import choose_estimator
 from .paper import PaperArgmax
 from .posterior import ArgmaxSpread
-from .separate import more_if_separate
 from .region import default_region, on_region_edge, region_step, zoom_region
+from .separate import more_if_separate
+from .shadow import shadows
 
 REGION_NAMES = ("region", "step_m")  # how errors name the region options (a CLI: its flags)
 
@@ -127,7 +128,9 @@ class PointLocation:
                 "estimator": loc.estimator, "log_mode": self.log_mode,
                 "region": {"ranges_m": [list(r) for r in frame.ranges(self.grid)],
                            "step_m": min(self.grid.step), "cells": self.grid.n_cells},
-                "processing": self.processing, "warnings": list(self.warnings)}
+                "processing": self.processing, "warnings": list(self.warnings),
+                "shadowed": [s.as_json(frame, self.region) for s in
+                             shadows(loc.targets, self.laser_spot)]}
 
 
 @dataclass(frozen=True)
@@ -207,7 +210,11 @@ def _calibrated(sets, calibration):
     """The sets with the calibration applied; the calibration."""
     if calibration is None:
         return sets, None
-    from ..io.calibration import fit_calibration, read_calibration_pairs, with_calibration
+    from ..io.calibration import (
+        fit_calibration,
+        read_calibration_pairs,
+        with_calibration,
+    )
     if isinstance(calibration, (str, Path)):  # a CSV of (path, peak time) pairs: Eq. 26
         calibration = fit_calibration(*read_calibration_pairs(calibration))
     calibration = getattr(calibration, "calibration", calibration)  # a CalibrationFit's

@@ -19,7 +19,7 @@ from nlos_cl.apps.reproduce.scenarios import run, score
 CFG = dr.config()
 ROW_COLUMNS = {"index", "family", "kind", "shapes", "truths", "layout", "spots", "command",
                "exit", "found", "right_k", "error_m", "errors_m", "lit", "failed", "why",
-               "warned", "hidden_said", "said", "simulate_s", "answer_s"}
+               "warned", "in_declared_shadow", "said", "simulate_s", "answer_s"}
 SUMMARY_COLUMNS = {"family", "draws", "failures", "failure_rate", "right_k_rate", "median_m",
                    "p90_m", "worst_m", "failures_unwarned", "refused_or_crashed"}
 
@@ -109,9 +109,10 @@ def test_a_run_through_the_command_line_writes_the_tables_and_counts_a_wrong_ans
     assert "failure rate" in capsys.readouterr().out
 
 
-def _locate(answer_targets, truths, lit=None, status=0, warnings=(), said=()):
+def _locate(answer_targets, truths, lit=None, status=0, warnings=(), said=(), shadowed=()):
     out = json.dumps({"targets": [{"position": p} for p in answer_targets],
-                      "warnings": list(warnings)}) if status == 0 else ""
+                      "warnings": list(warnings), "shadowed": list(shadowed)}) \
+        if status == 0 else ""
     shares = [1.0] * len(truths) if lit is None else lit
     return score.locate(CFG, status, out, list(said), (np.asarray(truths, float), shares))
 
@@ -132,7 +133,25 @@ def test_the_failure_rule_on_located_answers():
     shadowed = _locate([T[0]], T, lit=[1.0, 0.0])  # the second is in a shadow
     assert shadowed["failed"] and "shadowed" in shadowed["why"] and shadowed["right_k"]
     said = _locate([T[0]], T, lit=[1.0, 0.0], warnings=["a second target may be hidden"])
-    assert not said["failed"] and said["hidden_said"]
+    assert said["failed"] and not said["in_declared_shadow"]  # words excuse nothing
+
+
+def _shadow(centre, apex=(0.0, 0.0, 0.0)):
+    """A declared shadow: a 0.4 m square plate (file frame, facing the apex along Z)."""
+    return {"target": 1, "apex": list(apex), "box": {"centre": list(centre), "axes": [
+        [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], "half_m": [0.2, 0.2, 0.0]}}
+
+
+def test_a_shadowed_truth_is_excused_only_inside_a_declared_shadow():
+    """The truth at (-1, 0.2, 2) from an apex at the origin: a plate half-way there hides it;
+    one beside that way, or behind the truth, does not."""
+    between = _locate([T[0]], T, lit=[1.0, 0.0], shadowed=[_shadow([-0.5, 0.1, 1.0])])
+    assert not between["failed"] and between["in_declared_shadow"]
+    for centre in ([0.5, 0.1, 1.0], [-1.5, 0.3, 3.0]):
+        elsewhere = _locate([T[0]], T, lit=[1.0, 0.0], shadowed=[_shadow(centre)])
+        assert elsewhere["failed"] and "declared shadow" in elsewhere["why"]
+    lit_missed = _locate([T[0]], T, shadowed=[_shadow([-0.5, 0.1, 1.0])])
+    assert lit_missed["failed"] and "lit target missed" in lit_missed["why"]
     refused = _locate([], T, status=2, said=["nlos-cl: h5: no such file. Fix: ..."])
     assert refused["failed"] and refused["exit"] == "2" and refused["warned"]
     crashed = _locate([], T, status="crash")
@@ -157,3 +176,18 @@ def test_the_failure_rule_on_tracked_sequences():
     bad = score.track(CFG, 0, _frames(stuck), ["nlos-cl: warning: x"], truths)
     assert bad["failed"] and bad["found"] == 2 and not bad["right_k"]
     assert bad["error_m"] == pytest.approx(0.3) and bad["warned"]
+
+
+def test_only_runs_one_familys_draws_among_the_first_n(tmp_path, monkeypatch):
+    """`--only occluders --draws 3`: the one occluder draw a full 3-draw run makes (index 2),
+    nothing else; a family that does not exist is refused naming the option."""
+    cfg = _cheap(CFG)
+    monkeypatch.setattr(dr, "config", lambda: copy.deepcopy(cfg))
+    assert cli.main(["reproduce", "scenarios", "--draws", "3", "--only", "occluders",
+                     "--out", str(tmp_path)]) == 0
+    with open(tmp_path / "scenarios.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert [(r["index"], r["family"]) for r in rows] == [("2", "occluders")]
+    assert "--only occluders" in (tmp_path / "scenarios.md").read_text()
+    with pytest.raises(Exception, match="--only"):
+        rp.run("scenarios", rp.Settings.make(), tmp_path, draws=3, only=["walk"])

@@ -46,20 +46,29 @@ FAMILIES = {
 
 
 def scenarios(s: Settings, out: Path, draws: int | None = None,
-              master_seed: int | None = None) -> Result:
-    """Run `draws` scenarios (default scenarios.yaml's), write the summary CSV and the page."""
+              master_seed: int | None = None, only=None) -> Result:
+    """Run `draws` scenarios (default scenarios.yaml's), write the summary CSV and the page;
+    `only` (family names) keeps the draws of those families among the first `draws`, the
+    same draws a full run makes (a family measured alone)."""
     cfg = dr.config()
     count = draws or cfg["draws"]
     require(isinstance(count, int) and count >= 1, "--draws", f"must be a positive whole "
             f"number, got {count!r}", "pass e.g. --draws 200")
+    for f in only or ():
+        require(f in cfg["families"], "--only", f"{f!r} is not a scenario family",
+                "name some of " + ", ".join(cfg["families"]))
     seed = cfg["master_seed"] if master_seed is None else int(master_seed)
     out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
-    rows, broken = run_rows(range(count), seed, cfg, out / f"{NAME}-progress.jsonl")
+    indices = [i for i in range(count) if not only or dr.family_of(i, cfg) in only]
+    rows, broken = run_rows(indices, seed, cfg, out / f"{NAME}-progress.jsonl")
     seconds = time.perf_counter() - start
-    summ = report.summary(rows, cfg["families"])
+    families = [f for f in cfg["families"] if not only or f in only]
+    summ = report.summary(rows, families)
     write_csv(out / f"{NAME}-summary.csv", summ)
-    text = page(rows, broken, summ, cfg, f" --draws {count}" if draws else "", seconds, seed)
+    options = (f" --draws {count}" if draws else "") + (" --only " + " ".join(only)
+                                                        if only else "")
+    text = page(rows, broken, summ, cfg, options, seconds, seed)
     from ....io.safe_write import write_text
     write_text(out / f"{NAME}.md", text, what="--out")
     finite = [{k: (None if isinstance(v, float) and not math.isfinite(v) else v)
@@ -126,8 +135,9 @@ def page(rows, broken, summ, cfg, options: str, seconds: float, seed: int) -> st
             "spots, by area) passes every other object, else *shadowed*. A draw **fails** "
             "where the command refused or crashed, where any lit truth is missed or found "
             f"more than {fail:g} m away, where the number found is below the lit truths or "
-            "above all truths (right K), or where a shadowed truth is missed and no warning "
-            f"matches `{cfg['hidden_words']}`. The error is the worst over lit truths ('missed'"
+            "above all truths (right K), or where a shadowed truth is missed and lies in no "
+            "shadow the answer declared (its JSON's `shadowed`: behind a found target as the "
+            "laser spot sees it; a geometry check, not words). The error is the worst over lit truths ('missed'"
             ": none assigned). A sequence is scored from frame "
             f"{cfg['clutter']['first_frame']} on: each mover's error is its median over the "
             "frames it is lit, against the confirmed tracks of each frame; the number found is "

@@ -2,7 +2,9 @@
 assignment on distance (nlos_cl.apps.locate.matched). A draw fails where the command refused or
 crashed, where any lit truth is missed or found more than failure_m away, where the number of
 targets found is wrong (fewer than the lit truths or more than all truths), or where a
-shadowed truth is missed and no warning says a target may be hidden. A sequence is scored
+shadowed truth is missed outside every shadow the answer declared (its JSON's "shadowed": the
+truth's centre must lie where a found target hides it from the laser spot; a geometry check,
+not words; a sequence declares none). A sequence is scored
 on its frames from first_frame on: a mover's error is its median over the frames it is lit
 (confirmed tracks matched to the movers frame by frame), and the number of targets found is
 the most frequent number of confirmed tracks."""
@@ -10,7 +12,6 @@ from __future__ import annotations
 
 import json
 import math
-import re
 from collections import Counter
 
 import numpy as np
@@ -56,19 +57,22 @@ def kind(d: dict) -> str:
 def refused(stage: str, why: str) -> dict:
     return {"command": stage, "exit": "refused", "found": 0, "right_k": False,
             "error_m": INF, "errors_m": "", "lit": "", "failed": True,
-            "why": f"{stage} refused", "warned": True, "hidden_said": False, "said": why[:300]}
+            "why": f"{stage} refused", "warned": True, "in_declared_shadow": False, "said": why[:300]}
 
 
 def _status(status) -> str:
     return "crash" if status == "crash" else str(status)
 
 
-def _verdict(row: dict, cfg: dict, errors, lit, said, n_found, n_truths) -> dict:
-    """The failure rule (scenarios.yaml's failure_m, hidden_words) on per-truth errors (inf:
-    missed) and lit flags."""
-    hidden = any(re.search(cfg["hidden_words"], s, re.IGNORECASE) for s in said)
+def _verdict(row: dict, cfg: dict, errors, lit, said, n_found, n_truths,
+             excused=None) -> dict:
+    """The failure rule (scenarios.yaml's failure_m) on per-truth errors (inf: missed), lit
+    flags and, per truth, whether it lies in a shadow the answer declared (excused)."""
+    excused = excused or [False] * len(errors)
+    hidden = any(x for x, ok in zip(excused, lit) if not ok)
     lit_errors = [e for e, ok in zip(errors, lit) if ok]
-    shadowed_missed = any(e > cfg["failure_m"] for e, ok in zip(errors, lit) if not ok)
+    shadowed_missed = any(e > cfg["failure_m"] and not x
+                          for e, ok, x in zip(errors, lit, excused) if not ok)
     n_lit = sum(lit)
     why = []
     if row["exit"] != "0":
@@ -79,13 +83,13 @@ def _verdict(row: dict, cfg: dict, errors, lit, said, n_found, n_truths) -> dict
     right_k = n_lit <= n_found <= n_truths
     if not right_k:
         why.append(f"found {n_found} of {n_lit} lit")
-    if shadowed_missed and not hidden:
-        why.append("shadowed target, no word of it")
+    if shadowed_missed:
+        why.append("shadowed target outside every declared shadow")
     row.update(found=n_found, right_k=right_k, error_m=round(worst, 4) if math.isfinite(worst)
                else INF, errors_m=" ".join(f"{e:.3f}" for e in errors),
                lit=" ".join("lit" if ok else "shadowed" for ok in lit), failed=bool(why),
                why="; ".join(why), warned=bool(said) and row["exit"] != "crash",
-               hidden_said=hidden, said=" | ".join(said)[:300])
+               in_declared_shadow=hidden, said=" | ".join(said)[:300])
     return row
 
 
@@ -113,7 +117,20 @@ def locate(cfg: dict, status, stdout: str, said: list, truths_lit) -> dict:
                          if not any(s.endswith(w) for s in said)]
     found = [t["position"] for t in answer.get("targets", []) or []]
     row = {"exit": _status(status)}
-    return _verdict(row, cfg, errors_of(found, truths), lit, said, len(found), len(truths))
+    excused = [in_declared_shadow(t, answer) for t in truths]
+    return _verdict(row, cfg, errors_of(found, truths), lit, said, len(found), len(truths),
+                    excused)
+
+
+def in_declared_shadow(point, answer: dict) -> bool:
+    """Whether `point` (the file's frame) lies in a shadow the answer declared: behind a found
+    target's box as its apex (the laser spot) sees it (localization.shadow.crosses)."""
+    from ....localization.shadow import crosses
+    for s in answer.get("shadowed") or []:
+        box = s["box"]
+        if crosses(s["apex"], point, np.asarray(box["centre"]), box["axes"], box["half_m"])[0]:
+            return True
+    return False
 
 
 def track(cfg: dict, status, stdout: str, said: list, truths) -> dict:
