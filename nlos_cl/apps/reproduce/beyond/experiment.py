@@ -16,7 +16,7 @@ from nlos_cl.apps import plotting
 
 from ..common import Result, Settings, write_csv
 from . import cases as bc
-from .report import coverage_rows, goal_rows, summarise
+from .report import cases_table, coverage_rows, goal_rows, summarise
 from .sweep import frames as _frames  # a case and its seeds
 from .sweep import run_entries
 
@@ -163,5 +163,7 @@ def beyond(s: Settings, out: Path, only=None) -> Result:
     write_csv(out / "beyond-coverage.csv", coverage)
     figure = plotting.beyond_figure(summary, out, NAME)
     frames = [r for e in entries for r in e["rows"]]
+    # the targets' checks: --json only ("goals"); the terminal shows the cases table
     return Result(NAME, TITLE, frames, {"summary": summary, "coverage": coverage,
-                                        "goals": goals}, [figure])
+                                        "goals": goals, "markdown": cases_table(summary)},
+                  [figure])
