@@ -72,6 +72,7 @@ def check_links(f, where: str, what: str = "file") -> None:
                 else None if isinstance(link, h5py.HardLink) else "a user-defined link")
         require(kind is None, f"{where}: {name}", f"is {kind}, not data stored in the {what}",
                 f"write the field's data into the {what} itself (h5py: copy it)")
+    check_attributes(f, where, what, [name for name, _ in seen])
     for name, _ in seen:
         try:
             obj = f.get(name)
@@ -85,6 +86,58 @@ def check_links(f, where: str, what: str = "file") -> None:
         require(kind is None, f"{where}: {name}", f"uses {kind}; nlos_cl reads only data "
                 f"stored in the {what} itself", "write the data into the file (h5py: "
                 "f.create_dataset(name, data=...)), or convert it with y-tal")
+
+
+def check_attributes(f, where: str, what: str, names: list[str]) -> None:
+    """Every object's attributes (the root's too), by their declared sizes, never their values:
+    at most MAX_LINKS of them, and their bytes within the memory budget (a reader that reads an
+    attribute holds all of it; a variable-length one lives in the file's heap, at most the
+    file's size)."""
+    import h5py
+    limit, why = gate.budget(None)
+    count, held, heap = 0, 0.0, 0.0
+    for name in ["/", *names]:
+        try:
+            oid = f[name].id
+            n = h5py.h5a.get_num_attrs(oid)
+            count += n
+            require(count <= MAX_LINKS, where, f"holds more than {MAX_LINKS:,} HDF5 "
+                    f"attributes, far more than any {what} holds", f"pass the {what} itself")
+            for i in range(n):
+                a = h5py.h5a.open(oid, index=i)
+                values = float(np.prod(a.shape or (), dtype=np.float64))
+                if a.dtype.kind == "O" or a.get_type().get_class() == h5py.h5t.VLEN:
+                    heap = float(Path(f.filename).stat().st_size)
+                    held += 16.0 * values
+                else:
+                    held += values * a.dtype.itemsize
+        except InputError:
+            raise
+        except (OSError, RuntimeError, KeyError, ValueError, TypeError) as exc:
+            raise unreadable(exc, f.filename, name, what) from None
+    if held + heap > limit:
+        raise gate.too_big(where, limit, f"declares {(held + heap) / 2**20:.4g} MiB of HDF5 "
+                           "attributes,", f"pass the {what} itself, without the added "
+                           "attributes", why)
+
+
+def scalar_attribute(obj, name: str, where: str, fix: str, default=None):
+    """Attribute `name` of obj as one value (bytes decoded as Latin-1), `default` where it is
+    absent; read only when it declares exactly one value, so an attribute of 10^6 numbers
+    under a name a reader expects to be a word is refused, never read."""
+    if name not in obj.attrs:
+        return default
+    try:
+        shape = obj.attrs.get_id(name).shape or ()
+    except (OSError, RuntimeError, KeyError, ValueError) as exc:
+        raise unreadable(exc, obj.file.filename, f"{obj.name} attribute {name}") from None
+    require(int(np.prod(shape, dtype=np.float64)) == 1, f"{where}: attribute {name}",
+            f"holds {shape} values, not one", fix)
+    try:
+        value = np.asarray(obj.attrs[name]).ravel()[0]
+    except (OSError, RuntimeError, KeyError, ValueError, TypeError) as exc:
+        raise unreadable(exc, obj.file.filename, f"{obj.name} attribute {name}") from None
+    return value.decode("latin-1") if isinstance(value, bytes) else value
 
 
 def _values(d, rows) -> float:
@@ -154,8 +207,9 @@ def check_chunks(d, where: str, room: float, held: float = 0.0, fix: str = "") -
     declare more than the dataset holds), and what each compressed chunk can expand to, within
     `room` bytes; a deflate chunk that could pass it is inflated here (bounded) and refused if
     it holds more than its declared size. Two expanding filters in one pipeline (nested
-    compression, which no writer produces) are refused; a filter of unknown expansion (a
-    plugin) is left to HDF5."""
+    compression, which no writer produces) are refused, and so is a filter whose expansion
+    the gate cannot bound (a plugin: blosc, zstd, bitshuffle, ...; h5py may decode it where
+    hdf5plugin is imported, and its output has no bound the gate knows)."""
     if d.chunks is None:
         return
     chunk_bytes = float(np.prod(d.chunks, dtype=np.float64)) * d.dtype.itemsize
@@ -166,9 +220,15 @@ def check_chunks(d, where: str, room: float, held: float = 0.0, fix: str = "") -
     expanding = [(i, fid) for i, fid in enumerate(filters) if fid not in KEEPS_SIZE]
     require(len(expanding) <= 1, where, f"is compressed twice over (HDF5 filters {filters})",
             "write it with one compression filter (h5repack -f GZIP=4 IN OUT)")
-    if not expanding or expanding[0][1] not in EXPANSION:
+    if not expanding:
         return
     index, fid = expanding[0]
+    if fid not in EXPANSION:
+        named = _filters(d) or "a plugin"
+        raise InputError(f"{where}: is compressed with HDF5 filter {fid} ({named}), whose "
+                         "output nlos_cl cannot bound before decoding it (a decompression bomb "
+                         "would fill memory). Fix: rewrite it with gzip or no compression "
+                         "(h5repack -f GZIP=4 IN OUT)")
     for info in _chunks(d):
         if info.filter_mask & (1 << index) or info.size * EXPANSION[fid] <= room:
             continue  # stored raw, or it cannot expand past the budget

@@ -22,6 +22,8 @@ import importlib
 import inspect
 from pathlib import Path
 
+import numpy as np
+
 from ...core.errors import require
 
 FORMATS = {"ccsocr": "ccsocr:read_ccsocr", "lct": "lct:read_lct",
@@ -87,4 +89,39 @@ def read_dataset(path, format: str | None = None, **options):
     extra = sorted(set(options) - options_of(name))
     require(not extra, f"{name} options", f"{extra} are not options of the {name} format "
             f"(it takes {sorted(options_of(name))})", "drop them")
-    return fn(path, **options)
+    read = fn(path, **options)
+    check_plausible(read, path, name)
+    return read
+
+
+# where each format's wall scale and bin width come from, named when a unit slip is refused
+SCALE_FROM = {"ccsocr": "grid_m (--grid-m, metres per wall index)",
+              "lct": "the file's `width`, or width_m (--width)",
+              "fk": "calibration.mat's `width`, or width_m (--width)",
+              "fk-interactive": "calibration.mat's `width`, or width_m (--width)",
+              "consumer-nlos": "the frames' pt_cloud (metres)",
+              "keyhole": "the scans' xpos and zpos (metres)"}
+MIN_BIN_S = 1e-14  # 10 fs (3 um of path): finer than any SPAD or streak camera bins
+
+
+def check_plausible(read, path, name: str) -> None:
+    """Every HistogramSet a reader returns (a sequence: each frame's) spans a relay wall, not
+    1000 times one, and has bins of a time-of-flight camera (1e-14 .. 5e-9 s): a length or time
+    in other units is refused here, naming the dataset and the option or field that set it,
+    rather than written into a capture that `locate` then blames."""
+    from ...core.constants import SPEED_OF_LIGHT
+    from ..ytal.checks import MAX_BIN_M, MAX_WALL_SPAN_M
+    sets = [read] if hasattr(read, "time_axis") else [frame[1] for frame in read[0]]
+    for h in sets:
+        pts = np.vstack([np.reshape(h.detector_spots, (-1, 3)),
+                         np.reshape(h.laser_spots, (-1, 3))])
+        span = float(np.ptp(pts, axis=0).max())
+        require(span <= MAX_WALL_SPAN_M, f"dataset {path}: wall spots", f"span {span:.4g} m, "
+                f"more than the {MAX_WALL_SPAN_M:g} m a relay wall scan covers: that looks like "
+                f"millimetres or centimetres (the scale comes from {SCALE_FROM[name]})",
+                "give lengths in metres (divide millimetres by 1000)")
+        dt = float(h.time_axis.dt_s)
+        require(MIN_BIN_S <= dt <= MAX_BIN_M / SPEED_OF_LIGHT, f"dataset {path}: bin width",
+                f"is {dt:.4g} s, outside the {MIN_BIN_S:g} .. {MAX_BIN_M / SPEED_OF_LIGHT:.2g} s "
+                "of a time-of-flight camera's bins: a time in other units", "pass dt_ps "
+                "(--dt-ps) in picoseconds, e.g. 4")

@@ -286,6 +286,13 @@ class _Chunks:
             import h5py
             self._file = h5py.File(self.path, "r")
             self._dataset = self._file["meas"]  # h5py: MATLAB's axes reversed
+            from ...core import gate
+            from ..hdf5_gate import check_chunks
+            # a deflate chunk inflates to its stream's end whatever it declares: bounded
+            # first, within what rectifying leaves of the budget (as every v7.3 read)
+            check_chunks(self._dataset, f"{self.path}: meas", gate.budget(None)[0] - 48.0 *
+                         CHUNK_BINS * self.n ** 2, 0.0, "pass the dataset's own, unmodified "
+                         "file")
         else:
             self._array = load(self.path, "meas", self.ndim)
         return self

@@ -13,9 +13,11 @@ then the real (and imaginary) part's data element; an miCOMPRESSED element holds
 deflated."""
 from __future__ import annotations
 
+import os
 import struct
 import zlib
 
+from ...core.errors import InputError
 from ..safe_write import require_file
 
 MI_MATRIX, MI_COMPRESSED = 14, 15
@@ -74,16 +76,53 @@ def _inflated_head(fh, count: int) -> bytes:
     return out
 
 
+MAX_ELEMENTS = 10_000  # a dataset's .mat holds a few variables; each costs scipy a pass
+
+
+def _open_v5(path):
+    """(file, byte order) of a v5 file opened through the gate, or (None, None) for another
+    kind of file (scipy's own checks then apply)."""
+    from ...core import gate
+    fh = gate.open_regular(path, f"{path}", "pass the downloaded .mat file")
+    head = fh.read(128)
+    if len(head) < 128 or head[126:128] not in (b"IM", b"MI"):
+        fh.close()
+        return None, None
+    return fh, "<" if head[126:128] == b"IM" else ">"
+
+
+def check_elements(path) -> None:
+    """A v5 file holds at most MAX_ELEMENTS top-level data elements: scipy's whosmat and
+    loadmat walk them all, one Python pass each (10^6 one-value variables took minutes)."""
+    fh, order = _open_v5(path)
+    if fh is None:
+        return
+    with fh:
+        size, at = os.fstat(fh.fileno()).st_size, 128
+        for n in range(MAX_ELEMENTS + 1):
+            fh.seek(at)
+            tag = fh.read(8)
+            if len(tag) < 8:
+                return
+            kind, count = struct.unpack(order + "II", tag)
+            at += 8 + count + (0 if kind == MI_COMPRESSED else -count % 8)
+            if at >= size:
+                return
+    raise InputError(f"{path}: holds more than {MAX_ELEMENTS:,} MATLAB variables, far more "
+                     "than any dataset's file. Fix: pass the dataset's own file (or save only "
+                     "the variables it needs: save(f, 'rect_data', 'width'))")
+
+
 def variable_problem(path, name: str) -> str | None:
     """What is wrong with variable `name`'s tags (see _matrix), or None where nothing is, the
     file is no v5 file or the variable is not found (scipy's own checks then apply). A name
-    held twice is checked in every copy."""
+    held twice is checked in every copy; at most MAX_ELEMENTS elements are walked."""
     require_file(path, f"{path}", "pass the downloaded .mat file")
-    with open(path, "rb") as fh:
-        head = fh.read(128)
-        if len(head) < 128 or head[126:128] not in (b"IM", b"MI"):
-            return None
-        order = "<" if head[126:128] == b"IM" else ">"
+    check_elements(path)
+    fh, order = _open_v5(path)
+    if fh is None:
+        return None
+    with fh:
         at = 128
         while True:
             fh.seek(at)

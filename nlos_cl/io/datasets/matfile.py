@@ -9,10 +9,12 @@ import numpy as np
 
 from ...core.errors import InputError, require
 from ...core.limits import require_memory
+from ..hdf5_gate import scalar_attribute
 
 HDF5_AT_512 = b"\x89HDF\r\n\x1a\n"  # a v7.3 file's HDF5 signature, after MATLAB's header
 NUMERIC = ("double", "single", "uint8", "uint16", "uint32", "int8", "int16", "int32",
            "logical")  # the MATLAB classes read as numbers
+FIX = "pass the dataset's own, unmodified file"
 
 
 def is_v73(path) -> bool:
@@ -25,8 +27,8 @@ def _h5_kind(d) -> str:
     """A v7.3 dataset's MATLAB class as `variables` reports it: 'sparse' for MATLAB's sparse
     storage (a group, or MATLAB_sparse), 'complex' for a compound dtype (MATLAB's complex
     numbers, or anything else with fields), else its MATLAB_class."""
-    kind = np.asarray(d.attrs.get("MATLAB_class", b"double")).item()  # none: plain numbers
-    kind = kind.decode("latin-1") if isinstance(kind, bytes) else str(kind)
+    kind = str(scalar_attribute(d, "MATLAB_class", f"{d.file.filename}: {d.name}", FIX,
+                                "double"))  # none: plain numbers
     if "MATLAB_sparse" in d.attrs:
         return "sparse"
     if d.dtype.fields is not None or d.dtype.kind not in "fiub":
@@ -37,7 +39,7 @@ def _h5_kind(d) -> str:
 def _h5_shape(d) -> tuple:
     """MATLAB's shape of a v7.3 dataset: its axes reversed; an empty array (MATLAB_empty) is
     stored as its dimensions, so those are read (a few numbers) instead."""
-    if d.attrs.get("MATLAB_empty", 0):
+    if scalar_attribute(d, "MATLAB_empty", f"{d.file.filename}: {d.name}", FIX, 0):
         dims = np.asarray(d[()]).ravel() if d.size <= 32 else np.zeros(2)
         return tuple(int(v) for v in dims) if dims.size else (0, 0)
     return tuple(d.shape)[::-1]
@@ -81,7 +83,7 @@ def h5_array(f, name: str, path) -> np.ndarray:
             "numbers", "pass the dataset's own, unmodified file")
     require_memory(f"{path}: {name}", 16.0 * float(np.prod(shape, dtype=np.float64)),
                    f"reading {name} {shape}", "read it on a machine with more memory")
-    if d.attrs.get("MATLAB_empty", 0):
+    if scalar_attribute(d, "MATLAB_empty", f"{path}: {name}", FIX, 0):
         return np.zeros(shape)
     from ...core import gate
     from ..hdf5_gate import check_chunks
@@ -105,6 +107,8 @@ def variables(path) -> dict:
     require_file(path, f"{path}", "pass the downloaded .mat file")
     if is_v73(path):
         return _h5_variables(path)
+    from .mat5 import check_elements
+    check_elements(path)  # before scipy walks every element
     try:
         return {name: (tuple(shape), kind) for name, shape, kind in scipy.io.whosmat(path)}
     except NotImplementedError:  # scipy: "Please use HDF reader for matlab v7.3 files"
