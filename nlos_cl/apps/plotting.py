@@ -77,15 +77,17 @@ def map_figure(fh, view):
 
 # ----------------------------------------------------------------------------- the paper
 
-def map_panel(ax, location, title, truth):
-    """One probability map (normalised to its peak) with the truth and the located point."""
+def map_panel(ax, location, title, truth, located: bool = True):
+    """One probability map (normalised to its peak) with the truth and, where `located`, the
+    located point."""
     x, y, _ = location.grid.axes()
     m = location.score_map[0]
     peak = m.max()
     ax.imshow(m / peak if peak > 0 else m, origin="lower", cmap="magma", aspect="equal",
               extent=(x[0], x[-1], y[0], y[-1]))
     ax.plot(truth[0], truth[1], "o", mfc="none", mec="red", ms=10, mew=2, label="truth")
-    ax.plot(*location.position[:2], "+", color="cyan", ms=12, mew=2, label="located")
+    if located:
+        ax.plot(*location.position[:2], "+", color="cyan", ms=12, mew=2, label="located")
     ax.set_title(title, fontsize=9)
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
@@ -111,10 +113,12 @@ def maps_figure(maps, truth, out: Path, name: str) -> str:
     plt = pyplot()
     fig, axes = plt.subplots(2, len(maps), figsize=(4 * len(maps), 8), layout="constrained")
     for col, (method, (single, joint)) in enumerate(maps.items()):
-        map_panel(axes[0, col], single, f"p_A from the {method} signal", truth)
+        # one detector's map is a ridge along its ellipse: its peak locates nothing
+        map_panel(axes[0, col], single, f"p_A from the {method} signal", truth, located=False)
         map_panel(axes[1, col], joint, f"joint, {method}: located "
                   f"({joint.position[0]:.2f}, {joint.position[1]:.2f})", truth)
     axes[0, 0].legend(fontsize=7)
+    axes[1, 0].legend(fontsize=7)
     return save(fig, out, name)
 
 

@@ -88,3 +88,23 @@ def test_fig8_draws_every_detectors_signal(monkeypatch, tmp_path):
         for c in curves:
             y = c.get_ydata()
             assert y.max() > 0 and y[0] < 0.02 * y.max() and y[-1] < 0.02 * y.max()
+
+
+def test_fig6_marks_located_only_where_a_map_locates(monkeypatch, tmp_path):
+    """One detector's map (the top row) is a ridge along its ellipse: its peak is no location,
+    so only the joint maps (the bottom row) mark 'located'; each row has the legend."""
+    import nlos_cl as nl
+    shown = _capture(monkeypatch)
+    scene = nl.paper_scene(position=(4.0, 2.0, 0.0))
+    clean = nl.simulate(scene)
+    grid = nl.Grid.from_ranges(x=(2.0, 5.0), y=(0.5, 3.5), step_m=0.05)
+    single = nl.locate(clean.histograms().select([0]), grid, estimator="paper",  # p_A
+                       return_map=True)
+    joint = nl.locate(clean, grid, estimator="paper", return_map=True)
+    plotting.maps_figure({"raw": (single, joint), "filter": (single, joint)}, scene.truth,
+                         tmp_path, "fig6")
+    (fig,) = shown
+    top, bottom = fig.axes[0], fig.axes[2]  # row by row: two columns
+    assert "located" not in {line.get_label() for line in top.get_lines()}
+    assert "located" in {line.get_label() for line in bottom.get_lines()}
+    assert top.get_legend() is not None and bottom.get_legend() is not None
