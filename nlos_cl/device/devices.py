@@ -57,7 +57,7 @@ _ensure_writable_cache()
 
 import pyopencl as cl  # noqa: E402  (after the cache folder is known to be writable)
 
-from ..core.errors import DeviceError  # noqa: E402
+from ..core.errors import DeviceError, shown  # noqa: E402
 
 INSTALL_HELP = (
     "No OpenCL device found. Install an OpenCL runtime: on Debian/Ubuntu "
@@ -171,7 +171,7 @@ def choose_device(spec=None) -> "cl.Device":
                   if low in e.device.name.lower() or low in e.platform.name.lower()]
     if not picked:
         listing = "; ".join(e.label for e in entries)
-        raise DeviceError(f"device {text!r} (from the device argument or PYOPENCL_CTX) matches "
+        raise DeviceError(f"device {shown(text)} (from the device argument or PYOPENCL_CTX) matches "
                           f"no OpenCL device. Available: {listing}. Fix: pass 'P:D' indices "
                           f"or part of a name from that list")
     return max(picked, key=_rank).device

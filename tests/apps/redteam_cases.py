@@ -628,3 +628,8 @@ CASES += STUDY_CASES
 from redteam_gate import GATE_CASES  # beside this file; it imports the names above
 
 CASES += GATE_CASES
+
+# ---- issue 59: the same classes by other routes (containers, commands, fields, the API)
+from redteam_routes import ROUTE_CASES  # beside this file; it imports the names above
+
+CASES += ROUTE_CASES

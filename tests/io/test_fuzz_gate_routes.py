@@ -243,3 +243,31 @@ def test_v5_file_of_many_variables_is_refused_quickly(tmp_path):
         load(path, "rect_data", 3)
     assert time.perf_counter() - start < 5
     one_line(exc.value, path)
+
+
+def keyhole(folder, position_m):
+    """A Keyhole folder (v7.3 files) whose stage positions are `position_m`."""
+    folder.mkdir()
+    direct = np.zeros(2000)
+    direct[600:620] = np.linspace(10, 1000, 20)
+    files = {"direct_after": {"direct_after": direct[None, :]},
+             "LongExpNoObject_after": {"LongExpNoObject_after": np.ones((1, 2000))},
+             "scan_0": {"data": np.ones((3, 2000)), "xpos": np.full((1, 3), position_m),
+                        "zpos": np.full((1, 3), position_m)}}
+    for name, variables in files.items():
+        with h5py.File(folder / f"{name}.mat", "w", userblock_size=512) as f:
+            for key, value in variables.items():
+                f[key] = value
+                f[key].attrs["MATLAB_class"] = np.bytes_(b"double")
+        with open(folder / f"{name}.mat", "r+b") as fh:
+            fh.write(b"MATLAB 7.3 MAT-file, HDF5 schema 1.00 .".ljust(116) + bytes(8)
+                     + b"\x00\x02IM")
+    return folder
+
+
+def test_keyhole_stage_in_millimetres_is_refused(tmp_path):
+    frames, meta = read_dataset(keyhole(tmp_path / "m", 0.5), "keyhole")
+    assert len(frames) == 3 and meta["xpos_m"] == [0.5] * 3  # metres: read as before
+    with pytest.raises(InputError, match=r"_m: reaches \d+(\.\d+)? m, beyond") as exc:
+        read_dataset(keyhole(tmp_path / "mm", 500.0), "keyhole")
+    one_line(exc.value, tmp_path / "mm")

@@ -112,6 +112,16 @@ def check_plausible(read, path, name: str) -> None:
     from ...core.constants import SPEED_OF_LIGHT
     from ..ytal.checks import MAX_BIN_M, MAX_WALL_SPAN_M
     sets = [read] if hasattr(read, "time_axis") else [frame[1] for frame in read[0]]
+    for key, value in ({} if sets and read is sets[0] else read[1]).items():
+        try:  # a sequence's lengths beside its frames (Keyhole's stage positions, in metres)
+            far = float(np.abs(np.asarray(value, dtype=np.float64)).max()) \
+                if key.endswith("_m") and np.size(value) else 0.0
+        except (TypeError, ValueError):
+            continue
+        require(far <= MAX_WALL_SPAN_M, f"dataset {path}: {key}", f"reaches {far:.4g} m, "
+                f"beyond the {MAX_WALL_SPAN_M:g} m of a relay wall's scene: that looks like "
+                f"millimetres (the scale comes from {SCALE_FROM[name]})", "store lengths in "
+                "metres (divide millimetres by 1000)")
     for h in sets:
         pts = np.vstack([np.reshape(h.detector_spots, (-1, 3)),
                          np.reshape(h.laser_spots, (-1, 3))])
