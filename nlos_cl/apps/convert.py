@@ -38,7 +38,7 @@ def _convert(args) -> int:
     read = read_dataset(args.src, name, **given)
     if isinstance(read, tuple):  # a sequence format's (frames, metadata)
         return _sequence(args, read, meta)
-    from ..io.ytal.grid_write import write_scan
+    from ..io.ytal.capture import write_scan
     h = read
     # a confocal grid scan as y-tal writes grids (T_Sx_Sy, X_Y_3), anything else T_Si
     path, grid = write_scan(args.out, h, metadata=meta, force=args.force)

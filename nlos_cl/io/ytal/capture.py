@@ -11,12 +11,9 @@ geometry. Pairings follow y-tal (pairing.py): one laser point -> one set; paired
 from __future__ import annotations
 
 import io
-import math
 from pathlib import Path
 
-import numpy as np
-
-from ...core.errors import InputError, require, shown
+from ...core.errors import InputError, require
 from ...core.histograms import HistogramSet
 from .checks import unreadable
 from .fields import (  # noqa: F401  (the enums, for users)
@@ -28,6 +25,7 @@ from .fields import (  # noqa: F401  (the enums, for users)
     check_memory,
     check_regular,
     check_storage,
+    check_writable,
     dataset,
     is_capture,
     to_histograms,
@@ -73,14 +71,12 @@ def write_capture(path, histograms: HistogramSet, *, device_distance_m: float = 
                         kind="an HDF5 capture (nlos_cl's or y-tal's)")
 
 
-def check_writable(h: HistogramSet, device_distance_m) -> None:
-    """What a y-tal capture can hold: one t_start for all detectors, a positive distance."""
-    offsets = h.calibration.offsets(h.n_detectors)
-    require(bool(np.allclose(offsets, offsets[0], rtol=0, atol=1e-9)), "calibration.b_m",
-            "differs between detectors, but a y-tal capture has a single t_start",
-            "write one file per group of detectors that share an offset")
-    require(isinstance(device_distance_m, (int, float)) and 0 < device_distance_m < math.inf,
-            "device_distance_m", f"must be a positive distance, got {shown(device_distance_m)}", "20.0")
+def write_scan(path, h: HistogramSet, *, metadata: dict | None = None, force: bool = False
+               ) -> tuple:
+    """write_capture's file (a confocal grid scan as a y-tal grid capture, anything else
+    T_Si); (the path, the grid or None)."""
+    from .grid_write import scan_grid
+    return write_capture(path, h, metadata=metadata, force=force), scan_grid(h)
 
 
 def read_capture(path, *, max_bytes: int | None = None, joint: bool = False

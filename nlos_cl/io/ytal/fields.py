@@ -300,3 +300,13 @@ def stored_truths(ours, truth, path=""):
             f"capture {path}: scene_info nlos_cl.{field}", f"expected a list of [x, y, z], got "
             f"{shown(truths)}", "write it again with nl.write_capture")
     return np.asarray(truths, dtype=np.float64)
+
+
+def check_writable(h: HistogramSet, device_distance_m) -> None:
+    """What a y-tal capture can hold: one t_start for all detectors, a positive distance."""
+    offsets = h.calibration.offsets(h.n_detectors)
+    require(bool(np.allclose(offsets, offsets[0], rtol=0, atol=1e-9)), "calibration.b_m",
+            "differs between detectors, but a y-tal capture has a single t_start",
+            "write one file per group of detectors that share an offset")
+    require(isinstance(device_distance_m, (int, float)) and 0 < device_distance_m < math.inf,
+            "device_distance_m", f"must be a positive distance, got {shown(device_distance_m)}", "20.0")

@@ -123,8 +123,7 @@ def write_grid_capture(path, h: HistogramSet, grid: ScanGrid, *, device_distance
 
     from ...core.errors import require
     from ..safe_write import atomic_write
-    from .capture import check_writable
-    from .fields import is_capture, write_fields
+    from .fields import check_writable, is_capture, write_fields
 
     g = in_grid_order(h, grid)
     check_writable(g, device_distance_m)
@@ -144,11 +143,3 @@ def write_grid_capture(path, h: HistogramSet, grid: ScanGrid, *, device_distance
             fh.write(image.getbuffer())
     return atomic_write(path, write, keep_unless=is_capture, force=force, record=False,
                         what="capture", kind="an HDF5 capture (nlos_cl's or y-tal's)")
-
-
-def write_scan(path, h: HistogramSet, *, metadata: dict | None = None, force: bool = False
-               ) -> tuple[Path, ScanGrid | None]:
-    """write_capture's file (a confocal grid scan as a y-tal grid capture, anything else
-    T_Si); (the path, the grid or None)."""
-    from .capture import write_capture
-    return write_capture(path, h, metadata=metadata, force=force), scan_grid(h)

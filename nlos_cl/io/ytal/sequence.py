@@ -145,7 +145,7 @@ def _write(tmp, it, fps, device_distance_m, metadata, compression):
 
 
 def _check_capture(h, device_distance_m):
-    from .capture import check_writable
+    from .fields import check_writable
     check_writable(h, device_distance_m)
 
 
