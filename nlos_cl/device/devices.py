@@ -171,8 +171,8 @@ def choose_device(spec=None) -> "cl.Device":
                   if low in e.device.name.lower() or low in e.platform.name.lower()]
     if not picked:
         listing = "; ".join(e.label for e in entries)
-        raise DeviceError(f"device {shown(text)} (from the device argument or PYOPENCL_CTX) matches "
-                          f"no OpenCL device. Available: {listing}. Fix: pass 'P:D' indices "
+        raise DeviceError(f"device: {shown(text)} (from the device argument or PYOPENCL_CTX) "
+                          f"matches no OpenCL device. Available: {listing}. Fix: pass 'P:D' indices "
                           f"or part of a name from that list")
     return max(picked, key=_rank).device
 
