@@ -2,16 +2,19 @@
 (`targets='auto'`, up to a cap): births and deaths from the data.
 
 Per frame, with the model estimator:
-- while some live track is tentative, or none is alive, the frame is fitted cold with the model
-  selection's 'auto' (model.policy.select: a plate more only where the BIC says the data hold
-  it), up to one more target than there are live tracks (and the cap): a target is found, a
-  spurious tentative track gets no measurement and dies;
-- once every live track is confirmed, their number is fitted, warm-started from them (the
-  fixed-K path that tracking was measured with);
+- while no track is alive, the frame is fitted cold with the model selection's 'auto'
+  (model.policy.select: a plate more only where the BIC says the data hold it), up to the cap;
+- while tracks live (tentative ones too), their number is fitted, warm-started from their
+  plates (tracking.warm; a track born this frame keeps its birth fit's plate): a tentative
+  track is confirmed by that cheap fit, and a spurious one gets no measurement (below) and dies.
+  (Before, a tentative track sent each frame to a cold 'auto' fit up to one target more: on a
+  walker past furniture 10-50 s a frame on 2 shared cores, against ~0.1 s warm);
 - a fit whose residual still holds a return (sanity.leftover_note: the detection's test on
   the residual) in BIRTH_FRAMES frames in a row is fitted again with 'auto', up to one more
-  target; where that finds no more, the next try waits COOL_FRAMES frames (a shape or light the
-  model lacks also leaves a residual, frame after frame).
+  target; whatever that finds, the next try waits COOL_FRAMES frames (a shape or light the
+  model lacks leaves a residual frame after frame: a person walker's plate fit sent every
+  few frames to this 'auto' refit, and what it found died tentative), so the 'auto' refit runs
+  on at most one frame in COOL_FRAMES + 1.
 Deaths from the data too: a fixed number of plates places one even where its target has gone,
 so each plate's support (model.policy.criteria.support: the BIC gain of keeping it) is read and
 a plate the data do not hold is no measurement; the lifecycle then ends its track after its
@@ -33,11 +36,11 @@ class TargetCount:
         self.cap, self.run, self.cool = int(cap), 0, 0
 
     def for_frame(self, tracks) -> tuple:
-        """(targets, max_targets) for this frame's fit: ('auto', live + 1 capped) while a track
-        is tentative or none lives, else (confirmed count, that count)."""
+        """(targets, max_targets) for this frame's fit: ('auto', cap) while no track lives, else
+        (the live tracks' count, capped; that count)."""
         live = [t for t in tracks if t.status in ("tentative", "confirmed")]
-        if not live or any(t.status != "confirmed" for t in live):
-            return "auto", max(1, min(self.cap, len(live) + 1))
+        if not live:
+            return "auto", self.cap
         n = min(len(live), self.cap)
         return n, n
 
@@ -55,10 +58,8 @@ class TargetCount:
         return self.run >= BIRTH_FRAMES and self.cool == 0
 
     def tried(self, found_more: bool) -> None:
-        """The 'auto' refit's outcome: no more targets cools the next try down."""
-        self.run = 0
-        if not found_more:
-            self.cool = COOL_FRAMES
+        """After an 'auto' refit, found more or not: the next waits COOL_FRAMES frames."""
+        self.run, self.cool = 0, COOL_FRAMES
 
 
 def supported(found: list) -> list:

@@ -84,10 +84,12 @@ def size_of(track):
     return mean, np.sqrt((SIZE_REL_SD * mean) ** 2 + sizes.var(axis=0))
 
 
-def starters(predictions, targets: int) -> list | None:
-    """The predictions of the confirmed tracks with a plate, if there are exactly `targets`
-    of them (else None: no warm start)."""
-    ready = [p for p in predictions if p.track.status == "confirmed" and p.track.plate is not None]
+def starters(predictions, targets: int, tentative: bool = False) -> list | None:
+    """The predictions of the confirmed tracks with a plate (tentative: and of the tentative
+    ones, as a tracker counting its targets warm-starts them: tracking.births), if there are
+    exactly `targets` of them (else None: no warm start)."""
+    kinds = ("confirmed", "tentative") if tentative else ("confirmed",)
+    ready = [p for p in predictions if p.track.status in kinds and p.track.plate is not None]
     return ready if len(ready) == targets else None
 
 
@@ -129,3 +131,42 @@ def better(warm_located, cold_located):
         costs = [f.cost for f in fits if f is not None and f.cost is not None]
         return min(costs) if costs else np.inf
     return warm_located if cost(warm_located) < cost(cold_located) else cold_located
+
+
+# The shape of a warm-started frame is its tracks' (plates): where a warm fit misses the data
+# the estimator fits the frame cold, and a cold fit of one target also fits the closed shapes
+# (box, ellipsoid, cylinder) where the plate misses, 5-15 s a frame on 2 shared cores
+# (docs/scenes/walk.yaml: 8 of 40 frames, 78 % of the sequence's time) for a plate that was
+# kept in every one of them. So the fallback fits plates alone (closed=False), except after
+# SHAPE_FRAMES warm-started frames in a row that missed the data, where the closed shapes are
+# tried again (a target that is no plate, e.g. a person found as one, gets its shape back).
+SHAPE_FRAMES = 3
+
+
+class PlateFrames:
+    """Whether a warm-started frame's fits may try the closed shapes (see above)."""
+
+    def __init__(self):
+        self.missed, self.retried = 0, False
+
+    def closed_for(self, estimator, warm: bool):
+        """The estimator's `closed` for this frame: False on a warm-started frame, unless
+        SHAPE_FRAMES of them in a row missed the data (then its own, and the run restarts)."""
+        own = estimator.closed
+        if not warm or own != "auto":  # closed=True or False: the caller's
+            return own
+        if self.missed >= SHAPE_FRAMES:
+            self.missed, self.retried = 0, True
+            return own
+        return False
+
+    def seen(self, found, warm: bool) -> None:
+        """After a warm-started frame: did its warm fit miss the data (fit.warm_start.used
+        False on some measurement)?"""
+        if not warm or self.retried:  # (the frame that tried the shapes starts a new run)
+            self.retried = False
+            return
+        fits = [getattr(m.source, "fit", None) for m in found]
+        missed = any(f is not None and f.warm_start is not None and not f.warm_start.used
+                     for f in fits)
+        self.missed = self.missed + 1 if missed else 0

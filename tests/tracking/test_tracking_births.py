@@ -18,11 +18,14 @@ def _location(left: bool):
     return SimpleNamespace(targets=[SimpleNamespace(fit=fit)])
 
 
-def test_the_count_is_auto_until_every_track_is_confirmed_then_theirs():
+def test_the_count_is_auto_while_no_track_lives_then_the_live_tracks():
+    """'auto' (up to the cap) only while nothing is followed; tentative tracks count (their
+    birth is confirmed by a warm fit of that many plates, not a cold 'auto' fit)."""
     count = TargetCount(3)
-    assert count.for_frame([]) == ("auto", 1)
-    assert count.for_frame([_track("confirmed"), _track("tentative")]) == ("auto", 3)
-    assert count.for_frame([_track("confirmed")]) == (1, 1)
+    assert count.for_frame([]) == ("auto", 3)
+    assert count.for_frame([_track("deleted")]) == ("auto", 3)
+    assert count.for_frame([_track("confirmed"), _track("tentative")]) == (2, 2)
+    assert count.for_frame([_track("tentative")]) == (1, 1)
     assert count.for_frame([_track("confirmed")] * 4) == (3, 3)
 
 
@@ -34,6 +37,19 @@ def test_one_more_is_tried_after_a_run_of_residual_returns_then_cools_down():
     assert not any(count.try_more(_location(True), 1) for _ in range(COOL_FRAMES - 1))
     assert not count.try_more(_location(True), 3)  # at the cap: never
     assert not count.try_more(_location(False), 1)  # a clean residual resets the run
+
+
+def test_the_auto_refit_runs_at_a_bounded_rate_whatever_it_found():
+    """A residual that holds a return every frame (a shape the model lacks) sends at most
+    one frame in COOL_FRAMES + 1 to the 'auto' refit, also where the refit found more (what
+    it found was a tentative track that died: the refit came back two frames later)."""
+    count = TargetCount(3)
+    fired = []
+    for _ in range(60):
+        fired.append(count.try_more(_location(True), 1))
+        if fired[-1]:
+            count.tried(found_more=True)
+    assert 0 < sum(fired) <= -(-60 // (COOL_FRAMES + 1))
 
 
 def test_a_plate_the_data_do_not_hold_is_no_measurement():
