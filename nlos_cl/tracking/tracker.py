@@ -22,7 +22,6 @@ track's record.
 """
 from __future__ import annotations
 
-import contextlib
 import functools
 import math
 
@@ -82,9 +81,6 @@ class Tracker:
         self.count = TargetCount(max_tracks) \
             if getattr(self.estimator, "targets", None) == "auto" else None
         self.warm_start = bool(plan.warm_start) and warm.can_start(self.estimator, fixed=True)
-        # a warm-started frame's fallback fits plates, not closed shapes (warm.PlateFrames)
-        self.plates = warm.PlateFrames() if self.warm_start and \
-            getattr(self.estimator, "closed", None) == "auto" else None
         self.locator = Locator(layout, grid, estimator=self.estimator, log_mode=log_mode,
                                backend=backend, search=plan.search)
         self.layout, self.grid, self.motion, self.background = layout, grid, motion, background
@@ -167,13 +163,9 @@ class Tracker:
         starters = warm.starters(predictions, self.estimator.targets, self.count is not None) \
             if self.warm_start and fixed and predictions is not None else None
         box = gated.search_box(self, predictions)  # None: the whole region
-        with self._closed(starters is not None):
-            location, found = self._locate(sig, starters and warm.prior(starters), box)
-            if starters is not None and warm.outside_gates(found, starters,
-                                                           self.gate_probability):
-                location, found = warm.better((location, found), self._locate(sig, None))
-        if self.plates is not None:
-            self.plates.seen(found, starters is not None)
+        location, found = self._locate(sig, starters and warm.prior(starters), box)
+        if starters is not None and warm.outside_gates(found, starters, self.gate_probability):
+            location, found = warm.better((location, found), self._locate(sig, None))  # cold
         if self.count is not None:
             found = supported(found)
             if self.count.try_more(location, self.estimator.targets):
@@ -183,19 +175,6 @@ class Tracker:
             self.slots = max(1, min(self.max_tracks, len(found)))
         self.last_location, self.last_measurements = location, found
         return found
-
-    @contextlib.contextmanager
-    def _closed(self, warm_started: bool):
-        """The estimator's `closed` for this frame (warm.PlateFrames), restored after."""
-        if self.plates is None:
-            yield
-            return
-        own = self.estimator.closed
-        self.estimator.closed = self.plates.closed_for(self.estimator, warm_started)
-        try:
-            yield
-        finally:
-            self.estimator.closed = own
 
     def _one_more(self, sig, location, found):
         """The frame fitted again cold over the whole region with 'auto', up to one target

@@ -304,26 +304,3 @@ def test_the_paper_tracker_never_imports_the_model_package():
                          check=True)
     assert out.stdout.strip() == "False"
 
-
-def test_a_warm_started_frame_falls_back_to_plates_not_closed_shapes():
-    """warm.PlateFrames: on a warm-started frame the estimator's fallback fits plates
-    (closed=False: the closed shapes cost 5-15 s a frame for plates kept anyway), except
-    after SHAPE_FRAMES warm frames in a row whose warm fit missed the data; a cold frame and
-    a caller's own closed=True/False are left as they are."""
-    from types import SimpleNamespace
-
-    from nlos_cl.tracking.warm import SHAPE_FRAMES, PlateFrames
-
-    def found(used):
-        fit = SimpleNamespace(warm_start=SimpleNamespace(used=used))
-        return [SimpleNamespace(source=SimpleNamespace(fit=fit))]
-    est, plates = SimpleNamespace(closed="auto"), PlateFrames()
-    assert plates.closed_for(est, warm=False) == "auto"
-    seen = []
-    for _ in range(2 * (SHAPE_FRAMES + 1)):
-        seen.append(plates.closed_for(est, warm=True))
-        plates.seen(found(False), warm=True)
-    assert seen == ([False] * SHAPE_FRAMES + ["auto"]) * 2
-    plates.seen(found(True), warm=True)  # a warm fit that explains its frame ends the run
-    assert plates.closed_for(est, warm=True) is False and plates.missed == 0
-    assert plates.closed_for(SimpleNamespace(closed=True), warm=True) is True
