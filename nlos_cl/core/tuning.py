@@ -35,6 +35,14 @@ SEARCH_DETECTORS = 64
 # family 21-30 % less time.
 CHOICE_DETECTORS = 8
 
+# With more histograms than SEARCH_DETECTORS, the fit on every one starts from the spread
+# subset's converged answer and takes at most this many residual evaluations (each accepted
+# step one Jacobian over every histogram): the subset's answer is within a few of its own sds
+# of the full optimum, where Levenberg-Marquardt converges in a few Gauss-Newton steps, and
+# every evaluation costs the whole capture (LCT's 4,096 x 2,048 counts: ~15 s a Jacobian on 2
+# cores). Measured: docs/model-estimator.md, "Many histograms".
+FINISH_NFEV = 4
+
 # search="auto": frames timed per search (after one warm-up each) before the Locator keeps the
 # faster one for its grid.
 AUTO_TRIALS = 3

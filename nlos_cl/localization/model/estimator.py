@@ -55,18 +55,18 @@ HELD_WARNINGS = {2: HEIGHT_WARNING, 0: X_WARNING}
 HOST_DETECTORS = 64
 
 
-def _host_problem(obs, lattice, backend, refl, model_on):
-    """The host's batched plates (model.batch), or None where they cannot model the layout. A
-    laser spot per detector (confocal, paired): only on the plate_model kernel, which 'auto'
-    takes there too (the host's closed shapes know any layout; the forward op's plates took 5x
-    as long: 0.64-0.94 against 0.12-0.15 s a confocal frame, tests/localization/test_paired.py's scan, the
-    same positions). GGX: only the forward op has it."""
-    from .forward.batch import HostProblem
-    paired = obs.laser.ndim == 2
-    if paired and model_on not in ("kernel", "auto"):
-        return None
-    problem = HostProblem(obs, lattice, backend, refl, model_on == "kernel" or paired)
-    return None if problem.paired and not problem.kernel else problem
+def plates_path(model_on: str, n_spots: int, paired: bool) -> str:
+    """Where a Lambertian plate fit's model runs: 'host' (model.batch's NumPy), 'kernel' (the
+    plate_model operation) or 'forward op' (likelihood.Problem). model_on 'auto': the host up
+    to HOST_DETECTORS spots (the kernel where each spot has its own laser spot, which only it
+    models), the forward op beyond (bench: nlos-cl bench's model paths table)."""
+    if model_on == "auto":
+        if n_spots > HOST_DETECTORS:
+            return "forward op"
+        return "kernel" if paired else "host"
+    if model_on == "kernel":
+        return "kernel"
+    return "host" if model_on == "host" and not paired else "forward op"
 
 
 class ModelEstimator:
@@ -195,12 +195,17 @@ class ModelEstimator:
     def problem(self, obs, backend):
         """The plates' Problem: the model on the host or with the forward op on `backend`
         (model_on); a HostProblem keeps `backend` for the closed shapes."""
+        from .forward.batch import HostProblem
         from .forward.host_shapes import host_can
         lattice = self.lattice_for(obs)
         refl = self.reflectance
         on_host = host_can(refl) and (self.model_on in ("host", "kernel") or (
             self.model_on == "auto" and len(obs.spots) <= HOST_DETECTORS))
-        problem = _host_problem(obs, lattice, backend, refl, self.model_on) if on_host else None
+        path = plates_path(self.model_on, len(obs.spots), obs.laser.ndim == 2)
+        problem = None
+        if on_host and path != "forward op":
+            problem = HostProblem(obs, lattice, backend, refl, path == "kernel")
+            problem = None if problem.paired and not problem.kernel else problem
         if problem is None:
             problem = Problem(obs, backend, lattice, reflectance=refl)
         problem.closed_on_host = on_host  # model.host_shapes.shape_problem

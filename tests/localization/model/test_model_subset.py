@@ -10,7 +10,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from nlos_cl.core.tuning import CHOICE_DETECTORS, MISFIT_BIRGE, SEARCH_DETECTORS
+from nlos_cl.core.tuning import (CHOICE_DETECTORS, FINISH_NFEV, MAX_EXTENT_M, MISFIT_BIRGE,
+                                 SEARCH_DETECTORS)
 from nlos_cl.localization.model.shapes import box, plate
 from nlos_cl.localization.model.policy import subset
 from nlos_cl.localization.model.forward.data import Observation
@@ -64,6 +65,7 @@ def stubs(monkeypatch):
 
     def fit(problem, params, free, nfev, **kw):
         calls["fit_on"].append(len(problem.obs.spots))
+        calls.setdefault("nfev", []).append(nfev)
         return _result(np.shape(params)[-1], 1.0 * 993)
 
     monkeypatch.setattr("nlos_cl.localization.model.policy.select.fit_targets", fit_targets)
@@ -101,6 +103,8 @@ def test_a_closed_shape_whose_depth_is_seen_is_refitted_on_every_detector(stubs)
     free = np.ones(plate.N_PARAMS, bool)
     result, _, choice = subset.cold_fit(_est(), problem, np.zeros(3), free, None)
     assert result is not None and stubs["fit_on"] == [CHOICE_DETECTORS, n_det]
+    # every detector's fit finishes from the subset's answer: FINISH_NFEV evaluations at most
+    assert stubs["nfev"][-1] == FINISH_NFEV < _est().final_nfev
     misfit_plate = _result(plate.N_PARAMS, 400.0 * 993)  # the final plate misses them too
     chosen, refit, _, _ = subset.plate_or_closed(_est(), problem, misfit_plate, free,
                                                  Covariance(None, {}), choice)
@@ -176,3 +180,19 @@ def test_an_adequate_plate_on_many_detectors_tries_closed_shapes_only_on_the_sub
     else:
         assert stubs["choices"] == 0 and stubs["fit_on"] == [] and chosen is problem
         assert info["box_probe_better"] is False and info["closed_tried"] is False
+
+
+def test_a_closed_shape_larger_than_any_target_is_doomed_whatever_its_fit():
+    """sanity.doubt rejects a target larger than MAX_EXTENT_M before any other test, so a
+    subset's closed shape that size is not refitted on every detector (LCT's SU scan: a 3 m
+    cylinder refitted on 4,096 spots, then rejected); a plate that size is not a closed
+    shape's question, and a closed shape under it still reads the misfit conditions."""
+    obs = _obs(8)
+    cov = np.zeros((box.N_PARAMS, box.N_PARAMS))
+    cov[box.DEPTH, box.DEPTH] = 0.01 ** 2  # depth seen
+    free = np.ones(box.N_PARAMS, bool)
+    for height, want in [(MAX_EXTENT_M + 0.1, True), (MAX_EXTENT_M - 0.1, False)]:
+        result = _result(box.N_PARAMS, 2.0 * (1000 - box.N_PARAMS - 1))  # explains the data
+        result.params[0, 3:6] = (0.3, height, 0.3)
+        problem = _Problem(obs, box, null=result.cost / 1e-6)
+        assert subset.doomed(problem, result, free, Covariance(cov, {})) is want

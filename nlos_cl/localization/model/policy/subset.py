@@ -2,7 +2,8 @@
 all of them.
 
 - More than SEARCH_DETECTORS (64): the starts and short fits run on 64 spread detectors
-  (`cold_fit`), the final plate fit on all.
+  (`cold_fit`), the final plate fit on all, from the subset's answer, in at most
+  FINISH_NFEV evaluations (core/tuning.py).
 - More than CHOICE_DETECTORS (8), and a plate that misses the data or that a box behind it
   would beat (the depth probe on every detector): the choice of plate or closed shape
   (model.closed.closed_or_plate: ~45 LM fits of three families) is made on 8 spread
@@ -24,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from ....core.geometry import farthest_points
-from ....core.tuning import CHOICE_DETECTORS, SEARCH_DETECTORS
+from ....core.tuning import CHOICE_DETECTORS, FINISH_NFEV, MAX_EXTENT_M, SEARCH_DETECTORS
 from ..forward.likelihood import take_calls
 from ..shapes.shape import name_of
 from ..solve.covariance import covariance
@@ -78,13 +79,20 @@ def cold_fit(est, problem, argmax_position, free, held, smooth=None):
     take_calls(problem, search)
     if choice is not None and _ended(est, choice) is not None:
         return None, history, choice
-    result = fit(problem, rough.params, free, est.final_nfev, keep_jacobian=True)
+    result = fit(problem, rough.params, free, min(est.final_nfev, FINISH_NFEV),
+                 keep_jacobian=True)
     return result, history, choice
 
 
 def doomed(chosen, result, free, cov) -> bool:
-    """Whether sanity.doubt will reject this fit: misfit, and depth unseen or signal
-    unexplained (the fields model.estimator reports: sanity.fit_checks)."""
+    """Whether sanity.doubt will reject this fit: larger than any target (MAX_EXTENT_M), or
+    misfit with its depth unseen or the signal unexplained (the fields model.estimator
+    reports: sanity.fit_checks). LCT's "SU" scan (counts in groups of 3 bins): a cylinder
+    chosen on 8 spots at its 3 m height bound was refitted on all 4,096 (786 of 1,053 s,
+    under load) and then rejected for its size."""
+    if len(result.params) == 1 and float(np.max(shape_of(chosen).extent(
+            result.params[0]))) > MAX_EXTENT_M:
+        return True
     return closed_centre_guessed(name_of(chosen.shape), fit_checks(chosen, result, free, *cov))
 
 
