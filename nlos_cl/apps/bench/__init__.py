@@ -13,7 +13,8 @@ def run(device=None, smoke=False, out_dir: Path | None = None, say=print, force=
     from ...ops.opencl_backend import get_runtime
     rt = get_runtime(device)
     rows = all_rows(rt, smoke, say)
-    return report(rt.name, rows, smoke, out_dir, force)
+    from .model_paths import table
+    return report(rt.name, rows, smoke, out_dir, force, paths=table(rt, smoke, say))
 
 
 __all__ = ["Row", "all_rows", "report", "run"]

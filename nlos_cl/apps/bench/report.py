@@ -113,14 +113,16 @@ def pf_peer_section(path: Path = PF_PEER_JSON) -> str:
     return "\n".join(lines) + "\n"
 
 
-def report(device_name: str, rows, smoke: bool, out_dir: Path | None, force: bool = False
-           ) -> str:
+def report(device_name: str, rows, smoke: bool, out_dir: Path | None, force: bool = False,
+           paths: list | None = None) -> str:
     """The table as text; with out_dir, also OUT/performance.md, .json and .png, each written
-    atomically under nlos_cl.io.safe_write's rule (see is_ours; `force` replaces others)."""
+    atomically under nlos_cl.io.safe_write's rule (see is_ours; `force` replaces others).
+    paths: the model paths' table (model_paths.table), shown after the rows."""
     from ...io.safe_write import write_text
     from ..plotting import write_figure
     from ..plotting import performance_figure
-    text = f"Device: {device_name}\n\n" + table(rows) + "\n"
+    from .model_paths import section
+    text = f"Device: {device_name}\n\n" + table(rows) + "\n" + section(paths)
     if out_dir is None:
         return text
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -130,7 +132,8 @@ def report(device_name: str, rows, smoke: bool, out_dir: Path | None, force: boo
             + "\n![time against problem size](performance.png)\n\n" + pf_peer_section()
             + "\n" + analysis)
     data = json.dumps({"device": device_name, "smoke": smoke,
-                       "rows": [asdict(r) | {"ratio": r.ratio} for r in rows]}, indent=1)
+                       "rows": [asdict(r) | {"ratio": r.ratio} for r in rows],
+                       "model_paths": paths or []}, indent=1)
     for name, content in (("performance.json", data), ("performance.md", page)):
         write_text(out_dir / name, content, keep_unless=is_ours, force=force, what="--out",
                    kind="a file nlos-cl bench wrote")

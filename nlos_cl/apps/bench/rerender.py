@@ -18,6 +18,7 @@ from pathlib import Path
 
 from ...core.errors import require
 from .cases import Row
+from .model_paths import section
 from .report import HEADER, pf_peer_section, table
 
 CHECK = re.compile(r"^(goal|target)\b.*(\bmet|: yes|: no)$|^goal \(issue", re.IGNORECASE)
@@ -40,7 +41,8 @@ def rerender(json_path: Path) -> Path:
         data = json.loads(json_path.read_text("utf-8"))
     except (OSError, ValueError) as exc:
         data = {"error": str(exc)}
-    require(set(data) == {"device", "smoke", "rows"}, str(json_path), "is not the "
+    keys = {"device", "smoke", "rows"}
+    require(set(data) in (keys, keys | {"model_paths"}), str(json_path), "is not the "
             "performance.json of a bench run", "pass the JSON `nlos-cl bench --out` wrote")
     page = json_path.with_name("performance.md")
     require(not page.exists() or page.read_text("utf-8").startswith("# Performance\n"),
@@ -50,6 +52,7 @@ def rerender(json_path: Path) -> Path:
             "rows of that run, on the device below) by `python -m nlos_cl.apps.bench.rerender "
             f"{json_path}`: every number in the table is that run's; the text around it is "
             f"today's.\n\nDevice: {data['device']}\n\n" + table(rows_of(data)) + "\n"
+            + section(data.get("model_paths"))
             + "\n![time against problem size](performance.png)\n\n"
             + pf_peer_section(json_path.with_name("performance-pf-peer.json")) + "\n" + analysis)
     from ...io.safe_write import write_text
