@@ -91,6 +91,9 @@ def real(s: Settings, out: Path, data=None) -> Result:
               "nlos_cl/apps/reproduce/real/real.yaml. Do not edit by hand.")
     summary = {"quick": s.quick, "data": str(root), "header": header, "config": cfg,
                "sections": {k: (v or {}).get("rows") for k, v in sections.items()}}
+    # the targets' checks go to --json ("goals", for the session's note), not on the page
+    summary["goals"] = [dict(zip(("dataset", "target", "measured", "met"), g))
+                        for g in report.goals(summary)]
     result = Result(NAME, TITLE, index, summary, figures)
     from ....io.safe_write import write_text
     write_text(out / f"{NAME}-data.md", report.page(result, "."), what="--out")
