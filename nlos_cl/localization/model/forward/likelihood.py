@@ -1,8 +1,9 @@
 """The model's histograms for K targets (plates, or one box), the linear factors solved in
 closed form, and the residuals whose sum of squares is -2 log-likelihood (up to a constant).
 
-Gaussian (AWGN): mu = sum_k a_k m_k; a = weighted least squares (noise std per detector);
-residual (y - mu) / noise. Poisson (photon counts): lambda = sum_k a_k m_k + b_d (b_d: dark and
+Gaussian (AWGN): mu = sum_k a_k m_k + a slow background per detector (model.forward.nuisance:
+a constant and a ramp); (a >= 0, background) by weighted least squares (noise std per
+detector); residual (y - mu) / noise. Poisson (photon counts): lambda = sum_k a_k m_k + b_d (b_d: dark and
 ambient counts per bin, per detector); (a, b) >= 0 maximise the Poisson likelihood (Newton);
 residual = signed deviance residual, so the sum of squares is the deviance.
 """
@@ -14,6 +15,7 @@ import numpy as np
 
 from ....core.constants import TINY
 from ..shapes import plate
+from . import nuisance
 
 MAX_ENUMERATED = 6  # targets; beyond, projected coordinate descent
 # The counts' amplitudes are iterated to convergence (1e-9 relative), so that a fit's cost is
@@ -84,6 +86,8 @@ class Problem:
     # the closed shapes' model on the host (model.host_shapes.shape_problem): the estimator
     # sets it where its model_on and the layout allow
     closed_on_host = False
+    # the Gaussian likelihood's background terms per detector (nuisance.ORDER; None: none)
+    background_order = nuisance.ORDER
 
     def __init__(self, obs, backend, lattice=(16, 24), shape=plate, reflectance=None):
         # a plate.Lattice (its blur share with it) kept as it is; a plain pair as a tuple
@@ -138,22 +142,42 @@ class Problem:
             return self._gauss_linear(cols)
         return self._poisson_linear(cols, warm)
 
+    def background(self):
+        """The Gaussian rows' background basis (nuisance.Background), or None (counts, or
+        background_order None); made once per problem."""
+        if self.obs.mode != "gauss" or self.background_order is None:
+            return None
+        made = getattr(self, "_background", None)
+        if made is None or made.p != self.background_order + 1:
+            made = self._background = nuisance.Background(self.obs.valid, self.background_order)
+        return made
+
     def _gauss_linear(self, cols):
         """Weighted least squares for the amplitudes, each >= 0: a target reflects light, it
         does not absorb it. Unconstrained, two overlapping plates of opposite signs sculpted
-        one target's signal (5 of 13 failed three-target draws held a negative amplitude)."""
+        one target's signal (5 of 13 failed three-target draws held a negative amplitude).
+        With a background (`background`) the amplitudes are solved on the rows with its basis
+        projected out, then its coefficients (either sign: what the floor subtraction left,
+        and a ramp) from what they leave: [a, c.ravel()], c (p, D) in data units."""
+        bg = self.background()
         w = (1.0 / self.obs.noise)[None, :, None]
-        a_mat = (cols * w).reshape(len(cols), -1)
+        weighted = cols * w if bg is None else bg.project(cols * w)
+        a_mat = weighted.reshape(len(cols), -1)
         if self._weighted_y is None:
-            self._weighted_y = (self.obs.y * w[0]).reshape(-1)
+            y = self.obs.y * w[0]
+            self._weighted_y = (y if bg is None else bg.project(y)).reshape(-1)
         b = self._weighted_y
         if len(cols) == 1:  # one column: the projection, >= 0 (lstsq's number, 0.1 ms less)
             norm2 = float(a_mat[0] @ a_mat[0])
-            return np.array([max(float(a_mat[0] @ b), 0.0) / norm2 if norm2 > 0 else 0.0])
-        free, *_ = np.linalg.lstsq(a_mat.T, b, rcond=None)
-        if np.all(free >= 0):
-            return free
-        return nonnegative_lstsq(a_mat @ a_mat.T, a_mat @ b, free)
+            amp = np.array([max(float(a_mat[0] @ b), 0.0) / norm2 if norm2 > 0 else 0.0])
+        else:
+            amp, *_ = np.linalg.lstsq(a_mat.T, b, rcond=None)
+            if not np.all(amp >= 0):
+                amp = nonnegative_lstsq(a_mat @ a_mat.T, a_mat @ b, amp)
+        if bg is None:
+            return amp
+        rest = self.obs.y - np.tensordot(amp, cols, 1)
+        return np.concatenate([amp, bg.coefficients(rest).reshape(-1)])
 
     def _poisson_linear(self, cols, warm=None, iters=NEWTON_ITERS):
         """Newton on (a_1..a_K, b_1..b_D) of the Poisson log-likelihood, kept >= 0. The
@@ -174,11 +198,13 @@ class Problem:
 
     # ------------------------------------------------------------------ residuals
     def mean(self, cols, lin) -> np.ndarray:
-        if len(cols) == 1 and self.obs.mode == "gauss":
-            return lin[0] * cols[0]
-        mu = np.tensordot(lin[:len(cols)], cols, 1)
+        k = len(cols)
         if self.obs.mode == "poisson":
-            mu = mu + lin[len(cols):, None] * self.obs.valid
+            return np.tensordot(lin[:k], cols, 1) + lin[k:, None] * self.obs.valid
+        mu = lin[0] * cols[0] if k == 1 else np.tensordot(lin[:k], cols, 1)
+        bg = self.background()
+        if bg is not None and len(lin) > k:
+            mu = mu + bg.fitted(np.reshape(lin[k:], (bg.p, -1)))
         return mu
 
     def residual(self, cols, lin) -> np.ndarray:
@@ -193,12 +219,13 @@ class Problem:
         return r[obs.valid]
 
     def null_cost(self) -> float:
-        """The cost with no target: zero signal (Gaussian), or each detector's background
-        alone at its likelihood-best level, the mean count of its valid bins (counts). What
-        a fit's explained share (1 - cost / this) is measured against."""
+        """The cost with no target: each detector's background alone at its best (Gaussian:
+        zero where it has none; counts: the mean count of its valid bins). What a fit's
+        explained share (1 - cost / this) is measured against."""
         obs = self.obs
         if obs.mode == "gauss":
-            return float(np.sum((obs.y / obs.noise[:, None])[obs.valid] ** 2))
+            bg, y = self.background(), obs.y / obs.noise[:, None]
+            return float(np.sum((y if bg is None else bg.project(y))[obs.valid] ** 2))
         valid = obs.valid.astype(np.float64)
         b = np.sum(obs.y * valid, axis=1) / np.maximum(valid.sum(axis=1), 1.0)
         return float(np.sum(self.residual(np.zeros((0,) + obs.y.shape), b) ** 2))

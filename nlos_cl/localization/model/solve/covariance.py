@@ -4,14 +4,17 @@ AWGN: the sandwich (J'J)^-1 J' C J (J'J)^-1 of weighted least squares on filtere
 whose noise correlation C comes from the filter's taps (no free factor), times the Birge ratio
 max(1, RSS / E[RSS]) where E[RSS] = tr((I - H) C): when the model does not explain the data
 to within the noise, the covariance grows by the measured excess. Photon counts: the inverse
-Fisher information of the Poisson likelihood. Both include the linear factors. The derivatives
-are analytic where model.fit.analytic_derivatives has them, else central differences.
+Fisher information of the Poisson likelihood. Both include the linear factors (AWGN: the
+amplitudes, and each detector's background terms, profiled out by projecting the derivatives
+off their basis: the target block of the sandwich is unchanged by it). The derivatives are
+analytic where model.fit.analytic_derivatives has them, else central differences.
 """
 from __future__ import annotations
 
 import numpy as np
 
 from ....core.constants import TINY
+from ..forward import nuisance
 from ..shapes import plate
 from .fit import (
     FitResult,
@@ -101,21 +104,50 @@ def _reused_jacobian(problem, result, free):
     return cols, np.column_stack([-data, *amplitudes])
 
 
-def _correlated_terms(obs, j):
-    """J^T C J and trace(C) for the correlation C of the weighted residuals, which is block
-    diagonal (one Toeplitz block per detector: the filter correlates a detector's samples, not
-    two detectors'), summed block by block: a 1,024-detector patch never builds the dense
-    (samples x samples) matrix (93,184^2 floats, 65 GiB)."""
+def _correlated_terms(obs, j, bg=None):
+    """J^T C J, C J (rows of j) and trace((I - P_B) C) for the correlation C of the weighted
+    residuals, which is block diagonal (one Toeplitz block per detector: the filter correlates
+    a detector's samples, not two detectors'), summed block by block: a 1,024-detector patch
+    never builds the dense (samples x samples) matrix (93,184^2 floats, 65 GiB). bg: the
+    backgrounds' basis (nuisance.Background), whose projection P_B takes its trace off."""
     idx = np.arange(obs.n)
     toeplitz = obs.rho[np.abs(idx[:, None] - idx[None, :])]
     meat, trace, at = np.zeros((j.shape[1], j.shape[1])), 0.0, 0
-    for v in obs.valid:  # j's rows are the valid samples, detector after detector
+    cj = np.empty_like(j)
+    for d, v in enumerate(obs.valid):  # j's rows: the valid samples, detector after detector
         block = toeplitz[np.ix_(v, v)]
         rows = j[at:at + len(block)]
-        meat += rows.T @ block @ rows
-        trace += float(np.trace(block))
+        cj[at:at + len(block)] = block @ rows
+        meat += rows.T @ cj[at:at + len(block)]
+        trace += float(np.trace(block)) - (0.0 if bg is None else bg.trace_with(d, v, block))
         at += len(block)
-    return meat, trace
+    return meat, trace, cj
+
+
+def _off_background(obs, bg, j):
+    """j (valid rows, P) with each detector's background basis projected out of its rows."""
+    full = np.zeros(obs.valid.shape + (j.shape[1],))
+    full[obs.valid] = j
+    return np.moveaxis(bg.project(np.moveaxis(full, -1, 0)), 0, -1)[obs.valid]
+
+
+def _background_sd(obs, bg, j_raw, inv, meat, cj) -> np.ndarray:
+    """(p, D) sds of the background coefficients (data units, before the Birge ratio): per
+    detector c = E (y - J theta) with E its rows' least-squares operator and theta = inv
+    J~' y (J~ the projected j), so c = M y with M = E S_d - E J_d inv J~', whose C-variance
+    M C M' is summed from the blocks (`cj`: C J~)."""
+    out, at = np.zeros((bg.p, bg.d)), 0
+    for d, v in enumerate(obs.valid):
+        m = int(v.sum())
+        e = bg.gram_pinv[d] @ bg.basis[:, d, v]  # (p, m)
+        idx = np.arange(obs.n)
+        block = obs.rho[np.abs(idx[v][:, None] - idx[v][None, :])]
+        lm = e @ j_raw[at:at + m] @ inv  # (p, P)
+        ec = e @ cj[at:at + m]  # E C_dd J~_d
+        var = e @ block @ e.T - ec @ lm.T - lm @ ec.T + lm @ meat @ lm.T
+        out[:, d] = np.sqrt(np.maximum(np.diag(var), 0.0)) * obs.noise[d]
+        at += m
+    return out
 
 
 def _poisson_information(obs, mu, jmu) -> np.ndarray:
@@ -167,7 +199,9 @@ def covariance(problem, result: FitResult, free, reuse: bool = False
     precision[at] = 1.0 / sd ** 2  # the free target parameters come first, as in _prior_terms
     if obs.mode == "gauss":
         j = jmu if reused is not None else (jmu / obs.noise[:, None, None])[obs.valid]
-        meat, trace = _correlated_terms(obs, j)
+        bg = getattr(problem, "background", lambda: None)()  # a test's stub may have none
+        j_raw, j = j, (j if bg is None else _off_background(obs, bg, j))
+        meat, trace, cj = _correlated_terms(obs, j, bg)
         inv = _scaled_pinv(j.T @ j + np.diag(precision))
         cov = inv @ (meat + np.diag(precision)) @ inv
         r = ((obs.y - mu) / obs.noise[:, None])[obs.valid]
@@ -175,6 +209,12 @@ def covariance(problem, result: FitResult, free, reuse: bool = False
         birge = float(r @ r) / max(expected, 1.0)
         cov = cov * max(1.0, birge)
         info = {"birge_ratio": birge}
+        if bg is not None and len(result.linear) > len(params):
+            # a reused Jacobian's columns are the profiled ones, not d mu: no sds from them
+            sd = None if reused is not None else \
+                _background_sd(obs, bg, j_raw, inv, meat, cj) * np.sqrt(max(1.0, birge))
+            coef = np.reshape(result.linear[len(params):], (bg.p, -1))
+            info.update(nuisance.summary(coef, sd, float(np.max(np.abs(obs.y)))))
     else:
         cov = _scaled_pinv(_poisson_information(obs, mu, jmu) + np.diag(precision))
         info = {"deviance": result.cost, "n_bins": int(obs.valid.sum())}
