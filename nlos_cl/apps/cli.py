@@ -107,7 +107,8 @@ def _simulate_args(p):
     p.add_argument("--out", required=True, help="the .h5 file to write (atomically)")
     p.add_argument("--force", action="store_true", help="replace a file that is not a capture")
     p.add_argument("--position", type=COORD, nargs=3, default=None, metavar=("X", "Y", "Z"),
-                   help="the paper's target centre (m, nlos_cl's frame; default 4 2 0)")
+                   help="the paper's target centre (m) in y-tal's frame, as captures and "
+                   "every output give it: X along the wall, Y up, Z the depth (default -4 0 2)")
     p.add_argument("--facet", type=_number("facet_size_m", "pass metres, e.g. 0.01",
                                            positive=True), default=None,
                    help="facet size (m; default 0.01)")

@@ -11,8 +11,7 @@ def _paper_spec(args):
     from ..core.paths import default_time_axis, simulation_bin
     from ..physics.scene import paper_scene
     from ..io.scenefile import SceneSpec
-    scene = paper_scene(position=tuple(args.position or (4.0, 2.0, 0.0)),
-                        facet_size_m=args.facet or 0.01)
+    scene = paper_scene(position=_paper_position(args.position), facet_size_m=args.facet or 0.01)
     noise = None
     if args.photons:
         noise = PhotonCounter(n_pulses=args.pulses, tdc_bin_s=args.tdc_ps * 1e-12)
@@ -23,6 +22,27 @@ def _paper_spec(args):
         dt_s = simulation_bin(args.tdc_ps * 1e-12, dt_s)
     axis = default_time_axis(scene.setup, dt_s)
     return SceneSpec(scene, axis, noise, args.seed or 0, "paper rectangle 0.3 m x 1.6 m")
+
+
+PAPER_POSITION = (-4.0, 0.0, 2.0)  # y-tal's X, Y, Z of the paper's target (ours: 4, 2, 0)
+
+
+def _paper_position(given) -> tuple:
+    """--position, in y-tal's frame as every capture and output states it (X along the wall,
+    Y up, Z the depth from the wall), converted to ours once, here."""
+    import math
+
+    from ..core.errors import require
+    from ..io.scenefile import MAX_SCENE_M
+    from ..io.ytal.frames import YTAL
+    X, Y, Z = (float(v) for v in (given or PAPER_POSITION))
+    require(math.hypot(X, Y, Z) <= MAX_SCENE_M, "--position", f"{[X, Y, Z]} lies beyond the "
+            f"{MAX_SCENE_M:g} m a scene spans: that looks like millimetres", "pass metres, e.g. "
+            "--position -4 0 2")
+    require(Z > 0, "--position", f"Z = {Z:g} m puts the target on or behind the relay wall "
+            "(y-tal's frame: the wall is Z = 0, the hidden space Z > 0)",
+            "pass a depth Z > 0, e.g. --position -4 0 2")
+    return tuple(float(v) for v in YTAL.to_internal([X, Y, Z]))
 
 
 def _scene_spec(args):
@@ -87,14 +107,14 @@ def simulate(args) -> int:
                          force=args.force)
     print(f"wrote {path}: {hist.n_detectors} detectors x {hist.time_axis.n_bins} bins of "
           f"{hist.time_axis.dt_s * 1e12:g} ps, {len(truths)} target(s) at "
-          f"{in_capture_frame(truths)}, noise: {noise}")
+          f"{in_capture_frame(truths, scene_file=args.scene is not None)}, noise: {noise}")
     return 0
 
 
-def in_capture_frame(points) -> str:
-    """Scene points (the scene file's x, y, z) as the capture file and every command reading it
-    gives them: y-tal's X, Y, Z."""
+def in_capture_frame(points, scene_file: bool = True) -> str:
+    """Scene points (ours: the scene file's x, y, z) as the capture file and every command
+    reading it gives them: y-tal's X, Y, Z."""
     from ..io.ytal.frames import YTAL
     file = [[round(float(v), 4) + 0.0 for v in YTAL.from_internal(p)] for p in points]
-    return (f"(X, Y, Z) = {file} m in the capture's y-tal frame (the scene file's x, y, z "
-            "as X = -x, Y = z, Z = y)")
+    mapping = " (the scene file's x, y, z as X = -x, Y = z, Z = y)" if scene_file else ""
+    return f"(X, Y, Z) = {file} m in the capture's y-tal frame{mapping}"
