@@ -14,19 +14,40 @@ from ..core.errors import require
 from ..core.geometry import as_point
 from ..core.tuning import FACET_M
 
+# Peak memory of a simulation (PoCL, CPU), refused up front against core.limits' budget:
+# FACET_BYTES per facet (Target.facets' cut with its edges refined, the visibility test, the
+# forward's buffers; a 0.4 x 0.4 x 1.6 m box of 96 faces cut to 4-6 mm: 0.7-1.0 kB) and
+# MESH_FACE_BYTES per triangle of a mesh pre-gridded at the facet size (trimesh's arrays and
+# caches; the same box built at 2-5 mm: ~0.4 kB). The box at 3.5-8 mm peaked at 1.3 kB a
+# triangle in all (+0.16 GB for OpenCL); at 2 mm it took ~60 s and 3.8 GB before this check.
+FACET_BYTES, MESH_FACE_BYTES = 1000.0, 400.0
 
-def _grid_quad(u_len: float, v_len: float, cell: float) -> tuple[np.ndarray, np.ndarray]:
-    """A u_len x v_len rectangle in the (u, v) plane as a grid of right triangles whose
-    longest edge (the cell diagonal) is at most `cell`."""
+
+def require_facets(n_facets: float, what: str, cell: float, mesh_faces: float = 0.0) -> None:
+    """Refuse, before building or cutting, a target whose simulation would not fit in the
+    memory budget: n_facets facets of `cell` m (plus mesh_faces triangles still to build)."""
+    from ..core.limits import memory_limit, require_memory
+    need = FACET_BYTES * n_facets + MESH_FACE_BYTES * mesh_faces
+    coarser = cell * math.sqrt(max(need / max(memory_limit(), 1), 1.0)) * 1.05
+    digit = 10.0 ** (math.floor(math.log10(coarser)) - 1)  # 2 digits, rounded up
+    require_memory("facet_size_m", need, f"simulating {what} in {cell:.3g} m facets "
+                   f"(~{n_facets:.3g} facets)", f"use facet_size_m >= "
+                   f"{math.ceil(coarser / digit - 1e-9) * digit:.2g} "
+                   "(1 cm is the default and converges)")
+
+
+def _cells(u_len: float, v_len: float, cell: float) -> tuple[int, int]:
+    """Grid cells along u and v of a face cut into right triangles of longest edge `cell`."""
     require(math.isfinite(cell) and cell > 0, "facet_size_m", f"must be a positive length in "
             f"metres, got {cell!r}", "pass e.g. 0.01")
     side = cell / math.sqrt(2.0)
-    nu, nv = max(1, math.ceil(u_len / side - 1e-9)), max(1, math.ceil(v_len / side - 1e-9))
-    from ..core.limits import require_memory
-    require_memory("facet_size_m", 200.0 * (nu + 1) * (nv + 1), f"a {u_len:.3g} m x {v_len:.3g} "
-                   f"m face cut into {cell:.3g} m facets ({2 * nu * nv:.3g} triangles)",
-                   f"use facet_size_m >= {math.sqrt(u_len * v_len * 800 / 2**30):.2g} "
-                   "(1 cm is the default and converges)")
+    return max(1, math.ceil(u_len / side - 1e-9)), max(1, math.ceil(v_len / side - 1e-9))
+
+
+def _grid_quad(u_len: float, v_len: float, cell: float) -> tuple[np.ndarray, np.ndarray]:
+    """A u_len x v_len rectangle in the (u, v) plane as a grid of right triangles whose
+    longest edge (the cell diagonal) is at most `cell` (its budget checked by the caller)."""
+    nu, nv = _cells(u_len, v_len, cell)
     u = np.linspace(-u_len / 2, u_len / 2, nu + 1)
     v = np.linspace(-v_len / 2, v_len / 2, nv + 1)
     uu, vv = np.meshgrid(u, v, indexing="ij")
@@ -55,6 +76,9 @@ def rectangle(width_m: float = 0.3, height_m: float = 1.6, centre=(4.0, 2.0, 0.0
     n = n / np.linalg.norm(n)
     across = np.cross([0.0, 0.0, 1.0], n)  # horizontal in-plane direction
     up = np.array([0.0, 0.0, 1.0])
+    nu, nv = _cells(width_m, height_m, cell_m)
+    require_facets(2 * nu * nv, f"a {width_m:.3g} m x {height_m:.3g} m rectangle", cell_m,
+                   2 * nu * nv)
     verts2d, faces = _grid_quad(width_m, height_m, cell_m)
     verts = np.asarray(centre, float) + verts2d[:, :1] * across + verts2d[:, 1:] * up
     mesh = trimesh.Trimesh(verts, faces, process=False)
@@ -68,6 +92,8 @@ def box(extents=(0.3, 0.3, 1.6), centre=(4.0, 2.0, 0.0), cell_m: float = 0.01) -
     ext = np.asarray(extents, dtype=np.float64)
     require(ext.shape == (3,) and bool(np.all(ext > 0)), "box.extents",
             f"must be three positive lengths, got {ext.tolist()}", "pass e.g. (0.3, 0.3, 1.6)")
+    faces = 4 * sum(math.prod(_cells(*np.delete(ext, axis), cell_m)) for axis in range(3))
+    require_facets(faces, f"a {' x '.join(f'{v:.3g}' for v in ext)} m box", cell_m, faces)
     parts = []
     for axis in range(3):
         u_ax, v_ax = [a for a in range(3) if a != axis]
@@ -108,6 +134,8 @@ def sphere(radius_m: float = 0.2, centre=(4.0, 2.0, 0.0), subdivisions: int | No
     require(math.isfinite(facet_size_m) and facet_size_m > 0, "sphere.facet_size_m",
             f"must be a positive length in metres, got {facet_size_m!r}", "pass e.g. 0.01")
     level = sphere_level(radius_m, facet_size_m) if subdivisions is None else int(subdivisions)
+    faces = 20 * 4 ** level  # an icosphere's triangles; its edges need no further cut
+    require_facets(faces, f"a {radius_m:.3g} m sphere", facet_size_m, faces)
     mesh = trimesh.creation.icosphere(subdivisions=level, radius=radius_m)
     mesh.apply_translation(np.asarray(centre, float))
     return mesh

@@ -188,15 +188,15 @@ class Target:
         require(math.isfinite(facet_size_m) and facet_size_m > 0, "facet_size_m",
                 f"must be a positive length in metres, got {facet_size_m}", "pass e.g. 0.01")
         mesh = self.mesh
-        # Subdividing to edges <= f leaves triangles of area >= ~f^2 / 4 (right halves of a
-        # square of diagonal f): refuse before trimesh allocates them (~200 B each, in flight).
-        estimate = float(mesh.area) / (0.25 * facet_size_m ** 2) + len(mesh.faces)
-        from ..core.limits import require_memory
-        require_memory("facet_size_m", 200.0 * estimate, f"cutting this {float(mesh.area):.3g} "
-                       f"m^2 target into facets of {facet_size_m:.3g} m (~{estimate:.3g} facets)",
-                       f"use facet_size_m >= {math.sqrt(float(mesh.area) * 800 / 2**30):.2g}"
-                       " (1 cm is the default and converges)")
-        longest = float(mesh.edges_unique_length.max())
+        # subdivide_to_size halves a face's edges until its longest is <= f: 4^k triangles
+        # each; refused before trimesh allocates them (meshes.FACET_BYTES each, in the end)
+        lengths = mesh.edges_unique_length
+        k = np.ceil(np.log2(np.maximum(lengths[mesh.faces_unique_edges].max(axis=1)
+                                       / facet_size_m, 1.0)) - 1e-9)
+        from .meshes import require_facets
+        require_facets(float(np.exp2(2.0 * np.maximum(k, 0.0)).sum()),
+                       f"this {float(mesh.area):.3g} m^2 target", facet_size_m)
+        longest = float(lengths.max())
         vertices, faces = mesh.vertices, mesh.faces
         if longest > facet_size_m:
             iterations = int(math.ceil(math.log2(longest / facet_size_m))) + 2
