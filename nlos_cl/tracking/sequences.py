@@ -117,7 +117,7 @@ def _remover(background, running_mean, spread, grid, backend, names, say):
     sequence (tracking.static), where they hold a return (with a note saying so)."""
     from ..io.ytal.capture import read_capture
     from ..localization.background import BackgroundRemover
-    from .static import holds_target, static_background
+    from .static import learned_background
     if isinstance(background, str) and background.lower() == "none":
         return None
     if background is not None:
@@ -128,10 +128,11 @@ def _remover(background, running_mean, spread, grid, backend, names, say):
         return BackgroundRemover(background, backend=backend)
     if running_mean is not None:
         return BackgroundRemover(alpha=running_mean, backend=backend)
-    learned = static_background(spread)
-    # subtracted only where it holds a return (the detection's test): on a sequence without
-    # static returns it is noise, and subtracting it cost the warm model fits 3-5x their time
-    if learned is None or not holds_target(learned, grid):
+    # subtracted only where it holds a return a frame's detection would see: on a sequence
+    # without static returns it is noise (and the wings of movers that linger), and
+    # subtracting it cost the warm model fits 3-5x (walk), 40-60x (crossing draw 1) their time
+    learned = learned_background(spread, grid)
+    if learned is None:
         return None
     say(f"static returns (furniture, or a target that does not move) were learned from "
         f"{len(spread)} frames spread over the sequence and subtracted, so only what moves "

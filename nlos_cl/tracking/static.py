@@ -4,8 +4,9 @@ holds: per bin, the QUANTILE of frames spread over the whole sequence, raised by
 own offset at that quantile (QUANTILE_Z sigma, sigma from frame-to-frame differences), so that
 a static return is removed without bias and a mover, which reaches a given bin in fewer than
 nine frames in ten, is kept; a bin counts as static only where its spread over the frames
-(10 % to 75 % quantile) is the noise's, and sequences.tracker_for subtracts it only where the
-detection finds a return in it. Without it the tracker locked onto the brightest static object
+(10 % to 75 % quantile) is the noise's and no mover fills a bin within the detection filter's
+window of it (a lingering mover's wings), and sequences.tracker_for subtracts it only where it
+holds a return one frame's detection would see (learned_background). Without it the tracker locked onto the brightest static object
 (docs/scenes/walk.yaml: a walker past a box, median error 2.05 m, no warning). The median
 would not do: the consumer-nlos walker (4 x 4 zones, 250 ps bins) stays in half the frames'
 bins, so the median held half his energy, and the track lost 0.05 m to the authors' particle
@@ -18,6 +19,7 @@ mean, `running_mean=`, serves streams)."""
 from __future__ import annotations
 
 import numpy as np
+from scipy.stats import norm
 
 from ..core.histograms import HistogramSet
 from ..core.stats import row_median
@@ -29,12 +31,20 @@ QUANTILE = 0.1
 QUANTILE_Z = 1.2815515655446004  # -Phi^-1(QUANTILE): Gaussian noise's offset there
 SPREAD_QUANTILE = 0.75  # a bin is static where QUANTILE..SPREAD_QUANTILE spans the noise alone:
 SPREAD_Z = 1.9560  # Phi^-1(0.75) - Phi^-1(0.1) sigma, plus 8 / sqrt(frames) for the quantiles' error
+WING_WINDOWS = 1.0  # _wings: the filter windows (h) a mover's wings reach
 BUDGET_BYTES = 512 * 2 ** 20  # the frames stacked for the quantiles (float64)
 
 
 def static_background(frames: list) -> HistogramSet | None:
     """What every one of `frames` (HistogramSets spread over a sequence, one layout) holds, bin
     by bin (the module doc), or None where there are too few of them within the budget."""
+    learned = static_returns(frames)
+    return None if learned is None else learned[0]
+
+
+def static_returns(frames: list) -> tuple | None:
+    """static_background's set and each row's frame noise sigma (D,), from frame-to-frame
+    differences: what holds_target measures the learned returns against."""
     if len(frames) < MIN_FRAMES:
         return None
     fit = BUDGET_BYTES // max(frames[0].data.size * 8, 1)
@@ -52,17 +62,73 @@ def static_background(frames: list) -> HistogramSet | None:
     # plate on a 12-frame walk fills some bins in 11 frames of 12: their low quantile held it,
     # and the model fits of what was left took 20 s for 0.3 s)
     still = (upper - low) <= (SPREAD_Z + 8.0 / np.sqrt(len(picks))) * sigma[:, None]
-    return frames[0].with_data(np.where(still, low + QUANTILE_Z * sigma[:, None], 0.0))
+    learned = low + QUANTILE_Z * sigma[:, None]
+    still &= ~_wings(still, frames[0].layout.time_axis.dt_s)
+    return frames[0].with_data(np.where(still, learned, 0.0)), sigma
 
 
-def holds_target(background: HistogramSet, grid) -> bool:
+def learned_background(frames: list, grid) -> HistogramSet | None:
+    """What track_sequence subtracts by default: the static returns of `frames` where they
+    hold a return (holds_target, against the frames' own noise), else None."""
+    learned = static_returns(frames)
+    if learned is None or not holds_target(learned[0], grid, frame_sigma=learned[1]):
+        return None
+    return learned[0]
+
+
+def _wings(still: np.ndarray, dt_s: float) -> np.ndarray:
+    """Bins within WING_WINDOWS of the detection filter's window h of a bin a mover fills: a
+    mover that lingers (two crossing targets turning) holds its return's sub-noise wings there
+    in nearly every frame, so their quantile passed the spread test and held ~2-4 frame sigma
+    of the movers' own light (filtered), which the fits then missed. A static return that
+    close to a lingering mover is dropped with them: keeping bins high above the noise there
+    kept a bright mover's wings too (crossing draw 11: up to 10 frame sigma, filtered)."""
+    from scipy.ndimage import binary_dilation
+
+    from ..ops.gauss_filter import filter_window
+    half = int(WING_WINDOWS * filter_window(dt_s) / dt_s)
+    if half < 1 or still.all():
+        return np.zeros_like(still)
+    return binary_dilation(~still, structure=np.ones((1, 2 * half + 1), bool)) & still
+
+
+def holds_target(background: HistogramSet, grid, frame_sigma=None) -> bool:
     """Does the learned background itself hold a target's return (a static object, or a target
-    that stood still)? The detection before location, on the background as a frame."""
+    that stood still)? The detection before location, on the background as a frame; with
+    `frame_sigma` (each row's frame noise, static_returns'), also a return one frame's
+    detection would see (above_frame_noise)."""
     from ..localization.api import gauss_filter
     from ..localization.detection import detect, raw_floor_of, reachable_bins
-    filtered = gauss_filter(background)
     window = reachable_bins(background.layout, grid)
+    if frame_sigma is not None and not above_frame_noise(background, window, frame_sigma):
+        return False
+    filtered = gauss_filter(background)
     return detect(filtered.values(), window, raw=raw_floor_of(background, filtered)).detected
+
+
+def above_frame_noise(background: HistogramSet, window, frame_sigma) -> bool:
+    """Is some row's learned return, Gauss-filtered as the detection filters a frame, above
+    the FRAME's noise at the detection's false-alarm rate (Bonferroni over the window's
+    independent filter widths)? The background's own floor is the quantile's sampling noise
+    (~0.3 of a frame's) and exact zeros, against which the sub-noise wings of two crossing
+    targets that linger in some bins (crossing draw 1: ~2 frame sigma, filtered) were "a
+    return": subtracted, they made every warm fit miss (3-5 s a frame for 0.08 s)."""
+    from scipy.ndimage import convolve1d
+
+    from ..localization.detection import FALSE_ALARM
+    from ..ops.gauss_filter import filter_window, gauss_taps
+    dt = background.layout.time_axis.dt_s
+    taps = gauss_taps(filter_window(dt), dt)
+    filtered = convolve1d(np.asarray(background.data, np.float64), taps, axis=1,
+                          mode="constant")
+    noise = np.asarray(frame_sigma, np.float64) * np.sqrt(np.sum(taps ** 2))
+    first, last = np.asarray(window, int).T
+    samples = max(1.0, float(np.sum(last - first + 1)) / len(taps))
+    z_limit = float(norm.isf(FALSE_ALARM / samples))
+    for row, lo, hi, s in zip(filtered, first, last, noise):
+        if hi >= lo and s > 0 and (row[lo:hi + 1].max() - np.median(row)) > z_limit * s:
+            return True
+    return False
 
 
 # A confirmed track is a static one (furniture, or a target standing still), reported apart
