@@ -28,7 +28,9 @@ from __future__ import annotations
 
 import math
 import sys
+import warnings
 
+from ..core.errors import warn
 from .locate import NO_TARGET_STATUS
 
 
@@ -208,7 +210,7 @@ def _loop(args, run, video, out) -> int:
     from collections import deque
     kept, lag, cframe, detected = [], args.lag or 0, run.sequence.frame, 0
     recent = deque(maxlen=lag + 1)  # --lag: the frames whose lines wait for later frames
-    for step in run:
+    for step in frame_warnings(run):
         header = (step.frame, step.tracks, step.measurements)
         detected += bool(step.measurements)
         if args.smooth:
@@ -237,3 +239,50 @@ def _lagged(out, header, lagged, lag, cframe) -> None:
     """A frame's entry with its tracks' fixed-lag estimates ({id: Smoothed}, Tracker.lagged)."""
     smoothed = {(tid, s.frame): s for tid, s in lagged.items()}
     out.frame(_entry(*header, cframe, smoothed, {"lag_frames": lag}))
+
+
+def frame_warnings(run):
+    """The run's steps, each frame's warnings (the estimator's, NumPy's) said again naming the
+    frame they come from: a text the first time with its frame's number and time, and after
+    the last frame once more with the later frames that gave it too."""
+    steps, later = iter(run), {}
+    while True:
+        step = None
+        try:
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")  # every frame's, not once per code line
+                step = next(steps, None)
+        finally:  # an error ends the run: its frame's warnings are still said
+            _attribute(caught, step, later)
+        if step is None:
+            break
+        yield step
+    for text, (category, frames) in later.items():
+        if frames:
+            warn(f"{text} (again: {_frames(frames)})", category)
+
+
+def _attribute(caught, step, later: dict) -> None:
+    for w in caught:
+        text = " ".join(str(w.message).split())
+        if step is None:  # not a frame's (the run's end, or an error)
+            warn(text, w.category)
+        elif text in later:
+            later[text][1].append(step.frame)
+        else:
+            later[text] = (w.category, [])
+            warn(f"frame {step.frame.index} (t {step.frame.t_s:.3f} s): {text}", w.category)
+
+
+def _frames(frames) -> str:
+    """'frame 4, t 0.400 s', or 'frames 4-6, 9, t 0.400 .. 0.900 s'."""
+    if len(frames) == 1:
+        return f"frame {frames[0].index}, t {frames[0].t_s:.3f} s"
+    runs = []
+    for n in (f.index for f in frames):
+        if runs and n == runs[-1][1] + 1:
+            runs[-1][1] = n
+        else:
+            runs.append([n, n])
+    spans = ", ".join(f"{a}" if a == b else f"{a}-{b}" for a, b in runs)
+    return f"frames {spans}, t {frames[0].t_s:.3f} .. {frames[-1].t_s:.3f} s"

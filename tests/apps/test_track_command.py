@@ -125,3 +125,31 @@ def test_a_sequence_without_target_signal_exits_3_and_says_so_per_frame(walk_fil
     assert len(lines) == len(seq) and not any(e["detected"] for e in lines)
     assert all(e["tracks"] == [] for e in lines)
     assert "no target signal in any of the 12 frames" in out.err
+
+
+def test_a_frames_warnings_name_the_frame_they_come_from(walk_file, monkeypatch, capsys):
+    """`nlos-cl track`: a warning raised while a frame is tracked (the estimator's "the depth of
+    target 1 was not found", NumPy's divide by zero) names that frame's number and time; the
+    later frames that gave the same text are listed once after the last frame. Warnings are
+    raised here by the tracker itself on frames 3, 4, 5 and 9 (and 7: another text)."""
+    import warnings
+    from nlos_cl.apps.cli import main
+    from nlos_cl.tracking.tracker import Tracker
+    update, frames = Tracker.update, iter(range(12))
+
+    def warning_update(self, hist, t_s):
+        k = next(frames)
+        if k in (3, 4, 5, 9):
+            warnings.warn("the depth of target 1 was not found: a test", UserWarning)
+        if k == 7:
+            warnings.warn("divide by zero encountered in divide", RuntimeWarning)
+        return update(self, hist, t_s)
+    monkeypatch.setattr(Tracker, "update", warning_update)
+    capsys.readouterr()
+    assert main(["track", str(walk_file), "--estimator", "paper", "--no-progress"]) == 0
+    said = [x for x in capsys.readouterr().err.splitlines() if "a test" in x or "divide" in x]
+    assert said == [
+        "nlos-cl: warning: frame 3 (t 0.300 s): the depth of target 1 was not found: a test",
+        "nlos-cl: warning: frame 7 (t 0.700 s): divide by zero encountered in divide",
+        "nlos-cl: warning: the depth of target 1 was not found: a test (again: frames 4-5, 9, "
+        "t 0.400 .. 0.900 s)"]
