@@ -179,6 +179,44 @@ def _scaled_pinv(a) -> np.ndarray:
 REUSE_MOVE = 0.5
 
 
+def _gauss_sandwich(problem, result, jmu, reused: bool, precision, mu):
+    """(covariance, info, background sds or None) of an AWGN fit: the sandwich over the
+    derivatives jmu (whitened rows already where `reused`) with the backgrounds profiled out,
+    times the Birge ratio; info the Birge ratio and the backgrounds' summary."""
+    obs = problem.obs
+    j = jmu if reused else (jmu / obs.noise[:, None, None])[obs.valid]
+    bg = getattr(problem, "background", lambda: None)()  # a test's stub may have none
+    j_raw, j = j, (j if bg is None else _off_background(obs, bg, j))
+    meat, trace, cj = _correlated_terms(obs, j, bg)
+    inv = _scaled_pinv(j.T @ j + np.diag(precision))
+    cov = inv @ (meat + np.diag(precision)) @ inv
+    r = ((obs.y - mu) / obs.noise[:, None])[obs.valid]
+    expected = float(trace - np.trace(inv @ meat))
+    birge = float(r @ r) / max(expected, 1.0)
+    info, sd = {"birge_ratio": birge}, None
+    k = len(result.params)
+    if bg is not None and len(result.linear) > k:
+        # a reused Jacobian's columns are the profiled ones, not d mu: no sds from them
+        sd = None if reused else \
+            _background_sd(obs, bg, j_raw, inv, meat, cj) * np.sqrt(max(1.0, birge))
+        coef = np.reshape(result.linear[k:], (bg.p, -1))
+        info.update(nuisance.summary(coef, sd, float(np.max(np.abs(obs.y)))))
+    return cov * max(1.0, birge), info, sd
+
+
+def background_estimates(problem, result: FitResult, free):
+    """(coefficients, sds), each (p, D) in data units, of an AWGN fit's background terms
+    (model.forward.nuisance: the level at the window's middle, then the ramp's half rise),
+    the sds with the Birge ratio; None where the fit has none."""
+    if problem.obs.mode != "gauss" or problem.background() is None:
+        return None
+    cols, jmu = _mean_jacobian(problem, result.params, result.linear, free)
+    precision = np.zeros(jmu.shape[-1])  # the noise's part alone (no prior)
+    _, _, sd = _gauss_sandwich(problem, result, jmu, False, precision,
+                               problem.mean(cols, result.linear))
+    return np.reshape(result.linear[len(result.params):], sd.shape), sd
+
+
 def covariance(problem, result: FitResult, free, reuse: bool = False
                ) -> Covariance:
     """Covariance of every target parameter (K*N_PARAMS square; inf on fixed ones) and
@@ -198,23 +236,7 @@ def covariance(problem, result: FitResult, free, reuse: bool = False
                                                                  len(params)))
     precision[at] = 1.0 / sd ** 2  # the free target parameters come first, as in _prior_terms
     if obs.mode == "gauss":
-        j = jmu if reused is not None else (jmu / obs.noise[:, None, None])[obs.valid]
-        bg = getattr(problem, "background", lambda: None)()  # a test's stub may have none
-        j_raw, j = j, (j if bg is None else _off_background(obs, bg, j))
-        meat, trace, cj = _correlated_terms(obs, j, bg)
-        inv = _scaled_pinv(j.T @ j + np.diag(precision))
-        cov = inv @ (meat + np.diag(precision)) @ inv
-        r = ((obs.y - mu) / obs.noise[:, None])[obs.valid]
-        expected = float(trace - np.trace(inv @ meat))
-        birge = float(r @ r) / max(expected, 1.0)
-        cov = cov * max(1.0, birge)
-        info = {"birge_ratio": birge}
-        if bg is not None and len(result.linear) > len(params):
-            # a reused Jacobian's columns are the profiled ones, not d mu: no sds from them
-            sd = None if reused is not None else \
-                _background_sd(obs, bg, j_raw, inv, meat, cj) * np.sqrt(max(1.0, birge))
-            coef = np.reshape(result.linear[len(params):], (bg.p, -1))
-            info.update(nuisance.summary(coef, sd, float(np.max(np.abs(obs.y)))))
+        cov, info, _ = _gauss_sandwich(problem, result, jmu, reused is not None, precision, mu)
     else:
         cov = _scaled_pinv(_poisson_information(obs, mu, jmu) + np.diag(precision))
         info = {"deviance": result.cost, "n_bins": int(obs.valid.sum())}
