@@ -64,7 +64,11 @@ def static_returns(frames: list) -> tuple | None:
     still = (upper - low) <= (SPREAD_Z + 8.0 / np.sqrt(len(picks))) * sigma[:, None]
     learned = low + QUANTILE_Z * sigma[:, None]
     still &= ~_wings(still, frames[0].layout.time_axis.dt_s)
-    return frames[0].with_data(np.where(still, learned, 0.0)), sigma
+    # where nothing is static, the row's ambient floor (its static bins' median), not 0: a
+    # step there was a return the fits could not explain (walk.yaml, the wings dropped around
+    # the walker: 3 frames of 15-60 s, closed shapes fitted after the warm fit missed)
+    floor = np.array([np.median(r[k]) if k.any() else 0.0 for r, k in zip(learned, still)])
+    return frames[0].with_data(np.where(still, learned, floor[:, None])), sigma
 
 
 def learned_background(frames: list, grid) -> HistogramSet | None:
