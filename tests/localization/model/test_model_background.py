@@ -11,6 +11,7 @@ import pytest
 from test_model_derivatives import ROW, TRUTH, scene_observation
 
 import nlos_cl as nl
+from nlos_cl.localization.model.forward import nuisance
 from nlos_cl.localization.model.forward.batch import HostProblem
 from nlos_cl.localization.model.forward.likelihood import Problem
 from nlos_cl.localization.model.shapes import plate
@@ -31,17 +32,17 @@ def _fitted(obs, order):
     return host, fit.fit(host, ROW[None], FREE, 30)
 
 
-def _known_background(obs, host):
+def _known_background(obs):
     """Per detector a level of 2-4 % of its row's peak and a rise of -6..+6 % across the
     window (the basis' coefficients: level, half rise)."""
     peak = np.abs(obs.y).max(axis=1)
     d = len(peak)
     c = np.stack([peak * np.linspace(0.02, 0.04, d), peak * np.linspace(-0.03, 0.03, d)])
-    return c, host.background().fitted(c)
+    return c, nuisance.Background(obs.valid).fitted(c)  # on every row
 
 
 def test_a_known_constant_and_ramp_is_recovered_and_leaves_the_plate_in_place(obs):
-    c_true, added = _known_background(obs, HostProblem(obs))
+    c_true, added = _known_background(obs)
     shifted = replace(obs, y=obs.y + added)
     host, with_terms = _fitted(shifted, 1)
     _, without = _fitted(shifted, None)

@@ -143,13 +143,15 @@ class Problem:
         return self._poisson_linear(cols, warm)
 
     def background(self):
-        """The Gaussian rows' background basis (nuisance.Background), or None (counts, or
-        background_order None); made once per problem."""
+        """The Gaussian rows' background basis (nuisance.Background, on the rows that support
+        it: nuisance.supported), or None (counts, or background_order None); made once per
+        problem."""
         if self.obs.mode != "gauss" or self.background_order is None:
             return None
         made = getattr(self, "_background", None)
         if made is None or made.p != self.background_order + 1:
-            made = self._background = nuisance.Background(self.obs.valid, self.background_order)
+            made = self._background = nuisance.Background(
+                self.obs.valid, self.background_order, nuisance.supported(self.obs))
         return made
 
     def _gauss_linear(self, cols):
