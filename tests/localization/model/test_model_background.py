@@ -16,6 +16,7 @@ from nlos_cl.localization.model.forward import nuisance
 from nlos_cl.localization.model.forward.batch import HostProblem
 from nlos_cl.localization.model.forward.likelihood import Problem
 from nlos_cl.localization.model.shapes import plate
+from nlos_cl.localization.model.solve import covariance as cov_module
 from nlos_cl.localization.model.solve import fit
 from nlos_cl.localization.model.solve.covariance import background_estimates, covariance
 
@@ -129,3 +130,27 @@ def test_an_ambient_level_in_a_gated_record_end_to_end(monkeypatch):
     with_terms, without = located(1), located(None)
     assert with_terms.error_m < 0.01 and without.error_m > 0.1
     assert with_terms.targets[0].fit.diagnostics["background_rows"] >= 1
+
+
+def test_the_reused_jacobian_stays_exact_with_the_background_terms(obs):
+    """covariance's `reuse` (a warm fit's last Jacobian): with the terms on, the solver's
+    Jacobian is -(I - P_[A,B]) J_theta (amplitudes and backgrounds profiled), which with A
+    projected off B spans what [J_theta, A, B] does: the target block and the Birge ratio
+    as the full sandwich gives them (1e-8, as without the terms)."""
+    _, added = _known_background(obs)
+    host, result = _fitted(replace(obs, y=obs.y + added), 1)
+    assert host.background().rows.all()
+    o = host.obs
+    cols, jmu = cov_module._mean_jacobian(host, result.params, result.linear, FREE)
+    whitened = (jmu / o.noise[:, None, None])[o.valid]
+    basis = np.moveaxis(host.background().basis, 0, -1)  # (D, n, p)
+    b = np.concatenate([np.where(np.arange(len(o.y))[:, None, None] == d, basis, 0.0)
+                        for d in range(len(o.y))], axis=-1)[o.valid]
+    ab = np.column_stack([whitened[:, plate.N_PARAMS:], b])
+    j_theta = whitened[:, :plate.N_PARAMS]
+    projected = j_theta - ab @ np.linalg.lstsq(ab, j_theta, rcond=None)[0]
+    exact = replace(result, jacobian=(result.params, -projected), columns=cols)
+    got, got_info = covariance(host, exact, FREE, reuse=True)
+    want, want_info = covariance(host, result, FREE)
+    assert np.allclose(got, want, rtol=1e-8, atol=0)
+    assert got_info["birge_ratio"] == pytest.approx(want_info["birge_ratio"], rel=1e-10)
