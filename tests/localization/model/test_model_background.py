@@ -154,3 +154,15 @@ def test_the_reused_jacobian_stays_exact_with_the_background_terms(obs):
     want, want_info = covariance(host, result, FREE)
     assert np.allclose(got, want, rtol=1e-8, atol=0)
     assert got_info["birge_ratio"] == pytest.approx(want_info["birge_ratio"], rel=1e-10)
+
+
+def test_the_null_cost_leaves_the_rows_background_terms(obs):
+    """Problem.null_cost (a fit's explained share is measured against it) with the terms on:
+    the data's chi^2 less each supported row's background fit, as the counts' null keeps each
+    detector's background; a background is not explained signal."""
+    _, added = _known_background(obs)
+    host = HostProblem(replace(obs, y=obs.y + added))
+    o, bg = host.obs, host.background()
+    y = o.y / o.noise[:, None]
+    assert np.isclose(host.null_cost(), np.sum(bg.project(y)[o.valid] ** 2), rtol=1e-12)
+    assert host.null_cost() < np.sum(y[o.valid] ** 2)
