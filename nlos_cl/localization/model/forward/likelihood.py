@@ -144,15 +144,17 @@ class Problem:
 
     def background(self):
         """The Gaussian rows' background basis (nuisance.Background, on the rows that support
-        it: nuisance.supported), or None (counts, or background_order None); made once per
-        problem."""
+        it: nuisance.supported), or None (counts, background_order None, or no row supports
+        it: the fit as without terms, at its cost); made once per problem."""
         if self.obs.mode != "gauss" or self.background_order is None:
             return None
-        made = getattr(self, "_background", None)
-        if made is None or made.p != self.background_order + 1:
-            made = self._background = nuisance.Background(
-                self.obs.valid, self.background_order, nuisance.supported(self.obs))
-        return made
+        key = self.background_order
+        if getattr(self, "_background_key", None) != key:
+            rows = nuisance.supported(self.obs)
+            self._background = nuisance.Background(self.obs.valid, key, rows) \
+                if rows.any() else None
+            self._background_key = key
+        return self._background
 
     def _gauss_linear(self, cols):
         """Weighted least squares for the amplitudes, each >= 0: a target reflects light, it
