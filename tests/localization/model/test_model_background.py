@@ -106,8 +106,9 @@ def test_an_ambient_level_in_a_gated_record_end_to_end(monkeypatch):
     """A record gated to 1 ns either side of the signal: no bins outside the fit's window, so
     data.row_floors cannot measure the ambient 2 % of the peak, which stays in the samples.
     Without the terms it was fitted as a box 0.35 m off (this seed; seeds 0 and 2 held a
-    plate: 0.4 and 3.3 mm); with them a plate within 1 mm (0 / 2: 2.4 / 1.6 mm), the
-    window edges of 3-4 of the 8 rows holding the level (nuisance.supported)."""
+    plate: 0.4 and 3.3 mm); with them a plate within 1 mm (0 / 2: 2.4 / 1.6 mm; with
+    both window edges tested), rows whose window's leading edge holds the level given terms
+    (nuisance.supported)."""
     truth = (3.0, 2.0, 0.3)
     setup = nl.paper_setup(detector_spots=CIRCLE8)
     mesh = nl.rectangle(0.3, 0.6, centre=truth, normal=(-1, 0, 0))
