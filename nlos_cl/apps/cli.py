@@ -36,7 +36,8 @@ def _demo_args(p):
     p.add_argument("--step", type=_number("grid.step", "pass metres, e.g. 0.01", positive=True),
                    default=0.01, help="grid step (m)")
     p.add_argument("--position", type=COORD, nargs=3, default=(4.0, 2.0, 0.0),
-                   metavar=("X", "Y", "Z"), help="target centre (m)")
+                   metavar=("X", "Y", "Z"), help="target centre (m, the paper's frame: x along "
+                   "the wall, y out from it, z up)")
     p.add_argument("--estimator", choices=["model", "paper"], default="model",
                    help="whose answer heads the output (both are run and shown)")
     p.add_argument("--track", action="store_true", help="a short tracking demonstration: the "

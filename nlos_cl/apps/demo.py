@@ -6,6 +6,10 @@ import json
 import time
 import warnings
 
+# The frame the demo's positions are in (the paper's scene, which has no capture file): nlos_cl's
+# internal frame, which the paper's figures use.
+PAPER_FRAME = "the paper's frame (x along the wall, y out from it, z up)"
+
 
 def _run_once(args, backend, grid):
     """Each stage timed to completion (the device queue drained after it)."""
@@ -46,7 +50,8 @@ def _print_text(args, result, scene, grid, cold, warm):
     print(f"scene    : the paper's 0.3 m x 1.6 m rectangle, {result['facets']} facets, "
           f"{result['n_bins']} bins of 1 ps, {args.snr_db} dB noise (seed {args.seed}), "
           f"h = {args.h_ns} ns, {grid.n_cells} grid cells")
-    print(f"truth    : ({', '.join(f'{v:.3f}' for v in scene.truth)}) m")
+    # the demo has no capture file: it speaks the paper's frame, and says so (JSON: "frame")
+    print(f"truth    : ({', '.join(f'{v:.3f}' for v in scene.truth)}) m, in {PAPER_FRAME}")
     for name, est in result["estimators"].items():
         mark = "  (default)" if name == args.estimator else ""
         print(f"{name:<9}: ({', '.join(f'{v:.3f}' for v in est['position'])}) m, error "

@@ -39,6 +39,15 @@ def test_demo_json_locates_the_paper_target(tmp_path):
     assert png.stat().st_size > 10_000
 
 
+def test_demo_text_names_the_frame_of_its_positions():
+    """The demo has no capture file: its positions are the paper's frame, said in the text as
+    the JSON's "frame" says it (every output names its frame)."""
+    out = run("demo", "--png", "")
+    assert out.returncode == 0, out.stderr
+    truth = next(line for line in out.stdout.splitlines() if line.startswith("truth"))
+    assert "the paper's frame (x along the wall, y out from it, z up)" in truth
+
+
 def test_bad_argument_is_a_clear_error():
     out = run("demo", "--json", "--h-ns", "-1", "--png", "")
     assert out.returncode == 2 and "h_s" in out.stderr and "Fix:" in out.stderr
