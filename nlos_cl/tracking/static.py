@@ -104,27 +104,25 @@ def holds_target(background: HistogramSet, grid, frame_sigma=None) -> bool:
     from ..localization.api import gauss_filter
     from ..localization.detection import detect, raw_floor_of, reachable_bins
     window = reachable_bins(background.layout, grid)
-    if frame_sigma is not None and not above_frame_noise(background, window, frame_sigma):
-        return False
     filtered = gauss_filter(background)
-    return detect(filtered.values(), window, raw=raw_floor_of(background, filtered)).detected
+    rows = filtered.values()  # as stored: scale_w watts a unit
+    if frame_sigma is not None and not above_frame_noise(
+            rows * filtered.scale_w, window, frame_sigma, background.layout.time_axis.dt_s):
+        return False
+    return detect(rows, window, raw=raw_floor_of(background, filtered)).detected
 
 
-def above_frame_noise(background: HistogramSet, window, frame_sigma) -> bool:
-    """Is some row's learned return, Gauss-filtered as the detection filters a frame, above
-    the FRAME's noise at the detection's false-alarm rate (Bonferroni over the window's
-    independent filter widths)? The background's own floor is the quantile's sampling noise
-    (~0.3 of a frame's) and exact zeros, against which the sub-noise wings of two crossing
-    targets that linger in some bins (crossing draw 1: ~2 frame sigma, filtered) were "a
-    return": subtracted, they made every warm fit miss (3-5 s a frame for 0.08 s)."""
-    from scipy.ndimage import convolve1d
-
+def above_frame_noise(filtered, window, frame_sigma, dt_s: float) -> bool:
+    """Is some row of the learned return, Gauss-filtered as the detection filters a frame
+    (`filtered`: holds_target's rows, in the background's units, W), above the FRAME's noise at the detection's false-alarm
+    rate (Bonferroni over the window's independent filter widths)? The background's own floor
+    is the quantile's sampling noise (~0.3 of a frame's) and exact zeros, against which the
+    sub-noise wings of two crossing targets that linger in some bins (crossing draw 1: ~2
+    frame sigma, filtered) were "a return": subtracted, they made every warm fit miss (3-5 s a
+    frame for 0.08 s)."""
     from ..localization.detection import FALSE_ALARM
     from ..ops.gauss_filter import filter_window, gauss_taps
-    dt = background.layout.time_axis.dt_s
-    taps = gauss_taps(filter_window(dt), dt)
-    filtered = convolve1d(np.asarray(background.data, np.float64), taps, axis=1,
-                          mode="constant")
+    taps = gauss_taps(filter_window(dt_s), dt_s)
     noise = np.asarray(frame_sigma, np.float64) * np.sqrt(np.sum(taps ** 2))
     first, last = np.asarray(window, int).T
     samples = max(1.0, float(np.sum(last - first + 1)) / len(taps))

@@ -91,6 +91,19 @@ def test_a_background_with_dark_rows_is_tested_not_located():
     # walk that raised: tests/realdata/test_realdata_consumer.py)
 
 
+def test_a_learned_return_is_weighed_against_the_frames_noise_in_watts():
+    """holds_target with the frames' noise (static_returns' sigma, in W): the paper's plate as
+    a learned background holds a return against a frame noise of 1 % of its peak, and none
+    against 100 times its peak (the filtered rows read as stored are scale_w watts a unit:
+    read so, every learned background passed, ~1e13 frame sigma)."""
+    from nlos_cl.tracking.static import holds_target
+    clean = nl.simulate(nl.paper_scene()).histograms()
+    peak = float(clean.data.max())
+    quiet, loud = (np.full(clean.n_detectors, peak * f) for f in (0.01, 100.0))
+    assert holds_target(clean, nl.Grid(), frame_sigma=quiet)
+    assert not holds_target(clean, nl.Grid(), frame_sigma=loud)
+
+
 def test_a_track_that_stays_in_place_is_static_and_a_walker_is_not():
     """A confirmed track whose last 5 positions lie within 0.1 m of their median is reported
     static (apart from the movers: furniture the short sequences cannot learn); a walker at
