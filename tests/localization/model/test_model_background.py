@@ -8,6 +8,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from test_model_covariance_reuse import assert_reuse_is_exact
 from test_model_derivatives import ROW, TRUTH, scene_observation
 
 import nlos_cl as nl
@@ -75,6 +76,15 @@ GRID = nl.Grid.from_ranges(x=(0, 6), y=(0.01, 6), step_m=0.02)
 CIRCLE8 = [[-1.0 + 0.5 * math.cos(a), 0.0, 0.5 * math.sin(a)] for a in np.arange(8) * math.pi / 4]
 
 
+def _located(monkeypatch, frame, order):
+    """The default locate of `frame`, its Gaussian model with background terms of `order`
+    (None: none)."""
+    monkeypatch.setattr(Problem, "background_order", order)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return nl.locate(nl.gauss_filter(frame), GRID, estimator="model", raw=frame)
+
+
 def test_a_slow_background_under_the_signal_end_to_end(monkeypatch):
     """nl.locate on a plate whose rows carry 1 % of their peak and a ramp rising 2 % of the
     peak per ns from 1 ns before it (light that bounced once more, under the signal, which
@@ -90,13 +100,7 @@ def test_a_slow_background_under_the_signal_end_to_end(monkeypatch):
     noisy = nl.add_noise(clean, 10, seed=0).histograms()
     frame = noisy.with_data(noisy.data + peak * (0.01 + 0.02 * np.clip(late_ns + 1.0, 0, None)))
 
-    def located(order):
-        monkeypatch.setattr(Problem, "background_order", order)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            return nl.locate(nl.gauss_filter(frame), GRID, estimator="model", raw=frame)
-
-    with_terms, without = located(1), located(None)
+    with_terms, without = (_located(monkeypatch, frame, order) for order in (1, None))
     assert with_terms.error_m < 0.5 * without.error_m and with_terms.error_m < 0.01
     diagnostics = with_terms.targets[0].fit.diagnostics
     assert diagnostics["background_level_max_abs"] > 0 and diagnostics["background_z_max"] > 5
@@ -121,13 +125,7 @@ def test_an_ambient_level_in_a_gated_record_end_to_end(monkeypatch):
     frame = replace(noisy, data=np.ascontiguousarray(level[:, lo:hi]),
                     time_axis=TimeAxis(axis.t0_s + lo * axis.dt_s, axis.dt_s, hi - lo))
 
-    def located(order):
-        monkeypatch.setattr(Problem, "background_order", order)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            return nl.locate(nl.gauss_filter(frame), GRID, estimator="model", raw=frame)
-
-    with_terms, without = located(1), located(None)
+    with_terms, without = (_located(monkeypatch, frame, order) for order in (1, None))
     assert with_terms.error_m < 0.01 and without.error_m > 0.1
     assert with_terms.targets[0].fit.diagnostics["background_rows"] >= 1
 
@@ -147,13 +145,7 @@ def test_the_reused_jacobian_stays_exact_with_the_background_terms(obs):
     b = np.concatenate([np.where(np.arange(len(o.y))[:, None, None] == d, basis, 0.0)
                         for d in range(len(o.y))], axis=-1)[o.valid]
     ab = np.column_stack([whitened[:, plate.N_PARAMS:], b])
-    j_theta = whitened[:, :plate.N_PARAMS]
-    projected = j_theta - ab @ np.linalg.lstsq(ab, j_theta, rcond=None)[0]
-    exact = replace(result, jacobian=(result.params, -projected), columns=cols)
-    got, got_info = covariance(host, exact, FREE, reuse=True)
-    want, want_info = covariance(host, result, FREE)
-    assert np.allclose(got, want, rtol=1e-8, atol=0)
-    assert got_info["birge_ratio"] == pytest.approx(want_info["birge_ratio"], rel=1e-10)
+    assert_reuse_is_exact(host, result, cols, whitened[:, :plate.N_PARAMS], ab)
 
 
 def test_the_null_cost_leaves_the_rows_background_terms(obs):

@@ -32,18 +32,25 @@ EDGE_SIGNIFICANCE = 5.0  # standard errors (as data.row_floors' level)
 def supported(obs) -> np.ndarray:
     """(D,) bool: rows whose window's leading edge (the first EDGE_M of path of the valid
     samples) holds a level EDGE_SIGNIFICANCE standard errors clear of 0 (the filtered noise's
-    correlation obs.rho counted in the error)."""
-    out = np.zeros(len(obs.y), bool)
-    for d, (row, v) in enumerate(zip(obs.y, obs.valid)):
-        at = np.flatnonzero(v)
-        q = int(EDGE_M / float(obs.dpath[d]))
-        if q < 2 or len(at) < 4 * q:
-            continue
-        lags = np.abs(np.arange(q)[:, None] - np.arange(q)[None, :])
-        se = float(obs.noise[d]) * np.sqrt(float(obs.rho[np.minimum(lags, len(obs.rho) - 1)]
-                                                 .sum())) / q
-        out[d] = abs(row[at[:q]].mean()) > EDGE_SIGNIFICANCE * se
-    return out
+    correlation obs.rho counted in the error). Rows with fewer than 4 edges of valid samples,
+    or edges of fewer than 2 samples, get none."""
+    valid = np.asarray(obs.valid, bool)
+    q = (EDGE_M / np.asarray(obs.dpath, float)).astype(int)
+    rank = np.cumsum(valid, axis=1)  # 1 at a row's first valid sample, 2 at its second, ...
+    edge = valid & (rank <= q[:, None])
+    level = np.sum(np.where(edge, obs.y, 0.0), axis=1) / np.maximum(q, 1)
+    sizes, which = np.unique(q, return_inverse=True)  # rows share a few edge sizes
+    se = np.asarray(obs.noise, float) * np.array([_mean_sd(int(k), obs.rho)
+                                                  for k in sizes])[which.reshape(-1)]
+    return (q >= 2) & (rank[:, -1] >= 4 * q) & (np.abs(level) > EDGE_SIGNIFICANCE * se)
+
+
+def _mean_sd(q: int, rho) -> float:
+    """The sd of the mean of q consecutive samples of unit sd and correlation rho at lag j."""
+    if q < 1:
+        return np.inf
+    lags = np.abs(np.arange(q)[:, None] - np.arange(q)[None, :])
+    return float(np.sqrt(rho[np.minimum(lags, len(rho) - 1)].sum())) / q
 
 
 class Background:
