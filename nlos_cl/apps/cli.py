@@ -153,9 +153,10 @@ def _locate_args(p):
                    help="bins below 0 after --background: keep (default; clipping biases the "
                    "model estimator), clip to 0, or floor")
     p.add_argument("--calibration", help="CSV of (path m, peak time s) pairs: fit Eq. 26")
-    p.add_argument("--map", help="save the final grid's score map, by its extension: .npz (the "
-                   "arrays along the file's axes, with frame, units and estimator) or .png (a "
-                   "figure: map, wall, spots, truth, estimate and its 2-sd ellipse)")
+    p.add_argument("--map", help="save the score maps (the whole search region's and the "
+                   "final grid's), by the extension: .npz (the arrays along the file's axes, "
+                   "with frame, units and estimator) or .png (a figure: maps, wall, spots, "
+                   "truths, estimates and their 2-sd ellipses)")
     p.add_argument("--force", action="store_true",
                    help="let --map replace a file nlos_cl did not write")
     _estimator_args(p)

@@ -4,7 +4,8 @@ covariances, truth and the region are reported in them (the JSON's `frame` says 
 Without --region the search region is derived from the capture (nlos_cl.localization.region:
 in front of the wall, around every spot, out to what the time window reaches); a coarse
 default region is refined around the answer, and an answer on the region's edge warns.
-`--map` keeps each final grid's score map as an .npz."""
+`--map` keeps the score maps, the whole search region's and the final grid's, as arrays (.npz)
+or a figure (.png): apps/locate_map.py."""
 from __future__ import annotations
 
 import json
@@ -15,135 +16,10 @@ import numpy as np
 
 from ..io.json_format import covariance_in, covariance_json, rounded, vector_json
 from ..localization.posterior import ArgmaxSpread
+from .locate_map import check_map_path, region_maps, save_map
 from .terminal import Elapsed
 
 MANY_HISTOGRAMS = 256  # the paired model fit's cost: seconds below, minutes at 4,096
-
-
-MAP_META = {"score", "frame", "axes", "units", "estimator", "score_kind"}
-
-
-def is_map(path) -> bool:
-    """A map `locate --map` wrote: an .npz of its arrays (since the frame rides inside: score,
-    the three axes and what they mean; before: exactly score, x, y, z), read with
-    allow_pickle=False: nothing in the file runs."""
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            return (sorted(data.files) == ["score", "x", "y", "z"]
-                    or MAP_META <= set(data.files) and len(data.files) == len(MAP_META) + 3)
-    except Exception:  # noqa: BLE001 - anything unreadable is not our map
-        return False
-
-
-def is_map_file(path) -> bool:
-    """A map `locate --map` may replace: its .npz, or a figure nlos_cl wrote (the MANIFEST)."""
-    return Path(path).suffix.lower() == ".npz" and is_map(path)
-
-
-def map_arrays(point) -> dict:
-    """The final grid's score map along the file's axes (coordinates increasing), the axes
-    named as the file's, with the frame, units, estimator and what the score is."""
-    from ..io.json_format import INTERNAL
-    loc, grid, frame = point.internal, point.grid, point.frame
-    if not frame.is_permutation:  # a fitted wall's rotation: the map stays along our axes
-        frame = INTERNAL
-    m = np.asarray(frame.matrix)
-    score = np.asarray(loc.score_map).transpose(2, 1, 0)  # ours (nz, ny, nx) -> [x, y, z]
-    order = [int(np.argmax(np.abs(m[:, i]))) for i in range(3)]  # file axis i: ours order[i]
-    score = score.transpose(order)
-    coords = []
-    for i, j in enumerate(order):
-        c = m[j, i] * np.asarray(grid.axes()[j], dtype=np.float64)
-        if c.size > 1 and c[0] > c[-1]:
-            score, c = np.flip(score, axis=i), c[::-1]
-        coords.append(c)
-    kind = ("log of the joint likelihood (the sum of each detector's log)" if point.log_mode
-            else "joint likelihood (the product of each detector's)")
-    return {"score": np.ascontiguousarray(score), **dict(zip(frame.axes, coords)),
-            "frame": json.dumps(point.frame.as_json()), "axes": np.array(frame.axes),
-            "units": "m (axes); score: " + kind.split(" (")[0], "estimator": loc.estimator,
-            "score_kind": kind + f", indexed [{', '.join(frame.axes)}]"}
-
-
-def _map_path(args, i, n_sets) -> Path:
-    out = Path(args.map)
-    return out if n_sets == 1 else out.with_suffix(f".{i}{out.suffix}")
-
-
-def _save_map(args, i, n_sets, point, entry, hist):
-    from ..io.safe_write import atomic_write
-    out, arrays = _map_path(args, i, n_sets), map_arrays(point)
-    if out.suffix.lower() == ".png":
-        from .plotting import map_figure, write_figure
-        view = map_view(arrays, point, entry, hist)
-        write_figure(out, lambda fh: map_figure(fh, view), what="--map", force=args.force)
-        return str(out)
-
-    def write(tmp):
-        with open(tmp, "wb") as fh:  # a file object: savez would append .npz to a name
-            np.savez_compressed(fh, **arrays)
-    atomic_write(out, write, keep_unless=is_map, force=args.force, what="--map",
-                 kind="a map nlos-cl locate wrote")
-    return str(out)
-
-
-def map_view(arrays, point, entry, hist) -> dict:
-    """What the --map figure draws, seen from above: the map's maximum over the height axis
-    (relative to its peak, in log), the wall, the spots, the truths and each target with its
-    covariance, along the file's lateral and depth axes (ours x and y)."""
-    from ..io.json_format import INTERNAL, entry_internal
-    frame = point.frame
-    if not frame.is_permutation:  # the map is along our axes (map_arrays): so is the figure
-        entry, frame = entry_internal(entry, frame), INTERNAL
-    m = np.asarray(frame.matrix)
-    lat, dep, up = (int(np.argmax(np.abs(m[j]))) for j in range(3))  # file index of ours j
-    score = np.asarray(arrays["score"], dtype=np.float64)
-    peak = score.max()
-    rel = score - peak if point.log_mode else np.log(np.maximum(score, 1e-300) / max(peak, 1e-300))
-    image = rel.max(axis=up)  # the two axes left, in the file's order
-    image = image.T if lat < dep else image  # rows along depth, columns lateral
-
-    def two(points):
-        p = np.atleast_2d(frame.from_internal(np.asarray(points, dtype=np.float64)))
-        return p[:, [lat, dep]]
-
-    def cov2(t):
-        if t["covariance"] is None:
-            return None
-        c = np.array([[np.inf if v is None else v for v in row] for row in t["covariance"]])
-        return c[np.ix_([lat, dep], [lat, dep])]
-    truths = entry.get("truths") or ([entry["truth"]] if entry.get("truth") else [])
-    return {"image": np.maximum(image, -30.0), "lateral": arrays[frame.axes[lat]],
-            "depth": arrays[frame.axes[dep]], "labels": [frame.axes[k] for k in (lat, dep, up)],
-            "spots": two(hist.detector_spots), "lasers": two(hist.laser_spots),
-            "truths": np.asarray(truths, dtype=np.float64).reshape(-1, 3)[:, [lat, dep]],
-            "targets": [(np.asarray(t["position"])[[lat, dep]], cov2(t))
-                        for t in entry.get("targets", [])],
-            "title": f"laser point {point.laser_point}: {point.location.estimator} estimator, "
-                     f"score map (max over {frame.axes[up]}), {frame.name} frame"}
-
-
-def _check_map_path(args) -> None:
-    """Before any work: --map must be writable (never over a file nlos_cl did not write: an
-    .npz of the user's own is kept unless --force)."""
-    from ..core.errors import require
-    from ..io.safe_write import require_writable
-    suffix = Path(args.map).suffix.lower()
-    require(suffix in (".npz", ".png"), "--map", f"{args.map} ends in {suffix or 'no suffix'}: "
-            "the map is written by its extension", "name it .npz (the arrays, with frame, "
-            "units, axes and estimator) or .png (a labelled figure)")
-    require_writable(args.map, keep_unless=is_map_file, force=args.force, what="--map",
-                     kind="a map nlos-cl locate wrote")
-    if args.region is not None and args.step is not None:  # the map's size is known now
-        import math
-
-        from ..core.limits import require_memory
-        cells = math.prod(math.floor(abs(hi - lo) / args.step) + 1
-                          for lo, hi in zip(args.region[::2], args.region[1::2]))
-        # scored on the device (4 B a cell), read back as float64 (8 B) and compressed
-        require_memory("--region", 12.0 * cells, f"--map of {cells:.3g} cells", "a smaller "
-                       "--region or a larger --step (or leave --map out: the search alone "
-                       "need not score every cell)")
 
 
 NO_TARGET_STATUS = 3  # `nlos-cl locate`: no laser point held target signal
@@ -299,7 +175,7 @@ def locate(args) -> int:
     from ..io.ytal.capture import read_capture_with_frame
     from ..localization.capture import locate_capture
     if args.map:
-        _check_map_path(args)
+        check_map_path(args)
     region = None if args.region is None else list(zip(args.region[::2], args.region[1::2]))
     h_s = None if args.h_ns is None else args.h_ns * 1e-9
     sets, frame = read_capture_with_frame(args.file)  # the sets keep every target's truth
@@ -312,14 +188,16 @@ def locate(args) -> int:
                                calibration=args.calibration, return_map=bool(args.map),
                                backend=args.device, names=("--region", "--step"))
     found = replaced(found, source=args.file)
-    entries = []
-    for point, hist in zip(found.points, sets):
+    entries, n = [], len(found.points)
+    regions = region_maps(args, sets, found) if args.map else [None] * n
+    for point, hist, region in zip(found.points, sets, regions):
         entry = point.as_json()
         entry.update(targets_json(point, _truths(hist)))
         entry["warnings"] = [note] * bool(note) + entry["warnings"]
         if args.map:
-            entry["map"] = _save_map(args, point.laser_point, len(found.points), point, entry,
-                                     hist)
+            out = Path(args.map)
+            out = out if n == 1 else out.with_suffix(f".{point.laser_point}{out.suffix}")
+            entry["map"] = save_map(args, out, point, entry, hist, region)
         entries.append(entry)
         for w in entry["warnings"]:
             print(f"nlos-cl: warning: laser point {point.laser_point}: {w}", file=sys.stderr)

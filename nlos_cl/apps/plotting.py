@@ -47,30 +47,65 @@ def _ellipse(ax, centre, cov, **style):
                          fill=False, **style))
 
 
-def map_figure(fh, view):
-    """`nlos-cl locate --map F.png`: the score map seen from above (locate.map_view), with the
-    wall, the spots, the truths and each target with its 2-sigma ellipse, in the file's axes."""
-    plt = pyplot()
-    fig, ax = plt.subplots(figsize=(7, 6), layout="constrained")
-    lat, dep = view["lateral"], view["depth"]
+def _extent(panel):
+    """imshow's extent of a plan map: the cells' edges, half a step beyond the centres."""
+    lat, dep = panel["lateral"], panel["depth"]
     half = [(a[1] - a[0]) / 2 if a.size > 1 else 0.005 for a in (lat, dep)]
-    image = ax.imshow(view["image"], origin="lower", cmap="magma", aspect="equal",
-                      extent=(lat[0] - half[0], lat[-1] + half[0], dep[0] - half[1],
-                              dep[-1] + half[1]))
-    fig.colorbar(image, ax=ax, shrink=0.8, label="log-likelihood - its peak")
-    ax.axhline(0.0, color="0.3", lw=3, label="relay wall")
-    ax.plot(*view["spots"].T, "^", color="C0", ms=6, label="detector spots")
-    ax.plot(*view["lasers"].T, "*", color="gold", mec="k", ms=11, label="laser spot")
+    return (lat[0] - half[0], lat[-1] + half[0], dep[0] - half[1], dep[-1] + half[1])
+
+
+def _map_markers(ax, view, first: bool):
+    """The wall, spots, truths and each estimate with its 2-sd ellipse (the file's axes); in
+    the final grid's panel (not `first`) smaller marks, so that a cm-sized ellipse shows."""
+    def label(text):
+        return text if first else None
+    size = 1.0 if first else 0.6
+    ax.axhline(0.0, color="0.3", lw=3, label=label("relay wall"))
+    ax.plot(*view["spots"].T, "^", color="C0", ms=6, label=label("detector spots"))
+    ax.plot(*view["lasers"].T, "*", color="gold", mec="k", ms=11, label=label("laser spot"))
     if len(view["truths"]):
-        ax.plot(*view["truths"].T, "o", mfc="none", mec="lime", ms=12, mew=2, label="truth")
+        ax.plot(*view["truths"].T, "x", color="lime", ms=9 * size, mew=2, label=label("truth"))
     for k, (centre, cov) in enumerate(view["targets"]):
-        ax.plot(*centre, "+", color="cyan", ms=14, mew=2, label="estimate" if k == 0 else None)
-        _ellipse(ax, centre, cov, color="cyan", lw=1.5, label="2 sd" if k == 0 else None)
-    ax.set_xlabel(f"{view['labels'][0]} (m)")
-    ax.set_ylabel(f"{view['labels'][1]} (m): depth from the wall")
-    ax.set_title(view["title"], fontsize=9)
-    ax.legend(fontsize=7, loc="upper right")
-    ax.autoscale()
+        ax.plot(*centre, "+", color="cyan", ms=14 * size, mew=2,
+                label=label("estimate") if k == 0 else None)
+        ax.annotate(f"{k + 1}", centre, xytext=(6, 6), textcoords="offset points",
+                    color="cyan", fontsize=9, fontweight="bold")
+        _ellipse(ax, centre, cov, color="cyan", lw=1.5, label=label("2 sd") if k == 0 else None)
+
+
+def map_figure(fh, view):
+    """`nlos-cl locate --map F.png`: the score maps seen from above (locate_map.map_view), the
+    whole search region's with the final grid's over it (outlined) and, beside it, the final
+    grid alone, with the wall, the spots, the truths and each target with its 2-sigma ellipse,
+    in the file's axes; one colour scale for every map."""
+    from matplotlib.patches import Rectangle
+    plt = pyplot()
+    panels = view["panels"]
+    fig, axes = plt.subplots(1, len(panels), figsize=(6.5 * len(panels) + 1, 6),
+                             layout="constrained", squeeze=False)
+    style = {"origin": "lower", "cmap": "magma", "aspect": "equal", "vmin": -30.0, "vmax": 0.0}
+    for i, (ax, panel) in enumerate(zip(axes[0], panels)):
+        image = ax.imshow(panel["image"], extent=_extent(panel), **style)
+        inset = panel.get("inset")
+        if inset is not None:  # the final grid's finer map over the region's, outlined
+            box = _extent(inset)
+            ax.imshow(inset["image"], extent=box, **style)
+            ax.add_patch(Rectangle((box[0], box[2]), box[1] - box[0], box[3] - box[2],
+                                   fill=False, ec="white", lw=1, ls="--"))
+        _map_markers(ax, view, first=i == 0)
+        ax.set_xlabel(f"{view['labels'][0]} (m)")
+        ax.set_ylabel(f"{view['labels'][1]} (m): depth from the wall")
+        ax.set_title(panel["title"], fontsize=9)
+        if i == 0:
+            ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=3)
+            ax.autoscale()
+        else:  # the final grid alone: the markers outside it are clipped
+            box = _extent(panel)
+            ax.set_xlim(box[0], box[1])
+            ax.set_ylim(box[2], box[3])
+    fig.colorbar(image, ax=list(axes[0]), shrink=0.8,
+                 label=f"log-likelihood relative to the peak ({view['relative']})")
+    fig.suptitle(view["title"], fontsize=10)
     fig.savefig(fh, dpi=90)
     plt.close(fig)
 

@@ -227,7 +227,7 @@ def test_a_scheduler_that_is_not_dask_is_one_line_in_seconds(monkeypatch):
 
 
 def test_a_map_of_a_huge_region_is_refused_before_locating(tmp_path):
-    from nlos_cl.apps.locate import _check_map_path
+    from nlos_cl.apps.locate_map import check_map_path as _check_map_path
     args = argparse.Namespace(map=str(tmp_path / "m.npz"), force=False, step=0.001,
                               region=[-30, 30, -0.001, 0.001, 0.001, 30])
     refused("--region", _check_map_path, args)

@@ -74,7 +74,7 @@ def test_locate_map_replaces_its_own_map_only(tmp_path):
     with pytest.raises(CommandLineError, match="--map"):
         cli("locate", capture, "--map", mine, "--estimator", "paper")
     assert mine.read_bytes() == before
-    from nlos_cl.apps.locate import is_map
+    from nlos_cl.apps.locate_map import is_map
     np.savez(out, score=np.zeros(1), x=[0.0], y=[0.0], z=[0.0])
     assert is_map(out) and not is_map(mine)
 
