@@ -43,11 +43,12 @@ def tracker_options(args, backend) -> dict:
     name the flags)."""
     from .cli_types import OPTION_FLAGS
     region = None if args.region is None else list(zip(args.region[::2], args.region[1::2]))
-    return dict(estimator=args.estimator, targets=args.targets, reflectance=args.reflectance,
-                region=region, step_m=args.step, h_s=_h_s(args),
-                background=args.background or None, running_mean=args.running_mean,
-                motion=motion_model(args), full_search=args.full_search, backend=backend,
-                names=OPTION_FLAGS, on_note=_warn)
+    return {"estimator": args.estimator, "targets": args.targets,
+            "reflectance": args.reflectance, "region": region, "step_m": args.step,
+            "h_s": _h_s(args), "background": args.background or None,
+            "running_mean": args.running_mean, "motion": motion_model(args),
+            "full_search": args.full_search, "backend": backend, "names": OPTION_FLAGS,
+            "on_note": _warn}
 
 
 def _warn(text: str) -> None:
@@ -72,9 +73,9 @@ def _entry(frame, tracks, measurements, cframe, smoothed=None, mark=None) -> dic
 
 
 def main(args) -> int:
-    from ..ops.backend import resolve_backend
-    from ..io.ytal.reading import read_sequence
     from ..core.errors import require
+    from ..io.ytal.reading import read_sequence
+    from ..ops.backend import resolve_backend
     require(not (args.lag and args.smooth), "--lag", "prints fixed-lag lines, and --smooth "
             "already uses every later frame", "pass --lag N without --smooth")
     if args.csv:
@@ -157,17 +158,19 @@ def _range_main(args, seq, backend) -> int:
     """One confocal spot: the range per frame (localization.ranges), tracked by
     tracking.ranges with --motion's models; a line per frame (JSON with --json; --csv rows),
     and a summary in text; exit 3 where no frame holds a return."""
-    from ..core.errors import require
-    from ..tracking.ranges import track_frames
     from tqdm import tqdm
+
+    from ..core.errors import require
+    from ..tracking.ranges import frame_ranges, track_steps
     for flag, given in RANGE_REFUSED:
         require(not given(args), flag, "does not apply to a sequence of one confocal spot, "
                 "which gives a range, not a position", f"leave out {flag}")
     stop = len(seq) if args.max_frames is None else min(args.max_frames, len(seq))
     frames = tqdm(seq.frames(0, stop), total=stop, unit="frame", desc="range",
                   file=sys.stderr, disable=args.no_progress)
-    points, sigma = track_frames(frames, h_s=_h_s(args), motion=motion_model(args),
-                                 smooth=args.smooth, backend=backend)
+    # each frame's warnings named with its frame, as the tracks' (frame_warnings)
+    steps = frame_warnings(frame_ranges(frames, _h_s(args), backend=backend))
+    points, sigma = track_steps(steps, motion=motion_model(args), smooth=args.smooth)
     if not points:  # no frame with a return: each frame says so
         points = [_no_range(k, f.t_s) for k, f in enumerate(seq.frames(0, stop))]
 
@@ -242,9 +245,10 @@ def _lagged(out, header, lagged, lag, cframe) -> None:
 
 
 def frame_warnings(run):
-    """The run's steps, each frame's warnings (the estimator's, NumPy's) said again naming the
-    frame they come from: a text the first time with its frame's number and time, and after
-    the last frame once more with the later frames that gave it too."""
+    """The run's steps (anything with a `frame` that has `index` and `t_s`: a tracking run's,
+    or a range track's frame_ranges), each frame's warnings (the estimator's, NumPy's) said
+    again naming the frame they come from: a text the first time with its frame's number and
+    time, and after the last frame once more with the later frames that gave it too."""
     steps, later = iter(run), {}
     while True:
         step = None

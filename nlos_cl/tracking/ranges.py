@@ -54,22 +54,42 @@ def range_sigma(measured, floor_m: float) -> float:
     return robust_sigma(second[np.isfinite(second)][:, None], floor_m)
 
 
+@dataclass(frozen=True)
+class RangeStep:
+    """One frame's measurement: the frame read (its index, t_s and histograms) and its
+    detected range (m; NaN where the frame's detection found no return)."""
+
+    frame: object
+    range_m: float
+
+
+def frame_ranges(frames, h_s: float | None = None, *, backend=None):
+    """Each frame's detected_range, a RangeStep per frame as the frames come (lazily, so that
+    whoever iterates knows which frame a warning comes from: `nlos-cl track` names it)."""
+    for frame in frames:
+        yield RangeStep(frame, detected_range(frame.histograms, h_s, backend=backend)[0])
+
+
+def track_steps(steps, *, motion=None, smooth: bool = False) -> tuple[list, float]:
+    """(RangePoints, the measurement sd) of RangeSteps (frame_ranges, in time order):
+    range_sigma over them all, then track_ranges. No step with a return: ([], nan)."""
+    steps = list(steps)
+    require(bool(steps), "frames", "is empty", "pass at least one frame")
+    measured = [s.range_m for s in steps]
+    if not np.isfinite(measured).any():
+        return [], float("nan")
+    sigma = range_sigma(measured, range_floor(steps[-1].frame.histograms.time_axis))
+    return track_ranges(measured, [s.frame.t_s for s in steps], motion=motion, sigma_m=sigma,
+                        smooth=smooth), sigma
+
+
 def track_frames(frames, *, h_s: float | None = None, motion=None, smooth: bool = False, backend=None
                  ) -> tuple[list, float]:
     """(RangePoints, the measurement sd) of sequence frames (SequenceFrames of one confocal
     spot, in time order): each frame's detected_range (NaN: no return), range_sigma over them
     all, then track_ranges: what `nlos-cl track` does with such a file. No frame with a return:
     ([], nan)."""
-    measured, times, axis = [], [], None
-    for frame in frames:
-        measured.append(detected_range(frame.histograms, h_s, backend=backend)[0])
-        times.append(frame.t_s)
-        axis = frame.histograms.time_axis
-    require(axis is not None, "frames", "is empty", "pass at least one frame")
-    if not np.isfinite(measured).any():
-        return [], float("nan")
-    sigma = range_sigma(measured, range_floor(axis))
-    return track_ranges(measured, times, motion=motion, sigma_m=sigma, smooth=smooth), sigma
+    return track_steps(frame_ranges(frames, h_s, backend=backend), motion=motion, smooth=smooth)
 
 
 def track_ranges(measured, times_s, *, motion=None, sigma_m: float, smooth: bool = False
