@@ -19,7 +19,7 @@ from ..estimate import Capabilities, Estimate, LocatedTarget, Prior
 from ..fit_result import ModelFit, Parameter, WarmStart
 from ..paper import PaperArgmax
 from ..region import unseen_axis
-from .forward import data
+from .forward import data, late
 from .forward.likelihood import Problem
 from .options import GROUPS, FitBudget, Instrument, check_options, model_reflectance
 from .policy.depth import unseen_note
@@ -31,6 +31,7 @@ from .shapes import plate
 from .shapes.lattices import lattice_for
 from .shapes.shape import MODELS, name_of
 from .solve.covariance import centre_covariance, covariance
+from .solve.fit import fit
 from .solve.records import Chosen, Fitted
 
 # Frame-free words: an answer is reported in the capture's frame, where height is Y (y-tal's)
@@ -185,6 +186,8 @@ class ModelEstimator:
             from .policy.subset import plate_or_closed
             chosen = plate_or_closed(self, problem, result, free, cov, choice, smooth)
             clock["box"] = time.perf_counter()
+            chosen = late.with_late(self, chosen, (result.params, free), problem,
+                                    (fit, covariance, plate_or_closed), smooth)  # issue 57
         elif self.targets == "auto" and self.closed is not False:  # or one closed target
             from .policy.subset import one_closed_instead
             chosen = one_closed_instead(self, problem, paper.targets[0].position, free, held,

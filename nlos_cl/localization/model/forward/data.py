@@ -44,6 +44,9 @@ class Observation:
     # point (a box of one record bin), so the model pulse's variance is reduced by the
     # difference (m^2). 0 for counts (model bins are the TDC bins).
     box_excess_m2: float = 0.0
+    # the late copies' kernels (forward.late.BANK: an IRF tail, light that bounced once more)
+    # the Gaussian likelihood adds to every target's column; None: none (forward.late)
+    late: tuple | None = None
 
     @property
     def n(self) -> int:

@@ -2,8 +2,9 @@
 closed form, and the residuals whose sum of squares is -2 log-likelihood (up to a constant).
 
 Gaussian (AWGN): mu = sum_k a_k m_k + a slow background per detector (model.forward.nuisance:
-a constant and a ramp); (a >= 0, background) by weighted least squares (noise std per
-detector); residual (y - mu) / noise. Poisson (photon counts): lambda = sum_k a_k m_k + b_d (b_d: dark and
+a constant and a ramp), and where the observation has them (obs.late) each column's late
+copies sum_j b_kj G_j m_k (model.forward.late: an IRF tail, delayed broad light); (a, b >= 0,
+background) by weighted least squares (noise std per detector); residual (y - mu) / noise. Poisson (photon counts): lambda = sum_k a_k m_k + b_d (b_d: dark and
 ambient counts per bin, per detector); (a, b) >= 0 maximise the Poisson likelihood (Newton);
 residual = signed deviance residual, so the sum of squares is the deviance.
 """
@@ -15,7 +16,7 @@ import numpy as np
 
 from ....core.constants import TINY
 from ..shapes import plate
-from . import nuisance
+from . import late, nuisance
 
 MAX_ENUMERATED = 6  # targets; beyond, projected coordinate descent
 # The counts' amplitudes are iterated to convergence (1e-9 relative), so that a fit's cost is
@@ -156,32 +157,57 @@ class Problem:
             self._background_key = key
         return self._background
 
+    def copies(self, cols):
+        """(K, J, D, n) the late copies of columns (K, D, n), or None (late.copies_of)."""
+        return late.copies_of(self, cols)
+
+    def split(self, lin, k: int):
+        """(amplitudes (K,), background coefficients, late amplitudes (K, J)) of K targets'
+        linear factors (late.split)."""
+        return late.split(self.obs, lin, k)
+
+    def scaled(self, k: int, n_targets: int, x, lin) -> np.ndarray:
+        """(D, n): what a change x (D, n) of target k's column (of n_targets) changes the mean
+        by: its amplitude times x, and its late copies' amplitudes times x's copies."""
+        amp, _, b = self.split(lin, n_targets)
+        out = amp[k] * x
+        if b.size and np.any(b[k] > 0):
+            out = out + np.tensordot(b[k], self.copies(np.asarray(x)[None])[0], 1)
+        return out
+
     def _gauss_linear(self, cols):
         """Weighted least squares for the amplitudes, each >= 0: a target reflects light, it
         does not absorb it. Unconstrained, two overlapping plates of opposite signs sculpted
         one target's signal (5 of 13 failed three-target draws held a negative amplitude).
         With a background (`background`) the amplitudes are solved on the rows with its basis
         projected out, then its coefficients (either sign: what the floor subtraction left,
-        and a ramp) from what they leave: [a, c.ravel()], c (p, D) in data units."""
+        and a ramp) from what they leave: [a, c.ravel()], c (p, D) in data units; with late
+        copies (`copies`) their amplitudes (>= 0) with the a's, after them: [a, c, b.ravel()]."""
         bg = self.background()
         w = (1.0 / self.obs.noise)[None, :, None]
-        weighted = cols * w if bg is None else bg.project(cols * w)
-        a_mat = weighted.reshape(len(cols), -1)
+        extra = self.copies(cols)
+        both = cols if extra is None else np.concatenate([cols, late.capped(cols, extra)])
+        weighted = both * w if bg is None else bg.project(both * w)
+        a_mat = weighted.reshape(len(both), -1)
         if self._weighted_y is None:
             y = self.obs.y * w[0]
             self._weighted_y = (y if bg is None else bg.project(y)).reshape(-1)
         b = self._weighted_y
-        if len(cols) == 1:  # one column: the projection, >= 0 (lstsq's number, 0.1 ms less)
+        if extra is not None:
+            amp = late.uncapped(late.nnls(a_mat, b), len(cols))
+            both = np.concatenate([cols, extra.reshape((-1,) + cols.shape[1:])])
+        elif len(cols) == 1:  # one column: the projection, >= 0 (lstsq's number, 0.1 ms less)
             norm2 = float(a_mat[0] @ a_mat[0])
             amp = np.array([max(float(a_mat[0] @ b), 0.0) / norm2 if norm2 > 0 else 0.0])
         else:
             amp, *_ = np.linalg.lstsq(a_mat.T, b, rcond=None)
             if not np.all(amp >= 0):
                 amp = nonnegative_lstsq(a_mat @ a_mat.T, a_mat @ b, amp)
+        k = len(cols)
         if bg is None:
             return amp
-        rest = self.obs.y - np.tensordot(amp, cols, 1)
-        return np.concatenate([amp, bg.coefficients(rest).reshape(-1)])
+        rest = self.obs.y - np.tensordot(amp, both, 1)
+        return np.concatenate([amp[:k], bg.coefficients(rest).reshape(-1), amp[k:]])
 
     def _poisson_linear(self, cols, warm=None, iters=NEWTON_ITERS):
         """Newton on (a_1..a_K, b_1..b_D) of the Poisson log-likelihood, kept >= 0. The
@@ -206,9 +232,12 @@ class Problem:
         if self.obs.mode == "poisson":
             return np.tensordot(lin[:k], cols, 1) + lin[k:, None] * self.obs.valid
         mu = lin[0] * cols[0] if k == 1 else np.tensordot(lin[:k], cols, 1)
+        _, coef, b = self.split(lin, k)
         bg = self.background()
-        if bg is not None and len(lin) > k:
-            mu = mu + bg.fitted(np.reshape(lin[k:], (bg.p, -1)))
+        if bg is not None and coef.size:
+            mu = mu + bg.fitted(np.reshape(coef, (bg.p, -1)))
+        if b.size and np.any(b > 0):
+            mu = mu + np.einsum("kj,kjdn->dn", b, self.copies(cols))
         return mu
 
     def residual(self, cols, lin) -> np.ndarray:

@@ -34,9 +34,11 @@ def _mean_jacobian(problem, params, lin, free):
     steps = shape_of(problem).STEPS
     which = [(k, i) for k in range(len(params)) for i in np.flatnonzero(free)]
     slopes = analytic_derivatives(problem, params)
+    # each target's change through its amplitude and its late copies' (forward.late)
+    scaled = getattr(problem, "scaled", lambda k, n, x, a: a[k] * x)
     if slopes is not None:
         cols = problem.columns(params)
-        blocks = [lin[k] * slopes[k, i] for k, i in which]
+        blocks = [scaled(k, len(params), slopes[k, i], lin) for k, i in which]
     elif shadowed_by(problem, params) is not None:
         blocks, cols = _shadowed_blocks(problem, params, lin, which, steps)
     else:
@@ -49,10 +51,20 @@ def _mean_jacobian(problem, params, lin, free):
                 like.append(params[k])
         evaluated = problem.column_batch(np.array(rows), np.array(like))
         cols, moved = evaluated[:len(params)], evaluated[len(params):]
-        blocks = [lin[k] * (moved[2 * n] - moved[2 * n + 1]) / (2 * steps[i])
-                  for n, (k, i) in enumerate(which)]
+        blocks = [scaled(k, len(params), (moved[2 * n] - moved[2 * n + 1]) / (2 * steps[i]),
+                         lin) for n, (k, i) in enumerate(which)]
     blocks.extend(cols)  # counts' per-detector backgrounds: `_poisson_information`
+    blocks.extend(_late_columns(problem, cols, lin))
     return cols, np.stack(blocks, axis=-1)
+
+
+def _late_columns(problem, cols, lin) -> list:
+    """The late copies (forward.late) a Gaussian fit uses (amplitude > 0): nuisance columns."""
+    copies = getattr(problem, "copies", lambda c: None)(cols)
+    if copies is None or problem.obs.mode != "gauss":
+        return []
+    b = problem.split(lin, len(cols))[2]
+    return [copies[k, j] for k, j in zip(*np.nonzero(b > 0))]
 
 
 def _shadowed_blocks(problem, params, lin, which, steps):
@@ -100,7 +112,8 @@ def _reused_jacobian(problem, result, free):
         return None
     obs = problem.obs
     cols = problem.columns(result.params) if result.columns is None else result.columns
-    amplitudes = [(c / obs.noise[:, None])[obs.valid] for c in cols]
+    amplitudes = [(c / obs.noise[:, None])[obs.valid]
+                  for c in list(cols) + _late_columns(problem, cols, result.linear)]
     return cols, np.column_stack([-data, *amplitudes])
 
 
@@ -199,7 +212,7 @@ def _gauss_sandwich(problem, result, jmu, reused: bool, precision, mu):
         # a reused Jacobian's columns are the profiled ones, not d mu: no sds from them
         sd = None if reused else \
             _background_sd(obs, bg, j_raw, inv, meat, cj) * np.sqrt(max(1.0, birge))
-        coef = np.reshape(result.linear[k:], (bg.p, -1))
+        coef = np.reshape(result.linear[k:k + bg.p * bg.d], (bg.p, -1))
         info.update(nuisance.summary(coef, sd, float(np.max(np.abs(obs.y)))))
     return cov * max(1.0, birge), info, sd
 
@@ -214,7 +227,8 @@ def background_estimates(problem, result: FitResult, free):
     precision = np.zeros(jmu.shape[-1])  # the noise's part alone (no prior)
     _, _, sd = _gauss_sandwich(problem, result, jmu, False, precision,
                                problem.mean(cols, result.linear))
-    return np.reshape(result.linear[len(result.params):], sd.shape), sd
+    k = len(result.params)
+    return np.reshape(result.linear[k:k + sd.size], sd.shape), sd
 
 
 def covariance(problem, result: FitResult, free, reuse: bool = False

@@ -1,0 +1,236 @@
+"""Light that arrives after a target's direct return (issue 57): the instrument response's
+exponential tail and a delayed, broad interreflection ("fourth bounce") background. Both are a
+causal, broad copy of the direct return, so each target's model column m_k gets copies
+G_j m_k (G_j: convolution with one kernel of a fixed bank, unit mass), and the Gaussian
+likelihood's mean becomes
+    mu = sum_k (a_k m_k + sum_j b_kj G_j m_k) + background,   a_k, b_kj >= 0,
+the b's solved with the amplitudes in the same non-negative least squares (profiled out: the
+fit's parameters do not change). The bank (`BANK`, metres of path) spans what such light looks
+like without knowing it: exponential tails of 50-400 ps (an IRF's) and Gaussian lobes of
+0.1 m sd delayed 0.15-1.0 m (light that bounced once more: a non-negative mix of them is
+any broad lobe in that range). The copies live on the observation (`Observation.late`: the
+bank, or None), so every problem made for it (plates, closed shapes) carries them.
+
+Kept only where the data ask for it (`with_late`): where the chosen fit misses the data, the
+chosen shape (and, for a closed shape, the plate) is refitted with the copies, and the one
+with the lowest BIC-like score is kept: cost in units of kappa (the noise correlation's
+inflation) times the best candidate's Birge ratio, plus ln(N / kappa) per free parameter,
+each active copy counted as one (`LATE_PENALTY` each). A fit that explains the data is left as
+it is (clean one-target and closed draws keep their answers and their time).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from ....core.constants import SPEED_OF_LIGHT, TINY
+from ....core.stats import chi2_quantile
+
+PS = 1e-12 * SPEED_OF_LIGHT  # m of path per ps
+# ("exp", decay m) and ("lobe", delay m, sd m): the copies' kernels
+BANK = tuple([("exp", tau * PS) for tau in (50.0, 100.0, 200.0, 400.0)] +
+             [("lobe", d, 0.1) for d in (0.15, 0.3, 0.45, 0.6, 0.8, 1.0)])
+FINE = 16  # kernel sub-samples per model sample (the column linear between samples)
+# each active copy's parameters in the score, in units of ln(N / kappa) (the BIC's 1)
+LATE_PENALTY = 1.0
+# The most late light a target's return may carry, against its direct light: an IRF's tail
+# holds up to half the energy (b = a), light that bounced once more less. Unbounded, the copies
+# took 99.7 % of a sphere's light and a plate in front stood for it (background draw 4: 0.05
+# -> 0.32 m).
+MAX_RATIO = 1.0
+REFIT_NFEV_SCALE = 2  # the refits' evaluations, in the estimator's final_nfev
+
+
+def _density(spec, s) -> np.ndarray:
+    if spec[0] == "exp":
+        return np.exp(-s / spec[1]) / spec[1]
+    _, delay, sd = spec
+    return np.exp(-0.5 * ((s - delay) / sd) ** 2) / (sd * math.sqrt(2.0 * math.pi))
+
+
+def kernel_weights(spec, dpath: float, n: int) -> np.ndarray:
+    """(n,) weights of lags 0..n-1 samples: the kernel's mass over each fine step, split
+    between the two samples around its delay (exact for a column linear between samples)."""
+    s = (np.arange(n * FINE) + 0.5) / FINE  # delays in samples
+    mass = _density(spec, s * dpath) * dpath / FINE
+    j = np.floor(s).astype(int)
+    f = s - j
+    w = np.bincount(j, mass * (1.0 - f), n + 1) + np.bincount(j + 1, mass * f, n + 1)
+    return w[:n]
+
+
+class Copies:
+    """The bank's kernels as spectra on an observation's sample grid (each detector its own
+    dpath), and the causal copies of columns (`of`)."""
+
+    def __init__(self, obs, bank=BANK):
+        self.bank, n = tuple(bank), obs.n
+        self.nfft = 1 << math.ceil(math.log2(max(2 * n, 2)))
+        dpath = np.broadcast_to(np.asarray(obs.dpath, float), (len(obs.valid),))
+        steps, which = np.unique(dpath, return_inverse=True)
+        spectra = np.stack([np.stack([np.fft.rfft(kernel_weights(k, float(s), n), self.nfft)
+                                      for k in self.bank]) for s in steps])  # (S, J, F)
+        self.spectra = np.moveaxis(spectra[np.reshape(which, -1)], 0, 1)  # (J, D, F)
+        self.valid, self.n = np.asarray(obs.valid, bool), n
+
+    @property
+    def j(self) -> int:
+        return len(self.bank)
+
+    def of(self, cols) -> np.ndarray:
+        """(K, J, D, n): each column (K, D, n) convolved with each kernel, zero outside the
+        valid samples (light before the window is not modelled: the window opens in the margin
+        before any target's return)."""
+        spec = np.fft.rfft(np.asarray(cols, float), self.nfft, axis=-1)
+        out = np.fft.irfft(spec[:, None] * self.spectra[None], self.nfft, axis=-1)
+        return np.where(self.valid, out[..., :self.n], 0.0)
+
+
+def copies_of(problem, cols):
+    """(K, J, D, n) the late copies of columns (K, D, n) on problem's observation, or None
+    where it has none; the last call's kept (a fit asks linear, then residual, of the same)."""
+    obs = problem.obs
+    if getattr(obs, "late", None) is None:
+        return None
+    kept = getattr(problem, "_copies", None)
+    if kept is not None and kept[0] is cols:
+        return kept[1]
+    if getattr(problem, "_late", None) is None:
+        problem._late = Copies(obs, obs.late)
+    out = problem._late.of(cols)
+    problem._copies = (cols, out)
+    return out
+
+
+def split(obs, lin, k: int):
+    """(amplitudes (K,), background coefficients (p * D,), late amplitudes (K, J)) of the
+    Gaussian linear factors of K targets [a, c, b] (empty parts where there are none)."""
+    lin = np.asarray(lin, float)
+    j = 0 if getattr(obs, "late", None) is None else len(obs.late)
+    end = len(lin) - k * j
+    return lin[:k], lin[k:end], lin[end:].reshape(k, j)
+
+
+def capped(cols, copies) -> np.ndarray:
+    """(K J, D, n) the columns the linear solve takes for the copies: G_j m_k + m_k / MAX_RATIO.
+    With s_k >= 0 the amplitude of m_k alone, a_k = s_k + sum_j b_kj / MAX_RATIO: every
+    solution has sum_j b_kj <= MAX_RATIO a_k (the late light at most that share of the
+    return's), and a non-negative least squares in (s, b) finds it."""
+    k, j = copies.shape[:2]
+    return (copies + cols[:, None] / MAX_RATIO).reshape((k * j,) + cols.shape[1:])
+
+
+def uncapped(x, k: int) -> np.ndarray:
+    """[a, b.ravel()] from the solve's [s, b.ravel()] (`capped`)."""
+    s, b = x[:k], x[k:].reshape(k, -1)
+    return np.concatenate([s + b.sum(axis=1) / MAX_RATIO, x[k:]])
+
+
+def nnls(a_mat, b, iters: int = 100) -> np.ndarray:
+    """argmin_{x >= 0} |x A - b| for A (M, N) rows of columns (Lawson and Hanson's active set,
+    least squares on the columns themselves, equilibrated)."""
+    scale = np.sqrt(np.maximum(np.einsum("mn,mn->m", a_mat, a_mat), TINY))
+    a = a_mat / scale[:, None]
+    m = len(a)
+    x, passive = np.zeros(m), np.zeros(m, bool)
+    grad = a @ b
+    for _ in range(iters):
+        cand = np.flatnonzero(~passive & (grad > 1e-12 * max(float(np.abs(grad).max()), TINY)))
+        if not cand.size:
+            break
+        passive[cand[np.argmax(grad[cand])]] = True
+        for _ in range(3 * m):
+            z = np.zeros(m)
+            z[passive] = np.linalg.lstsq(a[passive].T, b, rcond=None)[0]
+            if np.all(z[passive] > 0):
+                x = z
+                break
+            neg = passive & (z <= 0)
+            alpha = np.min(x[neg] / np.maximum(x[neg] - z[neg], TINY))
+            x = x + alpha * (z - x)
+            passive &= x > 1e-15 * max(float(x.max()), TINY)
+            x[~passive] = 0.0
+        grad = a @ (b - x @ a)
+    return x / scale
+
+
+def summary(amp, late_amp, bank=BANK) -> dict:
+    """The fitted copies for the diagnostics: their share of the fitted light (the kernels have
+    unit mass), the mean delay of the lobes' and the mean decay of the tails' part."""
+    a = float(np.sum(amp))
+    b = np.reshape(np.asarray(late_amp, float), (-1, len(bank))).sum(axis=0)
+    out = {"late_share": float(b.sum() / max(a + b.sum(), TINY)),
+           "late_terms": int(np.count_nonzero(b > 0))}
+    for kind, key, i in (("exp", "late_tail_decay_m", 1), ("lobe", "late_lobe_delay_m", 1)):
+        on = np.array([k[0] == kind for k in bank])
+        w = b[on]
+        out[key.replace("_decay_m", "_share").replace("_delay_m", "_share")] = \
+            float(w.sum() / max(a + b.sum(), TINY))
+        if w.sum() > 0:
+            out[key] = float(w @ np.array([k[i] for k in bank if k[0] == kind]) / w.sum())
+    return out
+
+
+def misses(problem, result, cov_info) -> tuple[bool, float]:
+    """(the fit misses the data, its Birge ratio): above the 99.9 % point of chi^2_nu / nu,
+    nu = N / kappa (policy.criteria.misfit's test, which this room cannot import)."""
+    n_eff = max(result.n_residuals / kappa(problem.obs), 2.0)
+    birge = float(cov_info.get("birge_ratio") or 0.0)
+    return birge > chi2_quantile(0.999, n_eff) / n_eff, birge
+
+
+def _score(problem, result, free, n_late, scale) -> float:
+    n_eff = max(result.n_residuals / kappa(problem.obs), 2.0)
+    params = int(np.count_nonzero(free)) + len(result.params) + LATE_PENALTY * n_late
+    return result.cost / scale + params * math.log(n_eff)
+
+
+def kappa(obs) -> float:
+    """The noise correlation's inflation tr(C^2) / tr(C) (policy.criteria's)."""
+    return float(1.0 + 2.0 * np.sum(np.asarray(obs.rho)[1:] ** 2))
+
+
+def active(problem, result) -> int:
+    """The copies the fit uses (amplitude > 0)."""
+    if getattr(problem.obs, "late", None) is None:
+        return 0
+    return int(np.count_nonzero(problem.split(result.linear, len(result.params))[2] > 0))
+
+
+def with_late(est, chosen, plate, plates, solvers, smooth=None):
+    """`chosen` (a one-target Gaussian fit: problem, result, free, cov) or, where it misses
+    the data and the fit with the late copies scores lower (module docstring), that fit: the
+    plate `plate` = (params, free) refitted with the copies, then the estimator's plate-or-
+    closed choice run on it (the closed shapes inherit the copies from the observation);
+    cov.info says what was tried. plates: the frame's plates problem (it counts the refits'
+    forward calls). solvers: (solve.fit.fit, solve.covariance.covariance,
+    policy.subset.plate_or_closed), passed in: this room imports no solver; smooth: the
+    latter's."""
+    fit, covariance, cascade = solvers
+    problem, result, _, cov = chosen
+    if problem.obs.mode != "gauss" or len(result.params) != 1 or \
+            getattr(problem.obs, "late", None) is not None:
+        return chosen
+    missed, birge = misses(problem, result, cov.info)
+    if not missed:
+        return chosen
+    p = est.problem(replace(plates.obs, late=BANK), plates.backend)
+    params, plate_free = plate
+    r = fit(p, params, plate_free, REFIT_NFEV_SCALE * est.final_nfev)
+    other = cascade(est, p, r, plate_free, covariance(p, r, plate_free), None, smooth)
+    for used in {id(p): p, id(other.problem): other.problem}.values():
+        plates.calls, plates.model_s = plates.calls + used.calls, plates.model_s + used.model_s
+    fits = [(chosen, birge, 0), (other, float(other.cov.info.get("birge_ratio", 1.0)),
+                                 active(other.problem, other.result))]
+    scale = kappa(p.obs) * max(1.0, min(b for _, b, _ in fits))
+    scores = [_score(c.problem, c.result, c.free, n, scale) for c, _, n in fits]
+    kept = fits[int(np.argmin(scores))][0]
+    info = {"late_tried": True, "late_kept": kept is other,
+            "late_score_gain": float(scores[0] - scores[1]), "late_birge_before": birge}
+    if kept is other:
+        amp, _, late_amp = other.problem.split(other.result.linear, 1)
+        info.update(summary(amp, late_amp))
+    kept.cov.info.update(info)
+    return kept
