@@ -27,6 +27,7 @@ targets refused with a one-line reason.
 from __future__ import annotations
 
 import math
+import re
 import sys
 import warnings
 
@@ -248,7 +249,8 @@ def frame_warnings(run):
     """The run's steps (anything with a `frame` that has `index` and `t_s`: a tracking run's,
     or a range track's frame_ranges), each frame's warnings (the estimator's, NumPy's) said
     again naming the frame they come from: a text the first time with its frame's number and
-    time, and after the last frame once more with the later frames that gave it too."""
+    time, and after the last frame once more with the later frames that gave it too (a text
+    that differs only in its numbers, a Birge ratio per frame, is the same warning)."""
     steps, later = iter(run), {}
     while True:
         step = None
@@ -261,20 +263,30 @@ def frame_warnings(run):
         if step is None:
             break
         yield step
-    for text, (category, frames) in later.items():
+    for first, category, frames, differ in later.values():
         if frames:
-            warn(f"{text} (again: {_frames(frames)})", category)
+            how = "again, with each frame's own numbers" if differ else "again"
+            warn(f"{first} ({how}: {_frames(frames)})", category)
+
+
+NUMBER = re.compile(r"[-+]?\d+(?:[.,]\d+)*(?:e[-+]?\d+)?")
 
 
 def _attribute(caught, step, later: dict) -> None:
+    """Say each caught warning with its frame the first time; after that, keep the frame under
+    the warning's text with its numbers left out."""
     for w in caught:
         text = " ".join(str(w.message).split())
+        key = NUMBER.sub("#", text)
         if step is None:  # not a frame's (the run's end, or an error)
             warn(text, w.category)
-        elif text in later:
-            later[text][1].append(step.frame)
+        elif key in later:
+            first, category, frames, differ = later[key]
+            if not frames or frames[-1].index != step.frame.index:  # once a frame
+                frames.append(step.frame)
+            later[key] = (first, category, frames, differ or text != first)
         else:
-            later[text] = (w.category, [])
+            later[key] = (text, w.category, [], False)
             warn(f"frame {step.frame.index} (t {step.frame.t_s:.3f} s): {text}", w.category)
 
 
