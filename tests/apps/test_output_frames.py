@@ -1,6 +1,7 @@
 """One frame everywhere: a known target lands at the same coordinates, in the capture's own
 frame (y-tal's X, Y, Z = -x, z, y of ours), in every output a user sees or keeps: simulate's
-message, locate's text, JSON and --map arrays, the Python API's locate_capture (its Location
+message, locate's text, JSON, --map arrays (the final grid's and the whole region's) and
+--map figure, the Python API's locate_capture (its Location
 included) and track_sequence steps, track's text, JSON and --csv lines, and the video's view. The target sits off every
 axis (X < 0, Y > 0, Z > 0, all different), so a sign or a swapped axis anywhere shows."""
 import csv
@@ -42,7 +43,8 @@ def capture(tmp_path_factory):
     return folder
 
 
-def test_a_located_target_has_the_same_coordinates_in_every_locate_output(capture, capsys):
+def test_a_located_target_has_the_same_coordinates_in_every_locate_output(capture, capsys,
+                                                                          monkeypatch):
     scene, cap, arrays = capture / "square.yaml", capture / "square.h5", capture / "map.npz"
     status, said = _run(capsys, "simulate", str(scene), "--out", str(cap))
     assert status == 0
@@ -59,6 +61,22 @@ def test_a_located_target_has_the_same_coordinates_in_every_locate_output(captur
         best = np.unravel_index(np.argmax(m["score"]), m["score"].shape)
         np.testing.assert_allclose([m[a][i] for a, i in zip("XYZ", best)],
                                    answer["argmax_cell"], atol=1e-5)
+        # the whole region's map (the search zoomed): its best cell within a cell of it
+        whole = [m[f"region_{a}"] for a in "XYZ"]
+        best = np.unravel_index(np.argmax(m["region_score"]), m["region_score"].shape)
+        steps = [a[1] - a[0] if a.size > 1 else 0.0 for a in whole]
+        assert all(abs(a[i] - v) <= s + 1e-9 for a, i, v, s in
+                   zip(whole, best, answer["argmax_cell"], steps))
+
+    from nlos_cl.apps import plotting
+    views, draw = [], plotting.map_figure
+    monkeypatch.setattr(plotting, "map_figure", lambda fh, v: (views.append(v), draw(fh, v)))
+    status, _ = _run(capsys, "locate", str(cap), "--map", str(capture / "map.png"))
+    [view] = views  # the figure: X across, Z from the wall, the truth and answer where told
+    assert status == 0 and view["labels"] == ["X", "Z", "Y"]
+    np.testing.assert_allclose(view["truths"], [[FILE[0], FILE[2]]], atol=1e-9)
+    np.testing.assert_allclose(view["targets"][0][0], np.take(answer["position"], [0, 2]),
+                               atol=1e-4)
 
     status, text = _run(capsys, "locate", str(cap))
     line = re.search(rf"X {NUMBER} ± \S+, Y {NUMBER} ± \S+, Z {NUMBER} ± ", text)

@@ -187,6 +187,16 @@ def spad_model_row(rt, smoke, model_on="auto"):
 
 
 def all_rows(rt, smoke=False, say=print):
+    """Every row, in the order the page gives them. The model rows time the paper's scene,
+    whose collinear spots hold the height: its note is about the bench's scene, not the
+    user's data, so it is not said (nothing else is kept off the terminal)."""
+    import warnings
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=r"height \(up the wall\) is unobservable")
+        return _rows(rt, smoke, say)
+
+
+def _rows(rt, smoke, say):
     say("operations")
     rows = list(operation_rows(rt, smoke, say))
     say("locate: coarse to fine against exhaustive and peers")
