@@ -18,6 +18,7 @@ from nlos_cl.localization.model.forward.batch import HostProblem
 from nlos_cl.localization.model.shapes import plate
 from nlos_cl.localization.model.solve import covariance as cov_module
 from nlos_cl.localization.model.solve import fit
+from nlos_cl.physics.noise import SensorNoise
 
 FREE = np.ones(plate.N_PARAMS, bool)
 LOBE = late.BANK.index(("lobe", 0.45, 0.1))
@@ -72,6 +73,20 @@ def _with_lobe(obs, share):
     col = host.column(base.params[0])
     lobe = late.Copies(obs).of(col[None])[0, LOBE]
     return replace(obs, y=obs.y + share * base.linear[0] * lobe), base
+
+
+def test_the_late_light_stays_within_its_budget_of_the_direct_light(obs):
+    """Data that are all late light (a lobe copy of the plate, no direct return): the solve
+    gives the copies no more than their budget, sum_j b_j / MAX_RATIO[kind] <= a (unbounded,
+    the copies took 99.7 % of a sphere's light: late.MAX_RATIO), and the budget is used."""
+    host, base = _fitted(obs, None)
+    col = host.column(base.params[0])[None]
+    lobe = late.Copies(obs).of(col)[0, LOBE]
+    problem = HostProblem(replace(obs, y=base.linear[0] * lobe, late=late.BANK))
+    amp, _, b = problem.split(problem.linear(col), 1)
+    budget = float(np.sum(b[0] / late._ratios(late.BANK)))
+    assert budget <= amp[0] * (1 + 1e-9) and budget > 0.99 * amp[0] > 0
+    assert b[0].sum() <= 0.5 * amp[0] * (1 + 1e-9)  # lobes only here: half the direct light
 
 
 def test_a_known_late_lobe_is_recovered_and_leaves_the_plate_in_place(obs):
@@ -139,7 +154,7 @@ def _frame(share, seed=0):
     lobe = np.exp(-0.5 * ((t - 1.5e-9) / 0.5e-9) ** 2)
     kernel = share * lobe / lobe.sum()
     late_light = np.stack([np.convolve(row, kernel)[:len(row)] for row in clean.data])
-    noise = nl.SensorNoise.from_snr(clean, 10.0)
+    noise = SensorNoise.from_snr(clean, 10.0)
     return nl.add_noise(clean.with_data(clean.data + late_light), seed=seed,
                         model=noise).histograms(), truth
 

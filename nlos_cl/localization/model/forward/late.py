@@ -35,11 +35,13 @@ BANK = tuple([("exp", tau * PS) for tau in (50.0, 100.0, 200.0, 400.0)] +
 FINE = 16  # kernel sub-samples per model sample (the column linear between samples)
 # each active copy's parameters in the score, in units of ln(N / kappa) (the BIC's 1)
 LATE_PENALTY = 1.0
-# The most late light a target's return may carry, against its direct light: an IRF's tail
-# holds up to half the energy (b = a), light that bounced once more less. Unbounded, the copies
-# took 99.7 % of a sphere's light and a plate in front stood for it (background draw 4: 0.05
-# -> 0.32 m).
-MAX_RATIO = 1.0
+# The most late light a target's return may carry, against its direct light, by kind (a joint
+# budget: sum_j b_j / ratio_j <= a): an IRF's tail holds up to half the energy (b = a); light
+# that bounced once more less (draws: 5-30 %; the issue's range). Unbounded, the copies took
+# 99.7 % of a sphere's light and a plate in front stood for it (background draw 4: 0.05 ->
+# 0.32 m); with one cap of 1 for both, lobes took 31 % of a far sphere's light as its depth
+# (IRF-tail draw 1, 3 collinear spots: 0.06 -> 0.32 m).
+MAX_RATIO = {"exp": 1.0, "lobe": 0.5}
 REFIT_NFEV_SCALE = 2  # the refits' evaluations, in the estimator's final_nfev
 
 
@@ -113,19 +115,24 @@ def split(obs, lin, k: int):
     return lin[:k], lin[k:end], lin[end:].reshape(k, j)
 
 
-def capped(cols, copies) -> np.ndarray:
-    """(K J, D, n) the columns the linear solve takes for the copies: G_j m_k + m_k / MAX_RATIO.
-    With s_k >= 0 the amplitude of m_k alone, a_k = s_k + sum_j b_kj / MAX_RATIO: every
-    solution has sum_j b_kj <= MAX_RATIO a_k (the late light at most that share of the
-    return's), and a non-negative least squares in (s, b) finds it."""
+def capped(cols, copies, bank=BANK) -> np.ndarray:
+    """(K J, D, n) the columns the linear solve takes for the copies: G_j m_k + m_k / r_j
+    (r_j: MAX_RATIO of the kernel's kind). With s_k >= 0 the amplitude of m_k alone,
+    a_k = s_k + sum_j b_kj / r_j: every solution has sum_j b_kj / r_j <= a_k (the late light
+    within its budget of the return's), and a non-negative least squares in (s, b) finds it."""
     k, j = copies.shape[:2]
-    return (copies + cols[:, None] / MAX_RATIO).reshape((k * j,) + cols.shape[1:])
+    ratio = _ratios(bank)[None, :, None, None]
+    return (copies + cols[:, None] / ratio).reshape((k * j,) + cols.shape[1:])
 
 
-def uncapped(x, k: int) -> np.ndarray:
+def uncapped(x, k: int, bank=BANK) -> np.ndarray:
     """[a, b.ravel()] from the solve's [s, b.ravel()] (`capped`)."""
     s, b = x[:k], x[k:].reshape(k, -1)
-    return np.concatenate([s + b.sum(axis=1) / MAX_RATIO, x[k:]])
+    return np.concatenate([s + (b / _ratios(bank)).sum(axis=1), x[k:]])
+
+
+def _ratios(bank) -> np.ndarray:
+    return np.array([MAX_RATIO[spec[0]] for spec in bank])
 
 
 def nnls(a_mat, b, iters: int = 100) -> np.ndarray:

@@ -186,7 +186,8 @@ class Problem:
         bg = self.background()
         w = (1.0 / self.obs.noise)[None, :, None]
         extra = self.copies(cols)
-        both = cols if extra is None else np.concatenate([cols, late.capped(cols, extra)])
+        both = cols if extra is None else \
+            np.concatenate([cols, late.capped(cols, extra, self.obs.late)])
         weighted = both * w if bg is None else bg.project(both * w)
         a_mat = weighted.reshape(len(both), -1)
         if self._weighted_y is None:
@@ -194,7 +195,7 @@ class Problem:
             self._weighted_y = (y if bg is None else bg.project(y)).reshape(-1)
         b = self._weighted_y
         if extra is not None:
-            amp = late.uncapped(late.nnls(a_mat, b), len(cols))
+            amp = late.uncapped(late.nnls(a_mat, b), len(cols), self.obs.late)
             both = np.concatenate([cols, extra.reshape((-1,) + cols.shape[1:])])
         elif len(cols) == 1:  # one column: the projection, >= 0 (lstsq's number, 0.1 ms less)
             norm2 = float(a_mat[0] @ a_mat[0])
