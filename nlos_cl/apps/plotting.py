@@ -59,7 +59,9 @@ def _map_markers(ax, view, first: bool):
     the final grid's panel (not `first`) smaller marks, so that a cm-sized ellipse shows."""
     def label(text):
         return text if first else None
-    size = 1.0 if first else 0.6
+    from matplotlib import patheffects
+    size, (lat, dep, _) = 1.0 if first else 0.6, view["labels"]
+    edge = [patheffects.withStroke(linewidth=2.5, foreground="black")]  # legible on the peak
     ax.axhline(0.0, color="0.3", lw=3, label=label("relay wall"))
     ax.plot(*view["spots"].T, "^", color="C0", ms=6, label=label("detector spots"))
     ax.plot(*view["lasers"].T, "*", color="gold", mec="k", ms=11, label=label("laser spot"))
@@ -68,8 +70,11 @@ def _map_markers(ax, view, first: bool):
     for k, (centre, cov) in enumerate(view["targets"]):
         ax.plot(*centre, "+", color="cyan", ms=14 * size, mew=2,
                 label=label("estimate") if k == 0 else None)
-        ax.annotate(f"{k + 1}", centre, xytext=(6, 6), textcoords="offset points",
-                    color="cyan", fontsize=9, fontweight="bold")
+        sd = None if cov is None else np.sqrt(np.diag(cov))
+        told = "" if first or sd is None or not np.all(np.isfinite(sd)) else \
+            f": sd {lat} {sd[0] * 100:.2g} cm, {dep} {sd[1] * 100:.2g} cm"  # a tiny ellipse
+        ax.annotate(f"{k + 1}{told}", centre, xytext=(6, 6), textcoords="offset points",
+                    color="cyan", fontsize=9, fontweight="bold", path_effects=edge)
         _ellipse(ax, centre, cov, color="cyan", lw=1.5, label=label("2 sd") if k == 0 else None)
 
 
