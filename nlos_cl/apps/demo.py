@@ -14,6 +14,7 @@ PAPER_FRAME = "the paper's frame (x along the wall, y out from it, z up)"
 def _run_once(args, backend, grid):
     """Each stage timed to completion (the device queue drained after it)."""
     import nlos_cl as nl
+
     from ..physics.scene import paper_scene
     stages = (("scene", lambda _: paper_scene(position=tuple(args.position))),
               ("simulate", lambda scene: (scene, nl.simulate(scene, backend=backend))),
@@ -81,8 +82,8 @@ def _check_png(path_text: str, force: bool = False) -> None:
 
 
 def run(args) -> int:
-    from ..ops.backend import resolve_backend
     from ..core.grid import Grid
+    from ..ops.backend import resolve_backend
     if args.track:
         return run_track(args)
     if args.png:
@@ -125,9 +126,9 @@ def run_track(args) -> int:
 
     from ..core.constants import SPEED_OF_LIGHT
     from ..core.grid import Grid
+    from ..core.paths import TimeAxis
     from ..physics.meshes import rectangle
     from ..physics.noise import AWGN
-    from ..core.paths import TimeAxis
     from ..physics.scene import Target, paper_setup
     from ..physics.trajectory import MovingTarget, Trajectory
     from ..simulation.sequence import simulate_sequence
