@@ -185,11 +185,18 @@ class ModelEstimator:
             from .policy.subset import plate_or_closed
             chosen = plate_or_closed(self, problem, result, free, cov, choice, smooth)
             clock["box"] = time.perf_counter()
-        elif self.targets == "auto" and self.closed is not False:  # or one closed target
+        elif self.closed is not False:
+            # several targets: closed shapes for all of them where the plates miss the data
+            from .policy.closed_many import closed_instead
+            chosen = closed_instead(problem, chosen, self.final_nfev)
+            clock["box"] = time.perf_counter()
+        if len(result.params) >= 2 and self.targets == "auto" and self.closed is not False:
+            # or one closed target
             from .policy.subset import one_closed_instead
+            several = chosen
             chosen = one_closed_instead(self, problem, paper.targets[0].position, free, held,
-                                        chosen, smooth)
-            history.append({"targets": 1, "closed_instead": chosen.result is not result})
+                                        several, smooth)
+            history.append({"targets": 1, "closed_instead": chosen is not several})
         return Fitted(problem, chosen, history)
 
     def problem(self, obs, backend):
