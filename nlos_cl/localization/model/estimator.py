@@ -187,12 +187,12 @@ class ModelEstimator:
             chosen = plate_or_closed(self, problem, result, free, cov, choice, smooth)
             clock["box"] = time.perf_counter()
             chosen = late.with_late(self, chosen, (result.params, free), problem,
-                                    (fit, covariance, plate_or_closed), smooth)  # issue 57
-        elif self.targets == "auto" and self.closed is not False:  # or one closed target
-            from .policy.subset import one_closed_instead
-            chosen = one_closed_instead(self, problem, paper.targets[0].position, free, held,
-                                        chosen, smooth)
-            history.append({"targets": 1, "closed_instead": chosen.result is not result})
+                                    (fit, covariance, plate_or_closed), smooth)
+        elif self.closed is not False:  # several: closed shapes for all, or one closed target
+            from .policy.closed_many import several
+            chosen = several(self, problem, chosen, paper.targets[0].position, held, smooth,
+                             history)
+            clock["box"] = time.perf_counter()
         return Fitted(problem, chosen, history)
 
     def problem(self, obs, backend):

@@ -190,7 +190,7 @@ def test_a_box_whose_plate_went_wide_is_found_from_the_other_closed_fits_front()
     """A 0.78 x 0.45 m box 0.66 m deep facing a 6 x 5 SPAD patch 0.45 m across (one side lit
     and seen by a few spots), 4 dB: the plate goes 1.1 x 1.5 m wide to take up the side (Birge
     ~100) and every closed start around it misses the box (its best cost that plate's), while
-    the ellipsoid finds the front face. Refitted from that face (closed.cross_seeded) the box
+    the ellipsoid finds the front face. Refitted from that face (closed_search.cross_rows) the box
     explains the data (Birge ~1) at depth 0.44 m (truth 0.66), 0.11 m off, with a Laplace sd
     of 0.07 m; its depth profile (closed.depth_profile) costs only ~25 more at 0.74 m (secant
     sd 0.24 m): the depth is poorly determined, and the answer now says so. Before, the thin
@@ -236,7 +236,7 @@ def _turned_box_seen_by_a_patch(centre, normal, size, xs, zs, snr_db, seed):
 
 
 def test_front_of_is_from_plates_inverse():
-    """closed.cross_seeded restarts every closed family from the best one's front face."""
+    """closed_search.cross_rows restarts the closed families from the best one's front face."""
     rng = np.random.default_rng(7)
     for _ in range(20):
         q = np.array([*rng.uniform(-2, 2, 3), *rng.uniform(0.1, 1.5, 2), rng.uniform(-4, 4)])

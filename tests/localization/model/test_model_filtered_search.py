@@ -79,10 +79,10 @@ DRAWS_SETTINGS = SimpleNamespace(facet_m=0.01, dt_s=1e-12)
 
 
 def test_counts_draw_165s_box_is_found_by_racing_the_filtered_frames_closed_fits(monkeypatch):
-    """Counts draw 165: a box seen by 3 spots. The counts' own closed fits end in a cylinder
-    0.39 m off (deviance per degree of freedom 4.1: a misfit, closed.worth_racing); the same
-    families sought on the filtered frame and refitted on the counts reach the box, 0.018 m
-    off. Without the race (worth_racing False) the cylinder comes back."""
+    """Counts draw 165: a box seen by 3 spots. The counts' own closed fits miss it (a misfit,
+    closed.worth_racing; 0.39 m off before the pooled search, model.closed_search, 0.18 m
+    since: still a draws' failure, > 0.15 m); the same families sought on the filtered frame
+    and refitted on the counts reach the box, 0.018 m off."""
     from nlos_cl.localization.model.policy import closed
     d, target = _counts_draw(165)
     assert target.fit.shape == "box" and target.details["closed_raced"] is True
@@ -90,4 +90,4 @@ def test_counts_draw_165s_box_is_found_by_racing_the_filtered_frames_closed_fits
     monkeypatch.setattr(closed, "worth_racing", lambda *a: False)
     d, target = _counts_draw(165)
     assert target.details["closed_raced"] is False
-    assert np.linalg.norm(target.position - d["targets"][0]["centre"]) > 0.2
+    assert np.linalg.norm(target.position - d["targets"][0]["centre"]) > 0.15

@@ -15,111 +15,12 @@ from ..shapes.shape import CLOSED_SHAPES, name_of
 from ..solve.covariance import covariance
 from ..solve.fit import fit
 from ..solve.records import Chosen, ShapeFit
-from . import depth, starts
+from . import closed_search, depth
+from .closed_search import CLOSED_NFEV, MIN_CROSS_DEPTH_M
 from .criteria import kappa, misfit
 from .select import FINAL_ATOL, best_of
 
 CLOSED = CLOSED_SHAPES  # the closed families tried (box, ellipsoid, cylinder), same parameters
-BOX_DEPTHS = (0.1, 0.3, 0.6)  # m: starts behind the fitted plate's face
-BOX_YAWS = np.radians([-35.0, 0.0, 35.0])  # a box seen corner-on: the plate's yaw is between
-BOX_WIDTHS = (1.0, 0.6)  # times the plate's width (the plate spans both visible faces)
-# The closed fits get this many times final_nfev: from starts 0.3 m off, a cylinder on a
-# capsule still lowered its cost 40-fold between 30 and 90 evaluations.
-CLOSED_NFEV = 3
-CENTRE_SIZES = ((0.3, 0.3, 0.3), (0.6, 0.6, 0.6), (0.4, 1.7, 0.3))  # (w, h, d) m, at centres
-
-
-def box_rows(q, centres=(), laser=None) -> np.ndarray:
-    """Closed-shape starts around a fitted plate q (depths behind its face, yaws, narrower
-    widths; none if q is None) and, facing the laser spot, at each of `centres`."""
-    rows = []
-    for behind in BOX_DEPTHS if q is not None else ():
-        for dyaw in BOX_YAWS:
-            for scale in BOX_WIDTHS:
-                p = np.array(q, float)
-                p[plate.WIDTH], p[plate.YAW] = p[plate.WIDTH] * scale, p[plate.YAW] + dyaw
-                rows.append(box.from_plate(p, behind))
-    for c in centres:
-        for w, h, behind in CENTRE_SIZES:
-            rows.append(box.from_plate([*c[:3], w, h, plate.facing(c, laser)], behind))
-    return np.array(rows)
-
-
-def fit_closed(problem, plate_result, free, final_nfev, shape):
-    """A closed shape's fit (box or ellipsoid) started from the plate's, on the same data;
-    (problem, result, free)."""
-    from ..forward.host_shapes import shape_problem
-    closed = shape_problem(problem, shape)
-    free_closed = np.insert(np.asarray(free, bool), 5, True)  # + depth
-    q = plate_result.params[0]
-    centres = starts.start_centres(problem.obs, None, plate.Held.of(free, q))
-    # Two groups of starts, each to convergence: around the plate, and at the centroid start
-    # (for a sphere the plate landed 0.5 m off and its starts won the short fits, in a minimum
-    # of twice the cost of the one the centroid's start reaches).
-    groups = (box_rows(q), box_rows(None, centres, problem.obs.laser))
-    result = min((best_of(closed, rows, free_closed, CLOSED_NFEV * final_nfev, keep=2,
-                          atol=FINAL_ATOL) for rows in groups), key=lambda r: r.cost)
-    return ShapeFit(closed, result, free_closed)
-
-
-def cross_seeded(fits, final_nfev):
-    """Each closed shape refitted from the best closed fit's front face (the shapes share
-    their parameters), at that fit's depth and at CROSS_DEPTHS: where the plate had gone wide
-    to absorb a side, every start around it missed the box, while the ellipsoid, also from
-    those starts, had found the front face (one draw's box: cost 274,405 from the plate's
-    starts, 2,708 from the ellipsoid's front with the right depth). A shape's own fit is kept
-    where it costs less."""
-    best = min(fits, key=lambda f: f.result.cost).result.params[0]
-    front = box.front_of(best)
-    depths = (max(float(best[box.DEPTH]), MIN_CROSS_DEPTH_M), *CROSS_DEPTHS)
-    rows = np.array([box.from_plate(front, d) for d in depths])
-    return [_refit(f, rows, final_nfev) for f in fits]
-
-
-def _refit(closed_fit, rows, final_nfev):
-    """closed_fit (problem, result, free) refitted from start `rows` (best_of), the cheaper
-    result kept."""
-    closed_problem, result, free_closed = closed_fit
-    again = best_of(closed_problem, np.asarray(rows), free_closed, CLOSED_NFEV * final_nfev,
-                    keep=2)
-    return ShapeFit(closed_problem, again if again.cost < result.cost else result, free_closed)
-
-
-CROSS_DEPTHS = (0.3, 0.6)  # m behind the best closed fit's front face
-# The best fit's own depth as a start, at least this: a box of depth 0 is the plate, whose
-# starts every family has already had (the ellipsoid's lower bound is 0.04 m)
-MIN_CROSS_DEPTH_M = 0.05
-
-
-def round_rows(p, shape) -> list:
-    """Starts with closed fit p's front face and the rounder sections the shape asks for
-    (`rounder_sizes`: none for the box; across and along the normal sqrt(w d) for the curved
-    ones, and for the ellipsoid also all three axes cbrt(w h d))."""
-    p = np.asarray(p, float)
-    sizes = shape.rounder_sizes(*(float(v) for v in p[box.WIDTH:box.DEPTH + 1]))
-    if not sizes:
-        return []
-    front = box.front_of(p)
-    return [box.from_plate([*front[:3], across, up, front[plate.YAW]], along)
-            for across, up, along in sizes]
-
-
-def rounded(fits, final_nfev):
-    """Each curved family (ellipsoid, cylinder) refitted from rounder versions of its own fit
-    and of the best closed fit (`round_rows`), kept where it costs less. Round targets stall
-    in elongated minima: a 0.79 m cylinder seen by a 30-spot SPAD patch was fitted 1.17 x
-    0.58 m across (Birge ratio 8.3, centre 0.15 m off, no warning) and a 0.92 m sphere as a
-    1.07 x 1.04 x 0.75 m ellipsoid (Birge 34, 0.08 m off), where a refit from the truth costs
-    1/8 and 1/55 of theirs; from these rounder starts the fits reach those costs, 5 and 3 mm
-    off."""
-    best = min(fits, key=lambda f: f.result.cost).result.params[0]
-    out = []
-    for closed_fit in fits:
-        own, shape = closed_fit.result.params[0], closed_fit.problem.shape
-        rows = round_rows(own, shape) + ([] if np.array_equal(best, own) else
-                                         round_rows(best, shape))
-        out.append(_refit(closed_fit, rows, final_nfev) if rows else closed_fit)
-    return out
 
 
 # Depths the closed fit is profiled at (its own depth d: d / 2, 2 d, d -/+ PROFILE_STEP_M),
@@ -179,15 +80,14 @@ def reseat_plate(problem, plate_result, free, final_nfev):
 
 
 def closed_fits(problem, plate_result, free, final_nfev, smooth=None) -> tuple[list, bool]:
-    """Each closed family (CLOSED) fitted from the plate's starts and the centroid's,
-    cross-seeded and rounded: ([(problem, result, free)], raced). With `smooth` (counts: the
+    """Each closed family (CLOSED) fitted by the pooled search (model.policy.closed_search):
+    ([(problem, result, free)], raced). With `smooth` (counts: the
     same detectors' Gauss-filtered frame), where the best of them misses the counts but not
     by so much that no closed shape is their model (`worth_racing`), each family is sought on
     the filtered frame too, as counts' search is (model.filtered_search), and refitted on
     `problem` from that answer; the lower counts cost of the two stands (raced: whether it
     was). The plate's problem counts every forward call made for it."""
-    fits = [fit_closed(problem, plate_result, free, final_nfev, shape) for shape in CLOSED]
-    fits = rounded(cross_seeded(fits, final_nfev), final_nfev)
+    fits = closed_search.search(problem, plate_result, free, final_nfev, atol=FINAL_ATOL)
     raced = smooth is not None and worth_racing(*min(fits, key=lambda f: f.result.cost))
     if raced:
         plate_there = fit(smooth, plate_result.params, free, final_nfev)

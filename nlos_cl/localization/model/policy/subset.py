@@ -6,7 +6,7 @@ all of them.
   FINISH_NFEV evaluations (core/tuning.py).
 - More than CHOICE_DETECTORS (8), and a plate that misses the data or that a box behind it
   would beat (the depth probe on every detector): the choice of plate or closed shape
-  (model.closed.closed_or_plate: ~45 LM fits of three families) is made on 8 spread
+  (model.closed.closed_or_plate: the pooled search of three families, ~15 LM fits) is made on 8 spread
   detectors (`_choice`), and only the chosen closed shape is refitted on all
   (`plate_or_closed`), unless the sanity check will reject it (`doomed`): closed fits cost
   their detectors.

@@ -81,7 +81,7 @@ def cylinder_facets(p):
 
 def rounder_sizes(w, h, d) -> list:
     """A rounder start's (across, up, along) from a fit of size (w, h, d): across and along
-    the normal both sqrt(w d), the height kept (policy.closed.rounded)."""
+    the normal both sqrt(w d), the height kept (policy.closed_search.round_rows)."""
     m = math.sqrt(w * d)
     return [(m, h, m)]
 

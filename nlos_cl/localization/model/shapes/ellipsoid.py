@@ -150,7 +150,7 @@ def model_facets(p, lattice, spots, laser):
 def rounder_sizes(w, h, d) -> list:
     """Rounder starts' (across, up, along) from a fit of size (w, h, d): across and along the
     normal both sqrt(w d) (the height kept), and all three axes cbrt(w h d) (round targets
-    stall in elongated minima: policy.closed.rounded)."""
+    stall in elongated minima: policy.closed_search.round_rows)."""
     m, g = math.sqrt(w * d), (w * h * d) ** (1 / 3)
     return [(m, h, m), (g, g, g)]
 
