@@ -31,7 +31,7 @@ from .estimators import choose_estimator
 from .paper import PaperArgmax
 from .posterior import ArgmaxSpread
 from .region import default_region, on_region_edge, region_step, zoom_region
-from .separate import more_if_separate
+from .separate import one_or_more
 from .shadow import shadows
 
 REGION_NAMES = ("region", "step_m")  # how errors name the region options (a CLI: its flags)
@@ -319,10 +319,10 @@ def locate_capture(capture, *, region=None, step_m: float | None = None,
                                  log_mode=log_mode, return_map=bool(return_map),
                                  backend=backend, names=names, notes=[note] if note else [],
                                  processing=reports[i])
-        point = located(point_est)
         if given is None and estimator in (None, "model"):  # one, or separate objects
-            point = more_if_separate(point, lambda k: located(choose_estimator(
-                "model", targets=k)[0]))
+            point = one_or_more(point_est, located)
+        else:
+            point = located(point_est)
         points.append(point)
     return CaptureLocation(tuple(points), frame, source, getattr(backend, "name", str(backend)),
                            h_s, cal)

@@ -27,7 +27,8 @@ def _point(plates, left=True):
     fits = [SimpleNamespace(shape="plate", values=lambda p=p: np.array(p, float))
             for p in plates]
     return SimpleNamespace(internal=SimpleNamespace(
-        estimator="model", targets=[SimpleNamespace(fit=f) for f in fits]),
+        estimator="model", targets=[SimpleNamespace(fit=f, position=np.array(p[:3], float))
+                                    for f, p in zip(fits, plates)]),
         warnings=[LEFTOVER + " ..."] if left else [])
 
 
