@@ -55,3 +55,32 @@ def test_an_occluder_in_front_of_its_target_is_two_objects():
     close = _point([[1.0, 1.5, 0, 0.6, 1.2, np.pi / 2], [1.2, 1.8, 0, 0.8, 1.2, np.pi / 2]])
     assert more_if_separate(first, lambda k: stacked) is stacked
     assert more_if_separate(first, lambda k: close) is first
+
+
+def test_a_far_plate_beside_one_object_s_touching_plates_is_added():
+    """'auto' spending two touching plates on a closed near target (a person's front and side)
+    and a third on a far box (scenario draw 89: all three called one answer, the box lost):
+    the one-target answer is kept for the near object and the far plate added; the near
+    object's two plates count as one (criteria.objects)."""
+    from dataclasses import dataclass
+
+    from nlos_cl.localization.model.policy.criteria import objects
+
+    @dataclass(frozen=True)
+    class Point:  # as capture.PointLocation and estimate.Location: dataclasses, replaced
+        internal: object
+        warnings: tuple
+
+    @dataclass(frozen=True)
+    class Internal:
+        estimator: str
+        targets: list
+
+    face, side, far = [3, 2, 0, 0.5, 0.5, 0], [3.3, 2.2, 0, 0.5, 0.5, 1.2], [0, 4.5, 0, 0.4, 0.4, 0]
+    assert objects([face, side]) == 1 and objects([face, side, far]) == 2
+    plates = _point([face, far, side])
+    first = _point([[3.1, 2.1, 0, 0.5, 0.5, 0]])
+    first = Point(Internal("model", first.internal.targets), tuple(first.warnings))
+    got = more_if_separate(first, lambda k: plates)
+    assert [list(t.position) for t in got.internal.targets] == [[3.1, 2.1, 0], [0, 4.5, 0]]
+    assert got.warnings == first.warnings
