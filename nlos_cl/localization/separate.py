@@ -58,12 +58,21 @@ def more_if_separate(point, relocate):
         return point
     again = relocate("auto")
     fits = [getattr(t, "fit", None) for t in again.internal.targets]
-    if len(fits) < 2 or any(f is None or f.shape != "plate" for f in fits):
+    if len(fits) < 2 or any(f is None for f in fits):
         return point
-    params = np.array([f.values() for f in fits])
+    params = np.array([_front(f) for f in fits])
     if apart(params):
         return again
     return added(point, again, params)
+
+
+def _front(fit) -> np.ndarray:
+    """A fitted target's returning surface as a plate row: the plate, or a closed shape's front
+    face (several closed targets: model.policy.closed_many)."""
+    if fit.shape == "plate":
+        return fit.values()
+    from .model.shapes import box
+    return box.front_of(fit.values())
 
 
 def apart(params) -> bool:

@@ -53,3 +53,15 @@ def test_without_closed_shapes_the_box_is_its_front_face(frame, monkeypatch):
     box = _nearest(_located(frame), BOX_CENTRE)
     assert box.fit.shape == "plate"
     assert np.linalg.norm(box.position - BOX_CENTRE) > 0.2
+
+
+def test_the_default_locate_reports_the_box_and_the_plate(frame):
+    """With no number of targets (the default: one, and more where the residual holds them,
+    localization.separate), the closed answer for two targets is kept: separate reads each
+    closed target's front face as its surface."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        found = nl.locate_capture(frame).points[0].location.targets
+    assert len(found) == 2
+    box = _nearest(found, BOX_CENTRE)
+    assert box.fit.shape != "plate" and np.linalg.norm(box.position - BOX_CENTRE) < 0.08
