@@ -216,3 +216,24 @@ def test_returns_that_leave_no_target_once_subtracted_are_not_subtracted():
     from nlos_cl.tracking.static import learned_background
     assert learned_background(_paper_frames(mover=False, n=24), nl.Grid()) is None
     assert learned_background(_paper_frames(mover=True, n=24), nl.Grid()) is not None
+
+
+def test_a_bright_static_return_beside_a_movers_path_is_learned_whole():
+    """A wing is sub-noise light; a bin far above the noise beside a mover's bins is a static
+    return's, learned (scenario draw 112: a box's front, 25 sigma a bin, cut where a plate's
+    path ran beside it, was left in two rows and every fit missed it, Birge 577)."""
+    from nlos_cl.tracking.static import static_background
+    rng = np.random.default_rng(3)
+    n, bins = 1500, np.arange(1500)
+    axis = nl.TimeAxis(0.0, 1e-11, n)
+    box = 20.0 * np.exp(-0.5 * ((bins - 860) / 20.0) ** 2)
+    frames = []
+    for k in range(12):  # a plate's return sweeping bins 400-790, staying there 5 frames
+        data = rng.normal(0.0, 1.0, (2, n)) + box
+        data += 6.0 * np.exp(-0.5 * ((bins - min(400 + 50 * k, 790)) / 20.0) ** 2)
+        frames.append(nl.HistogramSet(data, axis, [[-1.0, 0.0, 0.0], [-0.5, 0.0, 0.0]],
+                                      [0, 0, 0], nl.PathCalibration(nl.SPEED_OF_LIGHT, [0.0, 0.0])))
+    learned = static_background(frames).data
+    lit = box > 8.0  # (clear of STRONG_Z: below it a bin beside the mover is a wing)
+    np.testing.assert_allclose(learned[:, lit], np.broadcast_to(box[lit], (2, lit.sum())),
+                               atol=1.5)
