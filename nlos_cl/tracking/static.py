@@ -36,7 +36,7 @@ SPREAD_QUANTILE = 0.75  # a bin is static where QUANTILE..SPREAD_QUANTILE spans 
 SPREAD_Z = 1.9560  # Phi^-1(0.75) - Phi^-1(0.1) sigma, plus 8 / sqrt(frames) for the quantiles' error
 WING_WINDOWS = 1.0  # _wings: the filter windows (h) a mover's wings reach
 STRONG_Z = 5.0  # a wing bin this far above the row's level (frame sigma) is a static return
-DENSE_WINDOWS = 0.25  # _dense: the window, in filter windows, a mover's bins fill half of
+DENSE_WINDOWS = 0.25  # _dense: the window, in filter windows, where a lone bin is noise
 BUDGET_BYTES = 512 * 2 ** 20  # the frames stacked for the quantiles (float64)
 
 
@@ -121,18 +121,19 @@ def leaves_movers(frames: list, learned: HistogramSet, grid) -> bool:
 
 
 def _dense(moving: np.ndarray, dt_s: float) -> np.ndarray:
-    """The bins that fail the spread test where they fill at least half of the DENSE_WINDOWS
-    filter window around them: a mover's return spans a pulse; a lone bin past the threshold
-    is the noise's (a few a row at 1 ps bins), and its wings cut the static return around it
-    out (the paper's plate standing still, 1 ps bins: a third of one row left in every
-    frame)."""
+    """The bins that fail the spread test with another within the DENSE_WINDOWS filter window
+    around them: a mover's return spans a pulse; a lone bin past the threshold is the noise's
+    (a few a row at 1 ps bins), and its wings cut the static return around it out (the
+    paper's plate standing still, 1 ps bins: a third of one row left in every frame). Not
+    half the window: a lingering mover fails the test in sparse bins, which then kept their
+    wings (crossing draw 3 learned the crossing plates' light)."""
     from scipy.ndimage import uniform_filter1d
 
     from ..ops.gauss_filter import filter_window
     size = int(DENSE_WINDOWS * filter_window(dt_s) / dt_s)
     if size < 2:
         return moving
-    return moving & (uniform_filter1d(moving.astype(np.float32), size, axis=1) >= 0.5)
+    return moving & (uniform_filter1d(moving.astype(np.float32), size, axis=1) * size > 1.5)
 
 
 def _wings(still: np.ndarray, dt_s: float) -> np.ndarray:

@@ -237,3 +237,15 @@ def test_a_bright_static_return_beside_a_movers_path_is_learned_whole():
     lit = box > 8.0  # (clear of STRONG_Z: below it a bin beside the mover is a wing)
     np.testing.assert_allclose(learned[:, lit], np.broadcast_to(box[lit], (2, lit.sum())),
                                atol=1.5)
+
+
+def test_only_a_lone_bin_past_the_spread_test_is_the_noises():
+    """A lingering mover fails the spread test in sparse bins (crossing draw 3: one in a few);
+    dropping them as noise kept their wings, and the crossing plates' light was learned and
+    subtracted. A bin with no other failing bin within a quarter filter window is noise."""
+    from nlos_cl.tracking.static import _dense
+    moving = np.zeros((1, 2000), bool)
+    moving[0, 300:700:6] = True  # sparse: a mover's
+    moving[0, 1500] = True  # alone: the noise's
+    kept = _dense(moving, 1e-11)
+    assert kept[0, 300:700].sum() == moving[0, 300:700].sum() and not kept[0, 1500]
