@@ -15,12 +15,17 @@ def run(*args):
                           capture_output=True, text=True, timeout=600)
 
 
-@pytest.fixture(scope="module")
-def capture(tmp_path_factory):
-    path = tmp_path_factory.mktemp("map") / "c.h5"
-    out = run("simulate", "--out", str(path), "--facet", "0.02", "--snr-db", "10")
+def _simulated(tmp_path_factory, folder, *options):
+    """A capture `nlos-cl simulate *options` wrote into a fresh folder."""
+    path = tmp_path_factory.mktemp(folder) / "c.h5"
+    out = run("simulate", *options, "--out", str(path))
     assert out.returncode == 0, out.stderr
     return path
+
+
+@pytest.fixture(scope="module")
+def capture(tmp_path_factory):
+    return _simulated(tmp_path_factory, "map", "--facet", "0.02", "--snr-db", "10")
 
 
 def test_npz_map_names_its_frame_axes_and_estimator(capture, tmp_path):
@@ -60,10 +65,7 @@ def test_other_extensions_are_refused_before_any_work(capture, tmp_path):
 def two(tmp_path_factory):
     """Two squares 2.1 m apart (docs/scenes/two_squares.yaml): the default region is searched
     coarse, then zoomed around one of them."""
-    path = tmp_path_factory.mktemp("two") / "two.h5"
-    out = run("simulate", "docs/scenes/two_squares.yaml", "--out", str(path))
-    assert out.returncode == 0, out.stderr
-    return path
+    return _simulated(tmp_path_factory, "two", "docs/scenes/two_squares.yaml")
 
 
 def test_npz_map_of_a_zoomed_search_holds_the_whole_region(two, tmp_path):
