@@ -151,6 +151,12 @@ def capabilities_of(estimator) -> Capabilities:
     return getattr(estimator, "capabilities", NO_CAPABILITIES)
 
 
+# How a fit's warning that its residual still holds a return begins (model.policy.sanity's
+# leftover_note builds it; localization.separate and the tracker's births read it). Here, in the
+# answers' module, so that reading it imports no model.
+LEFTOVER = "the data hold signal the fitted target(s) do not explain"
+
+
 @dataclass(frozen=True)
 class Prior:
     """Where a frame's targets are expected, to start a fit from (a tracker's prediction):

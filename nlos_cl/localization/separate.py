@@ -28,8 +28,8 @@ from dataclasses import replace
 
 import numpy as np
 
-# how the fit's residual test's warning begins (the tracker's births read it from here)
-from .model.policy.sanity import LEFTOVER
+# how the fit's residual test's warning begins (localization.estimate)
+from .estimate import LEFTOVER
 
 BEYOND_NOTE = (f"{LEFTOVER} (the detection's test on the rows beyond the paths the found "
                "target(s) can return from): a farther target, or light the model does not "

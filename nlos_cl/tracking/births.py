@@ -22,7 +22,7 @@ misses.
 """
 from __future__ import annotations
 
-from ..localization.separate import LEFTOVER
+from ..localization.estimate import LEFTOVER
 
 BIRTH_FRAMES = 2
 COOL_FRAMES = 10

@@ -32,11 +32,8 @@ import numpy as np
 
 from ....core.errors import warn
 from ....core.tuning import ARGMAX_MARGIN_M, EXPLAINED_MIN, MAX_EXTENT_M, MISFIT_BIRGE
-from ...estimate import LocatedTarget
+from ...estimate import LEFTOVER, LocatedTarget
 from ...region import line_direction, unseen_axis
-
-# how leftover_note's warning begins, which localization.separate and the tracker's births read
-LEFTOVER = "the data hold signal the fitted target(s) do not explain"
 
 
 def doubt(target: LocatedTarget, paper_position, spots, lasers) -> str | None:
