@@ -18,7 +18,7 @@ from ..solve.lockstep import fit_together
 from ..solve.records import Chosen, ShapeFit
 from . import closed_search, depth
 from .closed_search import CLOSED_NFEV, MIN_CROSS_DEPTH_M
-from .criteria import kappa, misfit
+from .criteria import depth_gain, kappa, misfit
 from .select import FINAL_ATOL, best_of
 
 CLOSED = CLOSED_SHAPES  # the closed families tried (box, ellipsoid, cylinder), same parameters
@@ -150,16 +150,14 @@ def closed_or_plate(problem, plate_result, free, final_nfev, plate_cov, closed="
         return Chosen(problem, plate_result, free, plate_cov)
     fits, raced = closed_fits(problem, plate_result, free, final_nfev, smooth)
     shaped, result, free_shaped = min(fits, key=lambda f: f.result.cost)
-    k = kappa(problem.obs)
     shaped_cov = covariance(shaped, result, free_shaped)
-    log_n = math.log(max(result.n_residuals / k, 2.0))
-    scale = max(1.0, misfit(shaped, result, free_shaped, shaped_cov.info)[1])
-    shaped_cov.info.update(depth_profile(shaped, result, free_shaped, final_nfev, k * scale))
-    gain = (plate_result.cost - result.cost) / (k * scale)
+    gain, unit = depth_gain(problem.obs, plate_result.cost, shaped, result, free_shaped,
+                            shaped_cov.info)
+    shaped_cov.info.update(depth_profile(shaped, result, free_shaped, final_nfev, unit))
     why = {"plate_birge_ratio": birge, "closed_tried": True, "closed_raced": raced,
-           "closed_bic_gain": gain - log_n,
+           "closed_bic_gain": gain,
            "closed_costs": {name_of(f.problem.shape): f.result.cost for f in fits}}
-    if closed is True or gain > log_n:
+    if closed is True or gain > 0:
         shaped_cov.info.update(why)
         return Chosen(shaped, result, free_shaped, shaped_cov)
     plate_cov.info.update(why)

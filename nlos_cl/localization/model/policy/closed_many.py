@@ -13,8 +13,6 @@ not shadow each other in this model (the plates' search does not either: policy.
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from ..shapes import box
@@ -24,8 +22,8 @@ from ..solve.fit import fit
 from ..solve.records import Chosen
 from . import starts
 from ..solve.lockstep import fit_together
-from .closed_search import CLOSED_NFEV, SHORT_NFEV
-from .criteria import kappa, misfit, separate
+from .closed_search import CLOSED_NFEV, SHORT_NFEV, closed_free
+from .criteria import depth_gain, misfit, separate
 from .select import FINAL_ATOL
 
 # Depths (m) each target's closed starts are tried at behind its plate's face: a plate (the
@@ -53,8 +51,10 @@ def closed_instead(problem, plates: Chosen, final_nfev) -> Chosen:
     (in units of its own residual variance, as closed_or_plate's)."""
     result, free = plates.result, plates.free
     inadequate, birge = misfit(problem, result, free, plates.cov.info)
-    # only plates that lie apart: where they touch (targets crossing, or one object's faces)
-    # the misfit is their meeting's (shadows, merged returns), which closed shapes absorbed:
+    # only plates that lie apart (not the surfaces test of criteria.objects: an occluder
+    # overlaps its target as seen, and the closed shapes model no shadows): where they touch
+    # (targets crossing, one object's faces) the misfit is their meeting's, which closed
+    # shapes absorbed:
     # two 0.3 m squares crossing lost a track (tests/tracking/test_tracking_end_to_end.py)
     tried = inadequate and separate(result.params)
     plates.cov.info.update(plate_birge_ratio=birge, closed_tried=bool(tried))
@@ -65,10 +65,8 @@ def closed_instead(problem, plates: Chosen, final_nfev) -> Chosen:
     fitted = fit(closed, start.params, free_closed, CLOSED_NFEV * final_nfev, atol=FINAL_ATOL)
     fits = [(closed, fitted) if f[0] is closed else f for f in shorts]
     cov = covariance(closed, fitted, free_closed)
-    k = kappa(problem.obs)
-    scale = max(1.0, misfit(closed, fitted, free_closed, cov.info)[1])
-    log_n = math.log(max(fitted.n_residuals / k, 2.0))
-    gain = (result.cost - fitted.cost) / (k * scale) - len(result.params) * log_n
+    gain, _ = depth_gain(problem.obs, result.cost, closed, fitted, free_closed, cov.info,
+                         depths=len(result.params))
     why = {"closed_tried": True, "closed_bic_gain": gain,
            "closed_costs": {name_of(f[0].shape): f[1].cost for f in fits}}
     if gain <= 0:
@@ -115,7 +113,7 @@ def _family(problem, shape, plates, free):
     stalled at 0.79 m, cost 37x the truth's; from 0.1, 0.3 or 0.6 m it is reached.)"""
     from ..forward.host_shapes import shape_problem
     closed = shape_problem(problem, shape)
-    free_closed = np.insert(np.asarray(free, bool), box.DEPTH, True)
+    free_closed = closed_free(free)
     least = float(shape.LOWER[box.DEPTH])
     rows = np.array([box.from_plate(q, least) for q in plates.params])
     best = None

@@ -93,7 +93,7 @@ def search(problem, plate_result, free, final_nfev, atol=None) -> list[ShapeFit]
     problem counts every forward call made for it (the caller's take_calls)."""
     from ..forward.host_shapes import shape_problem
     problems = [shape_problem(problem, shape) for shape in CLOSED_SHAPES]
-    free_closed = np.insert(np.asarray(free, bool), box.DEPTH, True)
+    free_closed = closed_free(free)
     q = plate_result.params[0]
     centres = starts.start_centres(problem.obs, None, plate.Held.of(free, q))
     around, at_centres = box_rows(q), box_rows(None, centres, problem.obs.laser)
@@ -132,6 +132,11 @@ def _polished(fits, final_nfev, atol) -> list[ShapeFit]:
     if again.cost < result.cost:
         fits[k] = ShapeFit(closed, again, free_closed)
     return fits
+
+
+def closed_free(free) -> np.ndarray:
+    """A plate's free mask (6,) as the closed shapes' (7,): the depth free too."""
+    return np.insert(np.asarray(free, bool), box.DEPTH, True)
 
 
 def _short(problem, rows, free) -> list:

@@ -136,6 +136,17 @@ def misfit(problem, result, free, cov_info) -> tuple[bool, float]:
     return birge > chi2_quantile(0.999, n_eff) / n_eff, float(birge)
 
 
+def depth_gain(obs, before_cost, closed_problem, result, free, info, depths=1):
+    """(gain, unit): the BIC gain of a closed fit's `depths` more parameters (one depth a
+    target) over a fit of cost `before_cost` on the same data, -2 log L counted in `unit` =
+    kappa times its own Birge ratio where it misses the data (as `accepts`); above 0 the
+    closed shapes are kept (policy.closed, policy.closed_many)."""
+    k = kappa(obs)
+    unit = k * max(1.0, misfit(closed_problem, result, free, info)[1])
+    log_n = math.log(max(result.n_residuals / k, 2.0))
+    return (before_cost - result.cost) / unit - depths * log_n, unit
+
+
 DEAD_SHARE = 1e-4  # of the fitted signal energy: a target 2.2x farther carries ~1/600
 
 
