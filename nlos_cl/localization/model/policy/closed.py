@@ -127,7 +127,7 @@ def box_behind(problem, plate_result, plate_cov) -> bool:
 
 
 def closed_or_plate(problem, plate_result, free, final_nfev, plate_cov, closed="auto",
-                    probe_depth=True, tried=False, smooth=None):
+                    probe_depth=True, tried=False, smooth=None, sanity=False):
     """Plate or closed shape for one target. The closed shapes (CLOSED) are fitted only where
     the plate, re-seated (`reseat_plate`), still misses the data (`misfit`), a box behind it
     would do better (`box_behind`), tried (the caller's probe on more detectors said so:
@@ -135,7 +135,8 @@ def closed_or_plate(problem, plate_result, free, final_nfev, plate_cov, closed="
     where its one more parameter (depth) passes the BIC test in units of its own residual
     variance (as `accepts`). plate_cov: covariance(...) of the plate. smooth: None, or
     (photon counts) the same detectors' Gauss-filtered frame, where the closed shapes are
-    also sought (`closed_fits`). Returns the chosen model's fit and covariance (a Chosen)."""
+    also sought (`closed_fits`). sanity: the estimator's sanity check is on (`profiled`).
+    Returns the chosen model's fit and covariance (a Chosen)."""
     inadequate, birge = misfit(problem, plate_result, free, plate_cov.info)
     if inadequate and closed is not True:  # a misfit plate is re-seated first
         reseated = reseat_plate(problem, plate_result, free, final_nfev)
@@ -153,12 +154,26 @@ def closed_or_plate(problem, plate_result, free, final_nfev, plate_cov, closed="
     shaped_cov = covariance(shaped, result, free_shaped)
     gain, unit = depth_gain(problem.obs, plate_result.cost, shaped, result, free_shaped,
                             shaped_cov.info)
-    shaped_cov.info.update(depth_profile(shaped, result, free_shaped, final_nfev, unit))
     why = {"plate_birge_ratio": birge, "closed_tried": True, "closed_raced": raced,
            "closed_bic_gain": gain,
            "closed_costs": {name_of(f.problem.shape): f.result.cost for f in fits}}
-    if closed is True or gain > 0:
-        shaped_cov.info.update(why)
-        return Chosen(shaped, result, free_shaped, shaped_cov)
-    plate_cov.info.update(why)
-    return Chosen(problem, plate_result, free, plate_cov)
+    if closed is not True and gain <= 0:  # the plate stands
+        plate_cov.info.update(why)
+        return Chosen(problem, plate_result, free, plate_cov)
+    if profiled(shaped, result, free_shaped, shaped_cov, sanity):
+        shaped_cov.info.update(depth_profile(shaped, result, free_shaped, final_nfev, unit))
+    shaped_cov.info.update(why)
+    return Chosen(shaped, result, free_shaped, shaped_cov)
+
+
+def profiled(shaped, result, free_shaped, shaped_cov, sanity: bool) -> bool:
+    """Is the chosen closed fit's depth profiled? Its sd is read only by depth.unseen_note
+    (the answer's depth notice, and sanity.closed_centre_guessed's `depth_unseen`), so not
+    where the sanity check will reject the fit whatever its depth's sd: a misfit above
+    MISFIT_BIRGE that leaves more than 1 - EXPLAINED_MIN of the signal unexplained
+    (CC-SOCR's 3 points as one laser: 0.9 of a 5.7 s locate, for an ellipsoid rejected)."""
+    if not sanity:
+        return True
+    from .sanity import closed_centre_guessed, fit_checks
+    checks = fit_checks(shaped, result, free_shaped, *shaped_cov)
+    return not closed_centre_guessed(name_of(shaped.shape), dict(checks, depth_unseen=False))

@@ -25,15 +25,20 @@ from __future__ import annotations
 import numpy as np
 
 from ....core.geometry import farthest_points
-from ....core.tuning import CHOICE_DETECTORS, FINISH_NFEV, MAX_EXTENT_M, SEARCH_DETECTORS
+from ....core.tuning import (
+    CHOICE_DETECTORS,
+    FINISH_NFEV,
+    MAX_EXTENT_M,
+    SEARCH_DETECTORS,
+)
 from ..forward.likelihood import take_calls
 from ..shapes.shape import name_of
 from ..solve.covariance import covariance
 from ..solve.fit import fit, shape_of
 from ..solve.records import Chosen, SubsetChoice
 from .closed import box_behind, closed_or_plate
-from .sanity import closed_centre_guessed, fit_checks
 from .criteria import misfit
+from .sanity import closed_centre_guessed, fit_checks
 
 
 def spread_rows(obs, count=SEARCH_DETECTORS) -> np.ndarray:
@@ -53,7 +58,8 @@ def _choice(est, problem, plate_result, free, tried=False, smooth=None):
     plate_there = fit(few, plate_result.params, free, est.final_nfev)
     answer = closed_or_plate(few, plate_there, free, est.final_nfev,
                              covariance(few, plate_there, free), est.closed, tried=tried,
-                             smooth=smoothed(est, smooth, problem.backend, rows))
+                             smooth=smoothed(est, smooth, problem.backend, rows),
+                             sanity=est.sanity)
     take_calls(problem, few)
     return SubsetChoice(few, answer)
 
@@ -124,7 +130,8 @@ def plate_or_closed(est, problem, result, free, cov, choice=None, smooth=None):
     obs = problem.obs
     if len(obs.spots) <= CHOICE_DETECTORS or est.closed != "auto":  # few spots, or no choice
         return closed_or_plate(problem, result, free, est.final_nfev, cov, est.closed,
-                               smooth=smoothed(est, smooth, problem.backend))
+                               smooth=smoothed(est, smooth, problem.backend),
+                               sanity=est.sanity)
     if choice is None:
         inadequate, birge = misfit(problem, result, free, cov.info)
         if not inadequate:
