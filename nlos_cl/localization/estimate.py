@@ -166,11 +166,15 @@ class Prior:
     sd (inf: not known): the model estimator's warm fit starts a plate the others partly hide
     at that size and holds it there within size_sd, since there the data cannot tell a partly
     hidden plate from a smaller one (nlos_cl.localization.model.policy.warm.size_prior); its cold
-    fallback ignores them."""
+    fallback ignores them. misfit: None, or the Birge ratio the estimator's cold fit of these
+    targets last reached (the model's own floor on these data, e.g. a learned background's
+    residue): a warm fit that misses the data by no more than that, within the noise's 99.9 %
+    point, is kept, as the cold fit would land there too (model.policy.warm.warm_fit)."""
 
     rows: np.ndarray
     size: np.ndarray | None = None
     size_sd: np.ndarray | None = None
+    misfit: float | None = None
 
 
 class Estimator(Protocol):

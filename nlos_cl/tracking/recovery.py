@@ -47,7 +47,7 @@ class Recovery:
         pairs, free = association.associate(self.candidates, free, self.gate_probability)
         for cand, m in pairs:
             cand.state, cand.covariance = kalman.update(cand.state, cand.covariance, m)
-            cand.plate = warm.plate_of(m)
+            warm.keep(cand, m)
         hit = {id(c) for c, _ in pairs}
         self.candidates = [c for c in self.candidates
                            if not self.lifecycle.account(c, id(c) in hit, frame_index)]
@@ -97,4 +97,5 @@ def _continue(track, cand) -> None:
     """The candidate's estimate becomes the track's; its record starts a new segment."""
     track.state, track.covariance = cand.state.copy(), cand.covariance.copy()
     track.plate = cand.plate  # (the track keeps its remembered sizes: the same target)
+    track.misfit = cand.misfit
     track.pending = None  # no prediction links this frame to the last one: a restart

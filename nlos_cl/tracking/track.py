@@ -37,6 +37,8 @@ class Track:
     steps: deque = field(default_factory=deque)
     pending: tuple | None = None  # (dt, x, P) of the last prediction, until it is recorded
     plate: np.ndarray | None = None  # the last paired fit's plate row (warm starts)
+    # the Birge ratio of the last cold fit behind its measurements (Prior.misfit: warm.keep)
+    misfit: float | None = None
     # (width, height) of the recent paired plate fits that saw the plate whole, or the first
     # plate's alone until one did (size_seeded): the size prior of warm fits (warm.remember)
     sizes: deque = field(default_factory=lambda: deque(maxlen=SIZE_MEMORY))

@@ -233,7 +233,7 @@ def _bury_and_bear(tracker, paired: set, free: list, t: float) -> None:
     for m in free:
         if len(tracker.tracks) < tracker.slots:
             born = tracker.lifecycle.birth(m, t, tracker.frame_index)
-            born.plate = warm.plate_of(m)  # a counting tracker warm-starts it next frame
+            warm.keep(born, m)  # a counting tracker warm-starts it next frame
             tracker.tracks.append(born)
 
 def _next_time(previous, t_s, interval):

@@ -44,6 +44,19 @@ def plate_of(measurement):
     return fit.values()
 
 
+def keep(track, measurement) -> None:
+    """The track's warm start from its paired measurement: the fitted plate row, and the
+    misfit of the cold fit behind it where one ran this frame (a warm fit's own is not: a
+    floor that followed the accepted warm fits would climb frame by frame)."""
+    track.plate = plate_of(measurement)
+    fit = getattr(measurement.source, "fit", None)
+    if track.plate is None or fit is None or fit.birge_ratio is None:
+        return
+    warm_start = fit.warm_start
+    if warm_start is None or warm_start.reason:  # cold, or the cold fit ran and cost more
+        track.misfit = float(fit.birge_ratio)
+
+
 # A size prior's sd relative to the remembered size, beside the remembered sizes' own scatter:
 # a rigid target keeps its size; 5 % lets a plate model of a non-rigid one (a person turning)
 # follow. It acts only on a plate the others hide by more than tuning.HIDDEN_SHARE at that
@@ -60,7 +73,7 @@ def remember(track, measurement) -> None:
     seeds the memory whatever it hid (a target hidden from its first frame keeps the size it
     was found with, not the one it shrinks to frame by frame from warm starts: crossing draw
     34, 0.056 -> 0.019 m RMS); the first size seen whole replaces the seed."""
-    track.plate = plate_of(measurement)
+    keep(track, measurement)
     if track.plate is None:
         return
     hidden = measurement.source.fit.hidden_share
@@ -97,7 +110,8 @@ def prior(starters) -> Prior:
     """The start tracks' last plates, their centres moved to the predicted positions (z too
     where the track is 3D; a 2D track keeps the plate's own height), and the tracks'
     remembered sizes and their sd (`size_of`; inf: none remembered), which the estimator uses
-    for a plate the others partly hide (Prior.size)."""
+    for a plate the others partly hide (Prior.size), and the largest of their cold fits'
+    misfits (Prior.misfit; None where a track has none)."""
     rows, size, size_sd = [], [], []
     for p in starters:
         tr, x = p.track, p.x
@@ -107,7 +121,9 @@ def prior(starters) -> Prior:
         known = size_of(tr) or (row[3:5], np.full(2, np.inf))
         size.append(known[0])
         size_sd.append(known[1])
-    return Prior(np.array(rows), np.array(size), np.array(size_sd))
+    misfits = [p.track.misfit for p in starters]
+    floor = None if None in misfits else max(misfits)
+    return Prior(np.array(rows), np.array(size), np.array(size_sd), floor)
 
 
 def outside_gates(measurements, predictions, gate_probability) -> bool:

@@ -282,7 +282,7 @@ def _warm_or_cold(est, scored, obs, paper, free, held, prior, clock) -> tuple[Fi
         sizes = checked_sizes(prior, len(prior.rows))
         from .policy.warm import warm_fit
         fitted, warm_info, missed = warm_fit(est, obs, start_rows(est, prior.rows), free, held,
-                                             scored.backend, sizes)
+                                             scored.backend, sizes, prior.misfit)
         clock["warm_fit"] = time.perf_counter()
     if fitted is None:
         fitted = est._cold(scored, obs, paper, free, held, clock)
