@@ -17,7 +17,11 @@ import numpy as np
 import pytest
 
 import nlos_cl as nl
+from nlos_cl.localization.estimate import Scored
 from nlos_cl.localization.model import ModelEstimator
+from nlos_cl.localization.model.policy import criteria
+from nlos_cl.localization.model.policy.select import held_plates
+from nlos_cl.localization.model.solve.fit import fit
 from nlos_cl.physics import layouts
 
 GRID = nl.Grid.from_ranges(x=(0, 6), y=(0.01, 6), step_m=0.02)
@@ -62,6 +66,36 @@ def test_auto_finds_one_plate_where_there_is_one():
     tried = loc.targets[0].details["targets_tried"]
     # one plate explains the data to its noise, so no second is fitted (select._search)
     assert tried[1]["accepted"] is False and tried[1]["why"] == "the fit explains the data"
+
+
+def _problem(centres):
+    """'auto''s problem on the frame of squares at `centres` (pair_frame, 10 dB), and its
+    final fit's evaluations."""
+    filtered, noisy = pair_frame(0, centres)
+    scores = nl.Locator(filtered, GRID, estimator="model", log_mode=True).scores(filtered)
+    scored = Scored(filtered.backend, scores, GRID, True, filtered.n_detectors, filtered, noisy)
+    est = ModelEstimator(targets="auto")
+    return est.problem(est.observation(scored), scored.backend), est.final_nfev
+
+
+def test_auto_drops_a_plate_the_data_do_not_hold_with_the_others_fitted():
+    """select.held_plates on the two squares: a third plate fitted with them, live and apart
+    from both (a 4 cm plate taking noise, as 'auto's greedy search can end: scenario draws
+    23, 79, 127), is dropped and the squares refitted; the two squares alone are kept as
+    they are."""
+    free = np.ones(6, bool)
+    problem, nfev = _problem(PAIR)
+    near, far = ([*c, 0.3, 0.3, np.pi] for c in PAIR)
+    three = fit(problem, np.array([near, [3.0, 3.2, -0.5, 0.2, 0.2, np.pi], far]), free, nfev)
+    assert three.linear[1] > 0 and criteria.objects(three.params) == 3
+    history = []
+    kept = held_plates(problem, three, free, nfev, history)
+    assert len(kept.params) == 2 and history[-1]["dropped"] == 1
+    for truth in PAIR:  # (the problem models the near square's shadow on the far one)
+        assert np.min(np.linalg.norm(kept.params[:, :3] - truth, axis=1)) < 0.03
+    both = fit(problem, np.array([near, far]), free, nfev)
+    history = []
+    assert held_plates(problem, both, free, nfev, history) is both and not history
 
 
 def test_two_runs_give_bit_identical_positions():

@@ -57,25 +57,34 @@ def kappa(obs) -> float:
 def accepts(problem, before, after, free) -> tuple[bool, dict]:
     """Does `after` (one plate more) pass the BIC test, in units of its own residual variance?
     (Also reported: the share of the fitted signal energy the weakest plate carries.)"""
-    obs = problem.obs
-    k = kappa(obs)
-    n_eff = max(after.n_residuals / k, 2.0)
-    penalty = (int(np.count_nonzero(free)) + 1) * math.log(n_eff)
-    birge, adequate = 1.0, False
-    if obs.mode == "gauss":
-        birge = covariance(problem, after, free)[1]["birge_ratio"]
-        adequate = birge <= chi2_quantile(0.999, n_eff) / n_eff
-    gain = (before.cost - after.cost) / (k * max(1.0, birge))
+    gain, birge, adequate = bic_gain(problem, before, after, free)
     energy = plate_energies(problem, after)
     share = float(energy.min() / max(energy.sum(), TINY))
     # a plate more that adds an object: apart from every plate, or beside two plates that
     # touch (a closed target's faces); all pairs apart alone refused a far box's plate
     # beside a person's two (scenario draw 89)
     apart = objects(after.params) > objects(before.params)
-    ok = gain > penalty and share >= MIN_ANY_SHARE and (adequate or share >= MIN_SHARE or apart)
-    return ok, {"bic_gain": gain - penalty, "share": share, "birge_after": birge,
+    ok = gain > 0 and share >= MIN_ANY_SHARE and (adequate or share >= MIN_SHARE or apart)
+    return ok, {"bic_gain": gain, "share": share, "birge_after": birge,
                 "explains_data": bool(adequate), "apart": apart,
                 "cost_drop": float((before.cost - after.cost) / max(before.cost, TINY))}
+
+
+def bic_gain(problem, before, after, free, birge=None) -> tuple[float, float, bool]:
+    """(the drop of -2 log L from `before` to `after`, one plate more, in units of kappa times
+    the larger fit's Birge ratio, less the plate's penalty; that Birge ratio; whether the larger
+    fit explains the data). birge: the larger fit's, where known (saves its covariance)."""
+    obs = problem.obs
+    k = kappa(obs)
+    n_eff = max(after.n_residuals / k, 2.0)
+    penalty = (int(np.count_nonzero(free)) + 1) * math.log(n_eff)
+    adequate = False
+    if obs.mode == "gauss":
+        if birge is None:
+            birge = covariance(problem, after, free)[1]["birge_ratio"]
+        adequate = birge <= chi2_quantile(0.999, n_eff) / n_eff
+    birge = 1.0 if obs.mode != "gauss" else birge
+    return (before.cost - after.cost) / (k * max(1.0, birge)) - penalty, birge, adequate
 
 
 def objects(params) -> int:
