@@ -43,6 +43,10 @@ LATE_PENALTY = 1.0
 # (IRF-tail draw 1, 3 collinear spots: 0.06 -> 0.32 m).
 MAX_RATIO = {"exp": 1.0, "lobe": 0.5}
 REFIT_NFEV_SCALE = 2  # the refits' evaluations, in the estimator's final_nfev
+START_SHARE = 0.5  # counts: the copies' share of the light where their solve starts
+# a copy is in use where its amplitude is above ACTIVE of its target's (the solves give exact
+# zeros; a margin for rounding)
+ACTIVE = 1e-9
 
 
 def _density(spec, s) -> np.ndarray:
@@ -131,6 +135,28 @@ def uncapped(x, k: int, bank=BANK) -> np.ndarray:
     return np.concatenate([s + (b / _ratios(bank)).sum(axis=1), x[k:]])
 
 
+def poisson_linear(obs, cols, extra, warm, start, bank=BANK) -> np.ndarray:
+    """Counts' linear factors [a, background (D,), b.ravel()] with the copies: the budget's
+    columns (`capped`) with the targets' in the Poisson solve (forward.late_counts); from
+    `start` (forward.likelihood's [amplitudes, backgrounds]) each copy begins at START_SHARE
+    of the amplitude, spread over the bank inside its budget."""
+    from . import late_counts
+    k = len(cols)
+    both = np.concatenate([cols, capped(cols, extra, bank)])
+    if warm is None:
+        phi = start(cols)
+        b = np.outer(phi[:k], START_SHARE * _ratios(bank) / len(bank)).ravel()
+        phi = np.concatenate([phi[:k] * (1.0 - START_SHARE), b, phi[k:]])
+    else:  # [a, background, b] -> [s, b, background] (`uncapped` undone)
+        warm = np.asarray(warm, float)
+        b = warm[len(warm) - extra.shape[0] * extra.shape[1]:]
+        s = warm[:k] - (b.reshape(k, -1) / _ratios(bank)).sum(axis=1)
+        phi = np.concatenate([np.maximum(s, 0.0), b, warm[k:len(warm) - b.size]])
+    phi = late_counts.solve(obs.y, obs.valid.astype(np.float64), both, phi)
+    amp = uncapped(phi[:len(both)], k, bank)
+    return np.concatenate([amp[:k], phi[len(both):], amp[k:]])
+
+
 def _ratios(bank) -> np.ndarray:
     return np.array([MAX_RATIO[spec[0]] for spec in bank])
 
@@ -163,11 +189,17 @@ def nnls(a_mat, b, iters: int = 100) -> np.ndarray:
     return x / scale
 
 
+def in_use(amp, late_amp) -> np.ndarray:
+    """(K, J) bool: the copies in use (amplitude above ACTIVE of their target's)."""
+    amp = np.asarray(amp, float).reshape(-1)
+    return np.asarray(late_amp, float).reshape(len(amp), -1) > ACTIVE * amp[:, None]
+
+
 def summary(amp, late_amp, bank=BANK) -> dict:
     """The fitted copies for the diagnostics: their share of the fitted light (the kernels have
     unit mass), the mean delay of the lobes' and the mean decay of the tails' part."""
     a = float(np.sum(amp))
-    b = np.reshape(np.asarray(late_amp, float), (-1, len(bank))).sum(axis=0)
+    b = np.where(in_use(amp, late_amp), np.reshape(late_amp, (-1, len(bank))), 0.0).sum(axis=0)
     out = {"late_share": float(b.sum() / max(a + b.sum(), TINY)),
            "late_terms": int(np.count_nonzero(b > 0))}
     for kind, key, i in (("exp", "late_tail_decay_m", 1), ("lobe", "late_lobe_delay_m", 1)):
@@ -180,12 +212,21 @@ def summary(amp, late_amp, bank=BANK) -> dict:
     return out
 
 
-def misses(problem, result, cov_info) -> tuple[bool, float]:
+def birge(problem, result, free, info) -> float:
+    """The fit's Birge ratio (covariance's; counts: the deviance per degree of freedom), as
+    policy.criteria.misfit reads it."""
+    b = info.get("birge_ratio")
+    if b is None:
+        b = result.cost / max(result.n_residuals - int(np.count_nonzero(free)) - 1, 1)
+    return float(b)
+
+
+def misses(problem, result, cov_info, free=()) -> tuple[bool, float]:
     """(the fit misses the data, its Birge ratio): above the 99.9 % point of chi^2_nu / nu,
     nu = N / kappa (policy.criteria.misfit's test, which this room cannot import)."""
     n_eff = max(result.n_residuals / kappa(problem.obs), 2.0)
-    birge = float(cov_info.get("birge_ratio") or 0.0)
-    return birge > chi2_quantile(0.999, n_eff) / n_eff, birge
+    b = birge(problem, result, free, cov_info)
+    return b > chi2_quantile(0.999, n_eff) / n_eff, b
 
 
 def _score(problem, result, free, n_late, scale) -> float:
@@ -200,27 +241,27 @@ def kappa(obs) -> float:
 
 
 def active(problem, result) -> int:
-    """The copies the fit uses (amplitude > 0)."""
+    """The copies the fit uses (`in_use`)."""
     if getattr(problem.obs, "late", None) is None:
         return 0
-    return int(np.count_nonzero(problem.split(result.linear, len(result.params))[2] > 0))
+    amp, _, b = problem.split(result.linear, len(result.params))
+    return int(np.count_nonzero(in_use(amp, b)))
 
 
 def with_late(est, chosen, plate, plates, solvers, smooth=None):
-    """`chosen` (a one-target Gaussian fit: problem, result, free, cov) or, where it misses
-    the data and the fit with the late copies scores lower (module docstring), that fit: the
-    plate `plate` = (params, free) refitted with the copies, then the estimator's plate-or-
-    closed choice run on it (the closed shapes inherit the copies from the observation);
-    cov.info says what was tried. plates: the frame's plates problem (it counts the refits'
+    """`chosen` (a one-target fit: problem, result, free, cov) or, where it misses the data
+    and a fit with the late copies scores lower (module docstring), that fit: the plate
+    `plate` = (params, free) refitted with the copies, then the estimator's plate-or-closed
+    choice run on it (the closed shapes inherit the copies from the observation); cov.info
+    says what was tried. plates: the frame's plates problem (it counts the refits'
     forward calls). solvers: (solve.fit.fit, solve.covariance.covariance,
     policy.subset.plate_or_closed), passed in: this room imports no solver; smooth: the
     latter's."""
     fit, covariance, cascade = solvers
-    problem, result, _, cov = chosen
-    if problem.obs.mode != "gauss" or len(result.params) != 1 or \
-            getattr(problem.obs, "late", None) is not None:
+    problem, result, free, cov = chosen
+    if len(result.params) != 1 or getattr(problem.obs, "late", None) is not None:
         return chosen
-    missed, birge = misses(problem, result, cov.info)
+    missed, before = misses(problem, result, cov.info, free)
     if not missed:
         return chosen
     p = est.problem(replace(plates.obs, late=BANK), plates.backend)
@@ -229,15 +270,15 @@ def with_late(est, chosen, plate, plates, solvers, smooth=None):
     other = cascade(est, p, r, plate_free, covariance(p, r, plate_free), None, smooth)
     for used in {id(p): p, id(other.problem): other.problem}.values():
         plates.calls, plates.model_s = plates.calls + used.calls, plates.model_s + used.model_s
-    fits = [(chosen, birge, 0), (other, float(other.cov.info.get("birge_ratio", 1.0)),
-                                 active(other.problem, other.result))]
+    fits = [(chosen, before, 0), (other, birge(other.problem, other.result, other.free,
+                                               other.cov.info), active(other.problem, other.result))]
     scale = kappa(p.obs) * max(1.0, min(b for _, b, _ in fits))
     scores = [_score(c.problem, c.result, c.free, n, scale) for c, _, n in fits]
     kept = fits[int(np.argmin(scores))][0]
     info = {"late_tried": True, "late_kept": kept is other,
-            "late_score_gain": float(scores[0] - scores[1]), "late_birge_before": birge}
+            "late_score_gain": float(scores[0] - scores[1]), "late_birge_before": before}
     if kept is other:
-        amp, _, late_amp = other.problem.split(other.result.linear, 1)
+        amp, _, late_amp = kept.problem.split(kept.result.linear, 1)
         info.update(summary(amp, late_amp))
     kept.cov.info.update(info)
     return kept

@@ -4,8 +4,9 @@ closed form, and the residuals whose sum of squares is -2 log-likelihood (up to 
 Gaussian (AWGN): mu = sum_k a_k m_k + a slow background per detector (model.forward.nuisance:
 a constant and a ramp), and where the observation has them (obs.late) each column's late
 copies sum_j b_kj G_j m_k (model.forward.late: an IRF tail, delayed broad light); (a, b >= 0,
-background) by weighted least squares (noise std per detector); residual (y - mu) / noise. Poisson (photon counts): lambda = sum_k a_k m_k + b_d (b_d: dark and
-ambient counts per bin, per detector); (a, b) >= 0 maximise the Poisson likelihood (Newton);
+background) by weighted least squares (noise std per detector); residual (y - mu) / noise.
+Poisson (photon counts): lambda = sum_k a_k m_k + b_d (b_d: dark and ambient counts per bin,
+per detector) + the late copies as above; all >= 0 maximise the Poisson likelihood (Newton);
 residual = signed deviance residual, so the sum of squares is the deviance.
 """
 from __future__ import annotations
@@ -64,8 +65,7 @@ def nonnegative_lstsq(gram, rhs, free=None) -> np.ndarray:
 def take_calls(problem, other) -> None:
     """Count `other`'s forward calls and their time as `problem`'s (the estimator's timings
     report one problem's): added there, taken off `other`."""
-    problem.calls += other.calls
-    problem.model_s += other.model_s
+    problem.calls, problem.model_s = problem.calls + other.calls, problem.model_s + other.model_s
     other.calls, other.model_s = 0, 0.0
 
 
@@ -216,6 +216,10 @@ class Problem:
         Hessian are built by blocks (a-a, a-b, diagonal b-b) rather than one einsum over
         (K + D)^2 x D x n: the same numbers, and a 64-detector frame's call 12 ms -> ~0.3 ms
         (a 256-spot SPAD patch's fit spent 70 of its 84 s in that einsum)."""
+        extra = late.copies_of(self, cols)
+        if extra is not None:  # late copies (forward.late): solved with the amplitudes
+            return late.poisson_linear(self.obs, cols, extra, warm, self._poisson_start,
+                                       self.obs.late)
         phi = self._poisson_start(cols) if warm is None else np.array(warm, float)
         return _poisson_newton(self.obs.y, self.obs.valid.astype(np.float64), cols, phi, iters)
 
@@ -230,13 +234,14 @@ class Problem:
     # ------------------------------------------------------------------ residuals
     def mean(self, cols, lin) -> np.ndarray:
         k = len(cols)
-        if self.obs.mode == "poisson":
-            return np.tensordot(lin[:k], cols, 1) + lin[k:, None] * self.obs.valid
-        mu = lin[0] * cols[0] if k == 1 else np.tensordot(lin[:k], cols, 1)
         _, coef, b = self.split(lin, k)
-        bg = self.background()
-        if bg is not None and coef.size:
-            mu = mu + bg.fitted(np.reshape(coef, (bg.p, -1)))
+        if self.obs.mode == "poisson":
+            mu = np.tensordot(lin[:k], cols, 1) + coef[:, None] * self.obs.valid
+        else:
+            mu = lin[0] * cols[0] if k == 1 else np.tensordot(lin[:k], cols, 1)
+            bg = self.background()
+            if bg is not None and coef.size:
+                mu = mu + bg.fitted(np.reshape(coef, (bg.p, -1)))
         if b.size and np.any(b > 0):
             mu = mu + np.einsum("kj,kjdn->dn", b, self.copies(cols))
         return mu

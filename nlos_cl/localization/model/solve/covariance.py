@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from ....core.constants import TINY
-from ..forward import nuisance
+from ..forward import late, nuisance
 from ..shapes import plate
 from .fit import (
     FitResult,
@@ -59,12 +59,12 @@ def _mean_jacobian(problem, params, lin, free):
 
 
 def _late_columns(problem, cols, lin) -> list:
-    """The late copies (forward.late) a Gaussian fit uses (amplitude > 0): nuisance columns."""
+    """The late copies (forward.late) a fit uses (`late.in_use`): nuisance columns."""
     copies = getattr(problem, "copies", lambda c: None)(cols)
-    if copies is None or problem.obs.mode != "gauss":
+    if copies is None:
         return []
-    b = problem.split(lin, len(cols))[2]
-    return [copies[k, j] for k, j in zip(*np.nonzero(b > 0))]
+    amp, _, b = problem.split(lin, len(cols))
+    return [copies[k, j] for k, j in zip(*np.nonzero(late.in_use(amp, b)))]
 
 
 def _shadowed_blocks(problem, params, lin, which, steps):

@@ -130,9 +130,9 @@ class _Objective:
         return self._stepped is not None and self._stepped[0] == np.asarray(theta).tobytes()
 
     def _warm(self, cols):
-        lin = self._lin
-        return lin if lin is not None and len(lin) == len(cols) + self.problem.obs.y.shape[0] \
-            else None
+        lin, obs = self._lin, self.problem.obs
+        n = len(cols) * (1 + len(getattr(obs, "late", None) or ()))  # amplitudes, late copies
+        return lin if lin is not None and len(lin) == n + obs.y.shape[0] else None
 
     def residual(self, theta):
         cols, lin = self._eval(theta)
