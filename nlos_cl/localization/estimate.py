@@ -169,12 +169,22 @@ class Prior:
     fallback ignores them. misfit: None, or the Birge ratio the estimator's cold fit of these
     targets last reached (the model's own floor on these data, e.g. a learned background's
     residue): a warm fit that misses the data by no more than that, within the noise's 99.9 %
-    point, is kept, as the cold fit would land there too (model.policy.warm.warm_fit)."""
+    point, is kept, as the cold fit would land there too (model.policy.warm.warm_fit). shape:
+    None (plates), or a closed family's name ('box', 'ellipsoid', 'cylinder': rows of its 7
+    parameters, x, y, z, width, height, depth, yaw), warm-fitted in that family (a tracked
+    person's cylinder; plates among them at the family's least depth). measured: None, or the
+    rows as last fitted, before a motion model moved them (tried where `rows` miss: a velocity
+    learnt from a poor measurement or a turn sends a prediction out of the basin). late: the
+    cold fit explained the data with late copies of the light (model.forward.late: an IRF
+    tail, a person's broad body return), so the warm fit carries them too."""
 
     rows: np.ndarray
     size: np.ndarray | None = None
     size_sd: np.ndarray | None = None
     misfit: float | None = None
+    shape: str | None = None
+    measured: np.ndarray | None = None
+    late: bool = False
 
 
 class Estimator(Protocol):

@@ -40,6 +40,7 @@ class WarmStart:
     forward_calls: int
     moved_m: float
     reason: str = ""
+    start: str = "prior"  # where it started: the prior's rows, or "last fit" (Prior.measured)
 
 
 @dataclass(frozen=True)

@@ -36,9 +36,11 @@ class Track:
     history: deque = field(default_factory=deque)
     steps: deque = field(default_factory=deque)
     pending: tuple | None = None  # (dt, x, P) of the last prediction, until it is recorded
-    plate: np.ndarray | None = None  # the last paired fit's plate row (warm starts)
+    plate: np.ndarray | None = None  # the last paired fit's row (warm starts)
+    model: str = "plate"  # its shape: "plate", or a closed family (tracking.warm.prior)
     # the Birge ratio of the last cold fit behind its measurements (Prior.misfit: warm.keep)
     misfit: float | None = None
+    late: bool = False  # that cold fit kept late copies of the light (Prior.late)
     # (width, height) of the recent paired plate fits that saw the plate whole, or the first
     # plate's alone until one did (size_seeded): the size prior of warm fits (warm.remember)
     sizes: deque = field(default_factory=lambda: deque(maxlen=SIZE_MEMORY))

@@ -36,25 +36,30 @@ def can_start(estimator, fixed: bool = False) -> bool:
 
 
 def plate_of(measurement):
-    """The fitted plate row (6,) behind a measurement, or None (another model, a merged pair,
-    an estimator without a typed fit)."""
+    """The fitted row behind a measurement (a plate's 6 parameters, or a closed shape's 7), or
+    None (another model, a merged pair, an estimator without a typed fit)."""
     fit = getattr(measurement.source, "fit", None)
-    if measurement.merged or fit is None or fit.shape != "plate":
+    if measurement.merged or fit is None:
+        return None
+    from ..localization.model.shapes.shape import SHAPES  # (the paper tracker never gets here)
+    if fit.shape not in SHAPES:
         return None
     return fit.values()
 
 
 def keep(track, measurement) -> None:
-    """The track's warm start from its paired measurement: the fitted plate row, and the
-    misfit of the cold fit behind it where one ran this frame (a warm fit's own is not: a
+    """The track's warm start from its paired measurement: the fitted row and its shape, and
+    the misfit of the cold fit behind it where one ran this frame (a warm fit's own is not: a
     floor that followed the accepted warm fits would climb frame by frame)."""
     track.plate = plate_of(measurement)
     fit = getattr(measurement.source, "fit", None)
-    if track.plate is None or fit is None or fit.birge_ratio is None:
+    track.model = fit.shape if track.plate is not None else "plate"
+    if track.plate is None or fit.birge_ratio is None:
         return
     warm_start = fit.warm_start
     if warm_start is None or warm_start.reason:  # cold, or the cold fit ran and cost more
         track.misfit = float(fit.birge_ratio)
+        track.late = bool(fit.diagnostics.get("late_kept"))
 
 
 # A size prior's sd relative to the remembered size, beside the remembered sizes' own scatter:
@@ -111,11 +116,16 @@ def prior(starters) -> Prior:
     where the track is 3D; a 2D track keeps the plate's own height), and the tracks'
     remembered sizes and their sd (`size_of`; inf: none remembered), which the estimator uses
     for a plate the others partly hide (Prior.size), and the largest of their cold fits'
-    misfits (Prior.misfit; None where a track has none)."""
-    rows, size, size_sd = [], [], []
+    misfits (Prior.misfit; None where a track has none). Where a track's target was fitted
+    as a closed shape (a person's cylinder), every row is warm-started in that family
+    (`in_family`): a plate warm start misses a closed object's data. Prior.measured: the rows
+    as last fitted, where the prediction misses."""
+    family = next((p.track.model for p in starters if p.track.model != "plate"), None)
+    rows, measured, size, size_sd = [], [], [], []
     for p in starters:
         tr, x = p.track, p.x
-        row = tr.plate.copy()
+        row = in_family(tr.plate, tr.model, family)
+        measured.append(row.copy())
         row[:tr.dims] = x[:tr.dims]
         rows.append(row)
         known = size_of(tr) or (row[3:5], np.full(2, np.inf))
@@ -123,7 +133,19 @@ def prior(starters) -> Prior:
         size_sd.append(known[1])
     misfits = [p.track.misfit for p in starters]
     floor = None if None in misfits else max(misfits)
-    return Prior(np.array(rows), np.array(size), np.array(size_sd), floor)
+    return Prior(np.array(rows), np.array(size), np.array(size_sd), floor, family,
+                 np.array(measured), any(p.track.late for p in starters))
+
+
+def in_family(row, model, family) -> np.ndarray:
+    """A copy of a track's row (of `model`) as a row of `family` (None: plates): a plate
+    among closed targets at the family's least depth; closed families share parameters."""
+    row = np.array(row, float)
+    if family is None or model != "plate":
+        return row
+    from ..localization.model.shapes import box
+    from ..localization.model.shapes.shape import SHAPES
+    return box.from_plate(row, float(SHAPES[family].LOWER[box.DEPTH]))
 
 
 def outside_gates(measurements, predictions, gate_probability) -> bool:

@@ -127,7 +127,9 @@ def test_bad_options():
 def _hidden(p, sd_m, hidden_sd_m):
     """A model fit's target: covariance sd_m, and a hidden part worth hidden_sd_m."""
     from types import SimpleNamespace
-    fit = SimpleNamespace(hidden_sd_m=hidden_sd_m, birge_ratio=1.0, shape="box")
+    fit = SimpleNamespace(hidden_sd_m=hidden_sd_m, birge_ratio=1.0, shape="box",
+                          values=lambda: np.array([*p, 0.5, 0.5, 0.5, 0.0]), warm_start=None,
+                          diagnostics={}, hidden_share=None)
     return LocatedTarget(np.asarray(p, float), np.diag([sd_m ** 2] * 3), details={"fit": 1},
                          fit=fit)
 

@@ -233,14 +233,29 @@ def test_tracker_warm_starts_confirmed_tracks(runtime):
     assert cold == [None] * 3
 
 
-def test_tracker_falls_back_when_the_prediction_is_far_off(runtime):
+def _push(also_the_fit):
     def push(tracker):  # a track whose state is 0.6 m off: its start lands in another basin
         for tr in tracker.tracks:
             if tr.status == "confirmed":
                 tr.state[:2] += (0.4, 0.45)
                 tr.covariance[:2, :2] = 1e-4 * np.eye(2)
-    _, used = _track(runtime, 4, meddle=push)
+                if also_the_fit:
+                    tr.plate[:2] += (0.4, 0.45)
+    return push
+
+
+def test_tracker_falls_back_when_the_prediction_is_far_off(runtime):
+    _, used = _track(runtime, 4, meddle=_push(also_the_fit=True))
     assert used[2:] == [False, False]  # tried, refused by the misfit test, fitted cold
+
+
+def test_a_prediction_that_misses_is_retried_from_the_last_fit(runtime):
+    """Prior.measured: a velocity learnt from a poor measurement sends the prediction out of
+    the basin while the last fit lies within a frame's motion: tried from there before the
+    cold fit."""
+    tracker, used = _track(runtime, 3, meddle=_push(also_the_fit=False))
+    assert used[2] is True  # (later frames: the pushed track's gate sends them cold)
+    assert tracker.last_measurements[0].source.fit.warm_start.start == "last fit"
 
 
 def test_gate_fallback_sees_a_warm_fit_outside_every_gate():

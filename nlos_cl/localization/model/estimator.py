@@ -12,7 +12,7 @@ import numpy as np
 from ...core.blas_threads import serial_blas
 from ...core.constants import FWHM_PER_SIGMA
 from ...ops.gauss_filter import filter_window
-from ...core.errors import refuse_moved, require, warn
+from ...core.errors import refuse_moved, warn
 from ...core.limits import require_targets
 from ...core.tuning import SEARCH_DETECTORS
 from ..estimate import Capabilities, Estimate, LocatedTarget, Prior
@@ -26,7 +26,7 @@ from .policy.depth import unseen_note
 from .policy.filtered_search import searched, smooth_observation
 from .policy.criteria import support
 from .policy.sanity import checked, fit_checks, leftover_note, unfittable_line
-from .policy.warm import checked_sizes, hidden_diagnostics
+from .policy.warm import hidden_diagnostics
 from .shapes import plate
 from .shapes.lattices import lattice_for
 from .shapes.shape import MODELS, name_of
@@ -241,22 +241,6 @@ class ModelEstimator:
                              shape.extent(p), fit=fit)
 
 
-def start_rows(est, start) -> np.ndarray:
-    """A warm start's plate rows (K, 6), checked against the estimator's settings."""
-    rows = np.array(start, dtype=np.float64)
-    rows = rows.reshape(1, -1) if rows.ndim == 1 else rows
-    require(rows.ndim == 2 and rows.shape[1] == plate.N_PARAMS and bool(np.all(
-            np.isfinite(rows))), "start", f"must be finite plate rows (K, "
-            f"{plate.N_PARAMS}): x, y, z, width, height, yaw; got shape {rows.shape}",
-            "pass the previous fit's details['params'] values, one row per target")
-    require(est.targets == len(rows), "start", f"has {len(rows)} rows for targets="
-            f"{est.targets!r}", "pass one row per target (warm starts need an integer "
-            "number of targets)")
-    require(est.closed is not True, "start", "warm starts fit plates; closed=True always "
-            "fits the closed shapes", "use closed='auto' or False, or start=None")
-    return rows
-
-
 def _model_fit(shape, p, result, cov_all, k, info, notes, obs, history, observable, timings):
     """Target k of a fit as a typed ModelFit (its JSON view is the old details dict)."""
     n = shape.N_PARAMS
@@ -279,10 +263,8 @@ def _warm_or_cold(est, scored, obs, paper, free, held, prior, clock) -> tuple[Fi
     data, same K; data costs alone: the warm fit's size prior is not counted)."""
     fitted, warm_info, missed = None, None, None
     if prior is not None:
-        sizes = checked_sizes(prior, len(prior.rows))
-        from .policy.warm import warm_fit
-        fitted, warm_info, missed = warm_fit(est, obs, start_rows(est, prior.rows), free, held,
-                                             scored.backend, sizes, prior.misfit)
+        from .policy.warm import warm_or_retry
+        fitted, warm_info, missed = warm_or_retry(est, obs, prior, free, held, scored.backend)
         clock["warm_fit"] = time.perf_counter()
     if fitted is None:
         fitted = est._cold(scored, obs, paper, free, held, clock)
