@@ -84,27 +84,3 @@ def test_a_far_plate_beside_one_object_s_touching_plates_is_added():
     got = more_if_separate(first, lambda k: plates)
     assert [list(t.position) for t in got.internal.targets] == [[3.1, 2.1, 0], [0, 4.5, 0]]
     assert got.warnings == first.warnings
-
-
-def test_the_reaching_window_grows_at_its_far_end_only():
-    """'auto' refitted to reach a return found beyond the one-target window (separate.reaching)
-    sees the window 'auto' sees, its far end reach_m farther and its near end where it was
-    (data.gaussian_observation's reach_m): a farther return is later. Before, the margin grew
-    at both ends, so the window started reach_m earlier too and held twice the added samples."""
-    from nlos_cl.localization.estimate import Scored
-    from nlos_cl.localization.model import ModelEstimator
-    from nlos_cl.localization.separate import reaching
-    from nlos_cl.physics import layouts
-    setup = nl.paper_setup(detector_spots=layouts.circle((-1.0, 0.0, 0.0), 0.5, 8))
-    scene = nl.Scene(setup, nl.Target(nl.rectangle(0.3, 0.3, centre=(3.0, 2.0, 0.0))), 0.02)
-    raw = nl.add_noise(nl.simulate(scene, nl.default_time_axis(setup, 10e-12)), 10.0, seed=1)
-    filtered = nl.gauss_filter(raw)
-    grid = nl.Grid.from_ranges(x=(0, 6), y=(0.01, 6), step_m=0.05)
-    scores = nl.Locator(filtered, grid, estimator="model", log_mode=True).scores(filtered)
-    scored = Scored(filtered.backend, scores, grid, True, filtered.n_detectors, filtered, raw)
-    plain = ModelEstimator(targets="auto").observation(scored)
-    wide = reaching("auto", 1.5).observation(scored)
-    step = float(plain.dpath.max())
-    np.testing.assert_allclose(wide.path0, plain.path0, atol=step)
-    ends = [o.path0 + o.dpath * (o.n - 1) for o in (plain, wide)]
-    assert np.all(ends[1] - ends[0] > 1.5 - step)

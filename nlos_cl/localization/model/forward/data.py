@@ -212,14 +212,11 @@ def _starts(windows, n_samples, stride, n_bins):
 
 
 def gaussian_observation(layout, filtered, raw, *, h_s=PAPER_H_S, pulse_sigma_s=PAPER_PULSE_SIGMA_S,
-                         margin_m=0.35, frac=ONE_TARGET_FRAC, raw_scale=1.0,
-                         reach_m=0.0) -> Observation:
+                         margin_m=0.35, frac=ONE_TARGET_FRAC, raw_scale=1.0) -> Observation:
     """Filtered samples around the signal. `filtered`: (D, N) host rows after the Gauss filter
     of window `h_s`; `raw`: the same frame unfiltered (or None: the filtered rows are used),
     one unit of it `raw_scale` units of the filtered rows (each Signals' scale_w: the floors
-    measured on the filtered rows come off samples filtered from raw). reach_m: path added
-    past each row's far end only (a farther, fainter return the window must hold:
-    localization.separate)."""
+    measured on the filtered rows come off samples filtered from raw)."""
     axis, paths = layout.time_axis, layout.path_axis()
     a = layout.calibration.a_m_per_s
     # From raw data we filter ourselves, with the Gaussian out to 5 sigma (the model's shape
@@ -232,7 +229,6 @@ def gaussian_observation(layout, filtered, raw, *, h_s=PAPER_H_S, pulse_sigma_s=
     f_noise = _mad_std(_every(filtered[:, ::8]))
     margin = int(math.ceil((margin_m + 3 * sigma_f) / (a * axis.dt_s)))
     wins = signal_windows(filtered, f_noise, margin, frac)
-    wins[:, 1] += math.ceil(reach_m / (a * axis.dt_s))
     n = int(math.ceil((wins[:, 1] - wins[:, 0]).max() / stride)) + 1
     k0 = _starts(wins, n, stride, axis.n_bins)
     idx = k0[:, None] + stride * np.arange(n)[None, :]
