@@ -2,7 +2,6 @@
 (localization.region.signal_reach): the target stays inside, an empty capture keeps the whole
 window, and the answer is the same as on the whole window."""
 import numpy as np
-import pytest
 
 import nlos_cl as nl
 from nlos_cl.localization.region import default_region, signal_reach, visible_box

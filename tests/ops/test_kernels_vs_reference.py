@@ -16,7 +16,7 @@ import pytest
 import nlos_cl as nl
 from nlos_cl.ops import add_awgn, gauss_filter, row_stats
 from nlos_cl.ops.gauss_filter import gauss_taps
-from conftest import facing_rectangle, window_around
+from conftest import window_around
 
 
 def rel_err(a, b):

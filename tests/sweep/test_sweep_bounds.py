@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from nlos_cl.core.errors import InputError
 from nlos_cl.io import yamlfile
 from nlos_cl.sweep import load_study
-from nlos_cl.sweep.bounds import MAX_SHOWN, MAX_STUDY_BYTES, shown
+from nlos_cl.sweep.bounds import MAX_SHOWN, shown
 from nlos_cl.sweep.study import check_scenes
 
 # a line of a file the user did not name: a secret's shape (key: value, colon-separated fields,

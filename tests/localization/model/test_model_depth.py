@@ -173,7 +173,6 @@ def test_a_plate_kept_after_the_closed_fits_says_the_depth_was_not_found():
     a box behind it cheaper, or the plate missed the data) and none fitted better: the answer
     says its depth was not found (a box's centre lies behind the found surface). Seen depth,
     closed not tried: quiet; an unseen depth keeps its own notice."""
-    from nlos_cl.localization.model.shapes import plate
     from nlos_cl.localization.model.policy.depth import NOT_FOUND_WARNING, unseen_note
     prefix = NOT_FOUND_WARNING.split("{")[0]
     probe = unseen_note(plate, None, None, {"depth_sd_m": 0.01, "box_probe_better": True,

@@ -7,7 +7,6 @@ timings."""
 import warnings
 
 import numpy as np
-import pytest
 
 import nlos_cl as nl
 from nlos_cl.core.stats import chi2_quantile

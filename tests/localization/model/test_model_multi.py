@@ -14,7 +14,6 @@ import numpy as np
 import pytest
 
 import nlos_cl as nl
-from nlos_cl.localization.model import ModelEstimator
 from nlos_cl.localization.model.forward.data import TARGETS_FRAC, signal_windows
 from nlos_cl.localization.model.forward.likelihood import nonnegative_lstsq
 from nlos_cl.localization.model.policy.criteria import separate

@@ -5,7 +5,6 @@ No timings."""
 import numpy as np
 import pytest
 
-import nlos_cl as nl
 from nlos_cl.localization.model.forward import batch
 from nlos_cl.localization.model.solve import lm
 from nlos_cl.localization.model.shapes import plate
