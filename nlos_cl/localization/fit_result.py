@@ -40,7 +40,9 @@ class WarmStart:
     forward_calls: int
     moved_m: float
     reason: str = ""
-    start: str = "prior"  # where it started: the prior's rows, or "last fit" (Prior.measured)
+    # where it started: "prior" (its rows), "prior, late copies" (Prior.late), "last fit"
+    # (Prior.measured; with the late copies where the prior has them)
+    start: str = "prior"
 
 
 @dataclass(frozen=True)

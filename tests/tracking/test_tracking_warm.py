@@ -166,6 +166,44 @@ def test_a_warm_fit_within_the_cold_fits_misfit_is_kept(misfit_frame):
     np.testing.assert_array_equal(far.position, cold.position)
 
 
+def test_the_warm_starts_are_tried_in_turn(monkeypatch):
+    """policy.warm.warm_or_retry: the prior's rows, then with the late copies (Prior.late),
+    then the last fit (Prior.measured, late copies kept), stopping at the first that explains
+    the data; all missing, the cheapest miss is the cold fit's rival; every fit's calls
+    counted."""
+    from dataclasses import dataclass
+    from types import SimpleNamespace as NS
+
+    from nlos_cl.localization.model.policy import warm as policy
+
+    @dataclass
+    class Obs:
+        late: object = None
+    row = np.array([4.0, 2.0, 0.0, 0.3, 1.6, np.pi])
+    tried, outcome = [], {}
+
+    def fake(est, obs, rows, *args):
+        tried.append((float(rows[0, 0]), obs.late is not None))
+        cost = outcome.get(len(tried), 10.0 + len(tried))
+        fitted = Fitted(NS(calls=5, model_s=0.1), Chosen(None, NS(cost=cost), None, None), [])
+        info = {"used": cost < 1, "birge_ratio": 9.0, "nfev": 5, "forward_calls": 5,
+                "moved_m": 0.0}
+        return (fitted, info, None) if cost < 1 else (None, info, fitted)
+    from nlos_cl.localization.model.solve.records import Chosen, Fitted
+    monkeypatch.setattr(policy, "warm_fit", fake)
+    est = ModelEstimator(targets=1)
+    prior = Prior(row[None], late=True, measured=(row + [0.3, 0, 0, 0, 0, 0])[None])
+    got, info, missed = policy.warm_or_retry(est, Obs(), prior, None, None)
+    assert tried == [(4.0, False), (4.0, True), (4.3, True)] and got is None
+    assert missed.result.cost == 11.0 and info["start"] == "prior"
+    assert info["forward_calls"] == 15 and missed.problem.calls == 15
+    tried.clear()
+    outcome[2] = 0.5  # the late copies explain the data: the last fit is not tried
+    got, info, _ = policy.warm_or_retry(est, Obs(), prior, None, None)
+    assert len(tried) == 2 and info["start"] == "prior, late copies"
+    assert got.problem.calls == 10
+
+
 def test_a_track_keeps_the_misfit_of_its_cold_fits_only():
     """warm.keep: a cold fit's Birge ratio (or a warm fit kept after the cold one ran) is the
     track's floor; an accepted warm fit's is not (the floor would climb frame by frame);

@@ -69,39 +69,41 @@ RETRY_M = 0.02
 
 
 def warm_or_retry(est, obs, prior, free, held, backend=None):
-    """warm_fit's (fitted, info, missed) from the Prior's rows, and where that misses, from
-    its measured rows (the last fit, before the motion model moved it): a velocity learnt from
-    a poor measurement sent a person's predictions 0.3-0.5 m out of the basin (Birge ratio
-    ~5,000: no overlap, no gradient, LM stopped at its start) while the last fit lay within
-    one frame's motion. missed: the cheaper of the two misses (the cold fit's rival). Where
-    the cold fit kept late copies of the light (Prior.late) the warm fits carry them: without
-    them a person's cylinder started at the cold answer on the same frame missed (Birge ratio
-    2.6 against 1.8; 48 from 5 cm off)."""
+    """warm_fit's (fitted, info, missed) from the first start that explains the data, in turn:
+    the Prior's rows; the same with late copies of the light where the cold fit kept them
+    (Prior.late); the measured rows (the last fit, before the motion model moved it). missed:
+    the cheapest miss (the cold fit's rival); info and the timings count every fit tried.
+    - Late copies: without them a person's cylinder started at the cold answer on the same
+      frame missed (Birge ratio 2.6 against 1.8; 48 from 5 cm off); tried second, as they
+      double a fit's cost and a plate's warm fit rarely needs them (docs/scenes/walk.yaml:
+      36 -> 70 ms a frame with them first, the same answers).
+    - The last fit: a velocity learnt from a poor measurement sent a person's predictions
+      0.3-0.5 m out of the basin (Birge ratio ~5,000: no overlap, no gradient, LM stopped at
+      its start) while the last fit lay within one frame's motion."""
     from dataclasses import replace
     from ..forward.late import BANK
     shape = None if prior.shape == "plate" else prior.shape
-    obs = replace(obs, late=BANK) if prior.late and obs.late is None else obs
     args = (free, held, backend, checked_sizes(prior, len(prior.rows)), prior.misfit, shape)
     rows = start_rows(est, prior.rows, shape)
-    fitted, info, missed = warm_fit(est, obs, rows, *args)
-    if fitted is not None or prior.measured is None:
-        return fitted, info, missed
-    last = start_rows(est, prior.measured, shape)
-    if np.max(np.linalg.norm(last[:, :3] - rows[:, :3], axis=1)) < RETRY_M:
-        return fitted, info, missed
-    again, info_again, missed_again = warm_fit(est, obs, last, *args)
-    spent = missed.problem
-    (again or missed_again).problem.calls += spent.calls  # the timings count both fits
-    (again or missed_again).problem.model_s += spent.model_s
-    info_again = dict(info_again, start="last fit",
-                      forward_calls=info_again["forward_calls"] + spent.calls)
-    if again is not None:
-        return again, info_again, None
-    if missed.result.cost < missed_again.result.cost:
-        missed.problem.calls, missed.problem.model_s = (missed_again.problem.calls,
-                                                        missed_again.problem.model_s)
-        return None, dict(info, forward_calls=missed.problem.calls), missed
-    return None, info_again, missed_again
+    late = replace(obs, late=BANK) if prior.late and obs.late is None else None
+    tries = [(rows, obs, "prior")] + ([(rows, late, "prior, late copies")] if late else [])
+    if prior.measured is not None:
+        last = start_rows(est, prior.measured, shape)
+        if np.max(np.linalg.norm(last[:, :3] - rows[:, :3], axis=1)) >= RETRY_M:
+            tries.append((last, late or obs, "last fit"))
+    calls, model_s, best = 0, 0.0, None
+    for start, data, name in tries:
+        fitted, info, missed = warm_fit(est, data, start, *args)
+        info = dict(info, start=name)
+        done = fitted or missed
+        calls, model_s = calls + done.problem.calls, model_s + done.problem.model_s
+        done.problem.calls, done.problem.model_s = calls, model_s  # every fit tried counted
+        if fitted is not None:
+            return fitted, dict(info, forward_calls=calls), None
+        if best is None or missed.result.cost < best[1].result.cost:
+            best = (info, missed)
+    best[1].problem.calls, best[1].problem.model_s = calls, model_s
+    return None, dict(best[0], forward_calls=calls), best[1]
 
 
 def warm_fit(est, obs, rows, free, held, backend=None, sizes=None, floor=None, shape=None):
