@@ -142,9 +142,10 @@ GRID = nl.Grid.from_ranges(x=(0, 6), y=(0.01, 6), step_m=0.02)
 CIRCLE8 = [[-1.0 + 0.5 * math.cos(a), 0.0, 0.5 * math.sin(a)] for a in np.arange(8) * math.pi / 4]
 
 
-def _frame(share, seed=0):
-    """A plate seen from 8 spots at 10 dB; `share` of its light again as a lobe 1.5 ns late
-    of 0.5 ns sd (the draws' fourth bounce: simulation.draws.scenes.background)."""
+def lobed_plate(share):
+    """(noise-free histograms without and with the late light, truth): a plate seen from 8
+    spots, `share` of its light again as a lobe 1.5 ns late of 0.5 ns sd (the draws' fourth
+    bounce: simulation.draws.scenes.background)."""
     truth = (3.0, 2.0, 0.3)
     setup = nl.paper_setup(detector_spots=CIRCLE8)
     mesh = nl.rectangle(0.5, 0.6, centre=truth, normal=(-1, 0, 0))
@@ -154,9 +155,14 @@ def _frame(share, seed=0):
     lobe = np.exp(-0.5 * ((t - 1.5e-9) / 0.5e-9) ** 2)
     kernel = share * lobe / lobe.sum()
     late_light = np.stack([np.convolve(row, kernel)[:len(row)] for row in clean.data])
+    return clean, clean.with_data(clean.data + late_light), truth
+
+
+def _frame(share, seed=0):
+    """lobed_plate at 10 dB (of the light without the lobe)."""
+    clean, data, truth = lobed_plate(share)
     noise = SensorNoise.from_snr(clean, 10.0)
-    return nl.add_noise(clean.with_data(clean.data + late_light), seed=seed,
-                        model=noise).histograms(), truth
+    return nl.add_noise(data, seed=seed, model=noise).histograms(), truth
 
 
 def _located(monkeypatch, frame, on):

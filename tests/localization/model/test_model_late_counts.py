@@ -95,18 +95,10 @@ CIRCLE8 = [[-1.0 + 0.5 * math.cos(a), 0.0, 0.5 * math.sin(a)] for a in np.arange
 
 
 def _counts_frame(share, seed=0):
-    """Photon counts (20,000 signal photons a detector, 10 kHz ambient) of a plate seen from 8
-    spots whose light comes again 1.5 ns later, 0.5 ns sd, with `share` of it."""
-    truth = (3.0, 2.0, 0.3)
-    setup = nl.paper_setup(detector_spots=CIRCLE8)
-    mesh = nl.rectangle(0.5, 0.6, centre=truth, normal=(-1, 0, 0))
-    clean = nl.simulate(nl.Scene(setup, nl.Target(mesh), truth=truth)).histograms()
-    dt = clean.time_axis.dt_s
-    t = np.arange(int(4.0e-9 / dt)) * dt
-    lobe = np.exp(-0.5 * ((t - 1.5e-9) / 0.5e-9) ** 2)
-    kernel = share * lobe / lobe.sum()
-    data = clean.with_data(clean.data + np.stack([np.convolve(row, kernel)[:len(row)]
-                                                  for row in clean.data]))
+    """Photon counts (20,000 signal photons a detector, 10 kHz ambient) of
+    test_model_late.lobed_plate."""
+    from test_model_late import lobed_plate
+    _, data, truth = lobed_plate(share)
     quiet = nl.PhotonCounter(n_pulses=1.0, dark_count_rate_hz=0.0, ambient_rate_hz=0.0)
     per_pulse = float(np.mean(quiet.expected_counts(data).data.sum(axis=1)))
     counter = nl.PhotonCounter(n_pulses=2e4 / per_pulse, ambient_rate_hz=1e4)
