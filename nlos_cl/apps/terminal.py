@@ -72,7 +72,7 @@ def one_run(main):
 def leave(code) -> None:
     """Exit with main's `code`, quickly. When main returns, every output is written and closed;
     what Python's shutdown would still do is tear down the OpenCL runtime and every module,
-    ~30 ms of a one-shot `locate`'s ~380 (issue 23 item 4; nlos_cl/apps/bench/analysis.md). So
+    ~30 ms of a one-shot `locate`'s ~380 (nlos_cl/apps/bench/analysis.md). So
     the atexit handlers run (temporary folders, logging, coverage), then stdout and stderr are
     flushed, and the process leaves with os._exit, unless another Python thread is alive (then
     the usual shutdown waits for it) or a flush fails (then Python reports it as usual; a

@@ -1,7 +1,7 @@
 """A vectorised float64 erf without SciPy: cubic Hermite interpolation of math.erf on a table.
 
 Why not scipy.special.erf: importing scipy.special costs ~0.13 s, a seventh of a one-shot
-`nlos-cl locate` (issue 13's 1 s budget), and the host model (model.batch) needs erf on
+`nlos-cl locate` (its 1 s budget), and the host model (model.batch) needs erf on
 a few thousand points per call, where np.frompyfunc(math.erf) costs ~10x SciPy's time.
 
 The table holds erf and its derivative 2/sqrt(pi) exp(-x^2) at steps of STEP on [0, LIMIT];

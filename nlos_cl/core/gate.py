@@ -1,4 +1,4 @@
-"""The gate every file read from outside passes before its bytes are parsed (issue 59): only
+"""The gate every file read from outside passes before its bytes are parsed: only
 regular files are opened (a FIFO blocks the reader, a device never ends), and what a file or
 container will expand to (its size, a compressed stream's output, an archive's members) is
 checked against a byte budget before it is allocated, whatever the container says of itself.

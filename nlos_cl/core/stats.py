@@ -18,7 +18,7 @@ from .errors import require
 def unique_sorted(values) -> np.ndarray:
     """np.unique(values): the sorted distinct values of the flattened array, NaNs as one (as
     np.unique's equal_nan). NumPy 2.x's np.unique without return_* imports numpy.ma on its
-    first call (~7 ms of a one-shot `nlos-cl locate`, issue 23); a sort and a comparison of
+    first call (~7 ms of a one-shot `nlos-cl locate`); a sort and a comparison of
     neighbours import nothing."""
     flat = np.sort(np.asarray(values).ravel())
     if not flat.size:

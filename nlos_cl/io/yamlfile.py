@@ -194,7 +194,7 @@ def dump_json_yaml(data: dict) -> str:
     """`data` as one line of JSON that PyYAML (YAML 1.1, as y-tal reads scene_info), nlos_cl's
     reader and a JSON parser all read to the same values, or PyYAML's block style where it
     cannot be (NaN, infinities, types JSON lacks, text PyYAML reads otherwise). Why: reading
-    JSON needs no PyYAML, whose import is ~11 ms of a one-shot `nlos-cl locate` (issue 23).
+    JSON needs no PyYAML, whose import is ~11 ms of a one-shot `nlos-cl locate`.
     JSON is YAML 1.2; for YAML 1.1 a float's mantissa needs a dot (1.0e-11, not 1e-11), and
     the text is checked by parsing it both ways before it is used."""
     import yaml

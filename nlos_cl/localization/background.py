@@ -52,7 +52,7 @@ def subtract_background(histograms: HistogramSet, background: HistogramSet, *,
 
 def require_alike(signal: HistogramSet, background: HistogramSet) -> None:
     """A background taken as the signal was: the same shape, time axis (hidden path per bin),
-    detector spots and laser spot(s), so the pairing too (issue 59 item 4: `track --background`
+    detector spots and laser spot(s), so the pairing too (`track --background`
     checked the shape alone, `locate --background` not the laser spots: 5.8 m off)."""
     require(background.data.shape == signal.data.shape, "background",
             f"has shape {background.data.shape}, the signal {signal.data.shape}",

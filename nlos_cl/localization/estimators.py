@@ -21,7 +21,7 @@ def _model_estimator() -> Estimator:
 ESTIMATORS: dict[str, Callable[[], Estimator]] = {"paper": PaperArgmax, "mean": PosteriorMean, "model": _model_estimator}
 
 
-# The default (issue 11): the most accurate estimator within the time budget, the model fit.
+# The default: the most accurate estimator within the time budget, the model fit.
 DEFAULT_ESTIMATOR = "model"
 
 

@@ -199,7 +199,7 @@ def _estimators():
 
     class Reaching(ModelEstimator):
         """The model fit on a window widened by `reach_m` at either end (the data's margin).
-        Widened at the far end only (tried, issue 55), the refit cost 1.1-3.3x less CPU on the
+        Widened at the far end only (tried), the refit cost 1.1-3.3x less CPU on the
         8 scenario draws where `beyond` fires, but answered worse on 5: 111 passed and failed
         (its shadowed plate lost), 103's person 0.38 -> 5.9 m (a sliver 0.1 m from the wall,
         4.4 m up), 89's far box lost, 63 and 105's far targets 1.1 -> 1.8 and 0.6 -> 2.5 m;

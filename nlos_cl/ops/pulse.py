@@ -10,7 +10,7 @@ sigma / SUB_BINS_PER_SIGMA, then one correlation with the bin-integrated pulse. 
 grow as bin / sigma (sub-bins per bin) and its taps as sigma / bin: a 1 fs pulse on 1 ps bins
 needs 56,600 sub-bins per bin (3 GB on the paper's scene), a 1 ms pulse 5e9 taps. `binning`
 keeps the deposit to the pulses it is fast for and gives the others to erf, so memory is
-bounded by the facets and the time axis whatever the pulse (issue 24).
+bounded by the facets and the time axis whatever the pulse.
 """
 from __future__ import annotations
 

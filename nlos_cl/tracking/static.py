@@ -1,4 +1,4 @@
-"""Static returns learned from the sequence itself (issue 55): furniture, the wall's own
+"""Static returns learned from the sequence itself: furniture, the wall's own
 return, a target that never moves. `track_sequence` subtracts, by default, what every frame
 holds: per bin, the QUANTILE of frames spread over the whole sequence, raised by the noise's
 own offset at that quantile (quantile_offset: for that many frames, sigma from frame-to-frame

@@ -15,8 +15,9 @@ joint=True one paired set of all L x S pairs, laser-major (row i * S + j: laser 
 
 y-tal's enums as stored (tal/enums.py) define H_format 0-4 only; the Fourier-domain formats
 (10-13, complex H) and the polarized layout (a trailing Stokes axis of 4) are taken from
-issue 21, not from y-tal's source: we refuse the first and read Stokes channel 0 (S0, the
-total intensity, which is what the ellipse and forward models describe) with a warning.
+a user's report of such files, not from y-tal's source: we refuse the first and read Stokes
+channel 0 (S0, the total intensity, which is what the ellipse and forward models describe)
+with a warning.
 """
 from __future__ import annotations
 
@@ -26,7 +27,7 @@ import numpy as np
 
 from ...core.errors import require, warn
 
-FOURIER_H_FORMATS = range(10, 14)  # issue 21: y-tal's Fourier-domain H (complex), refused
+FOURIER_H_FORMATS = range(10, 14)  # y-tal's Fourier-domain H (complex), refused
 
 
 STOKES = 4  # a trailing axis of 4 Stokes parameters (S0..S3): polarized captures

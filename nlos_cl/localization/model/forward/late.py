@@ -1,4 +1,4 @@
-"""Light that arrives after a target's direct return (issue 57): the instrument response's
+"""Light that arrives after a target's direct return: the instrument response's
 exponential tail and a delayed, broad interreflection ("fourth bounce") background. Both are a
 causal, broad copy of the direct return, so each target's model column m_k gets copies
 G_j m_k (G_j: convolution with one kernel of a fixed bank, unit mass), and the Gaussian
