@@ -161,32 +161,12 @@ def _ratios(bank) -> np.ndarray:
     return np.array([MAX_RATIO[spec[0]] for spec in bank])
 
 
-def nnls(a_mat, b, iters: int = 100) -> np.ndarray:
-    """argmin_{x >= 0} |x A - b| for A (M, N) rows of columns (Lawson and Hanson's active set,
-    least squares on the columns themselves, equilibrated)."""
-    scale = np.sqrt(np.maximum(np.einsum("mn,mn->m", a_mat, a_mat), TINY))
-    a = a_mat / scale[:, None]
-    m = len(a)
-    x, passive = np.zeros(m), np.zeros(m, bool)
-    grad = a @ b
-    for _ in range(iters):
-        cand = np.flatnonzero(~passive & (grad > 1e-12 * max(float(np.abs(grad).max()), TINY)))
-        if not cand.size:
-            break
-        passive[cand[np.argmax(grad[cand])]] = True
-        for _ in range(3 * m):
-            z = np.zeros(m)
-            z[passive] = np.linalg.lstsq(a[passive].T, b, rcond=None)[0]
-            if np.all(z[passive] > 0):
-                x = z
-                break
-            neg = passive & (z <= 0)
-            alpha = np.min(x[neg] / np.maximum(x[neg] - z[neg], TINY))
-            x = x + alpha * (z - x)
-            passive &= x > 1e-15 * max(float(x.max()), TINY)
-            x[~passive] = 0.0
-        grad = a @ (b - x @ a)
-    return x / scale
+def nnls(a_mat, b) -> np.ndarray:
+    """argmin_{x >= 0} |x A - b| for A (M, N) rows of columns: SciPy's Lawson-Hanson (a
+    hand-written one gave the same optimum at 8-20x the time, 0.84 ms against 0.11 for 11
+    columns of 700 samples, on every model evaluation that carries copies)."""
+    from scipy.optimize import nnls as lawson_hanson
+    return lawson_hanson(np.asarray(a_mat, float).T, np.asarray(b, float))[0]
 
 
 def in_use(amp, late_amp) -> np.ndarray:
