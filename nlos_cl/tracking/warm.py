@@ -54,11 +54,15 @@ def keep(track, measurement) -> None:
     track.plate = plate_of(measurement)
     fit = getattr(measurement.source, "fit", None)
     track.model = fit.shape if track.plate is not None else "plate"
-    if track.plate is None or fit.birge_ratio is None:
+    # the ratio the warm fit's misfit test reads: the Birge ratio, or counts' deviance per
+    # degree of freedom (ModelFit.birge_ratio is None for counts)
+    ratio = (fit.diagnostics or {}).get("misfit_ratio", fit.birge_ratio) \
+        if track.plate is not None else None
+    if ratio is None:
         return
     warm_start = fit.warm_start
     if warm_start is None or warm_start.reason:  # cold, or the cold fit ran and cost more
-        track.misfit = float(fit.birge_ratio)
+        track.misfit = float(ratio)
         track.late = bool(fit.diagnostics.get("late_kept"))
 
 

@@ -210,12 +210,14 @@ def test_a_track_keeps_the_misfit_of_its_cold_fits_only():
     warm.prior carries the largest of the start tracks' floors, None where one has none."""
     from nlos_cl.tracking.track import Track
 
-    def measured(birge, warm_start):
+    def measured(birge, warm_start, counts=False):
         params = tuple(Parameter(n, v, -9.0, 9.0, True, 0.01) for n, v in
                        zip(("x", "y", "z", "width", "height", "yaw"),
                            (3.0, 2.0, 0.0, 0.3, 0.5, 3.1)))
-        fit = ModelFit("plate", "upright plate", params, 1.0, np.zeros(3), "gauss", 0.0, 1,
-                       birge, True, warm_start=warm_start)
+        fit = ModelFit("plate", "upright plate", params, 1.0, np.zeros(3),
+                       "poisson" if counts else "gauss", 0.0, 1, None if counts else birge,
+                       True, warm_start=warm_start,
+                       diagnostics={"misfit_ratio": birge} if counts else {})
         src = nl.LocatedTarget(np.array([3.0, 2.0, 0.0]), np.diag([1e-4] * 3), fit=fit)
         return kalman.measurement(src, 2, fallback_sigma_m=0.05, min_sigma_m=0.002)
     a, b = (Track(i, np.zeros(4), np.eye(4), 0.0, status="confirmed") for i in (1, 2))
@@ -230,6 +232,8 @@ def test_a_track_keeps_the_misfit_of_its_cold_fits_only():
     assert b.misfit is None and warm.prior(predictions).misfit is None
     warm.remember(b, measured(1.3, None))
     assert warm.prior(predictions).misfit == 2.2
+    warm.remember(b, measured(3.5, None, counts=True))  # counts: the deviance per dof
+    assert b.misfit == 3.5 and warm.prior(predictions).misfit == 3.5
 
 
 def test_start_rows_are_checked(scored):
