@@ -174,9 +174,9 @@ def closed_warm_fit(est, problem, rows, free, shape, floor=None):
     closed object's data. No size prior: the closed shapes model no shadows."""
     from ..forward.host_shapes import shape_problem
     from ..forward.likelihood import take_calls
-    from ..shapes import box
+    from .closed_search import closed_free
     closed = shape_problem(problem, SHAPES[shape])
-    free_closed = np.insert(np.asarray(free, bool), box.DEPTH, True)
+    free_closed = closed_free(free)
     rows = np.clip(rows, closed.shape.LOWER, closed.shape.UPPER)
     result = fit(closed, rows, free_closed, est.warm_nfev, tau=WARM_TAU, atol=WARM_ATOL,
                  keep_jacobian=REUSE_JACOBIAN, best_gain=len(rows) <= BEST_GAIN_PLATES,
