@@ -97,5 +97,5 @@ def _continue(track, cand) -> None:
     """The candidate's estimate becomes the track's; its record starts a new segment."""
     track.state, track.covariance = cand.state.copy(), cand.covariance.copy()
     track.plate = cand.plate  # (the track keeps its remembered sizes: the same target)
-    track.misfit, track.model, track.late = cand.misfit, cand.model, cand.late
+    track.misfit, track.late = cand.misfit, cand.late
     track.pending = None  # no prediction links this frame to the last one: a restart

@@ -36,8 +36,7 @@ class Track:
     history: deque = field(default_factory=deque)
     steps: deque = field(default_factory=deque)
     pending: tuple | None = None  # (dt, x, P) of the last prediction, until it is recorded
-    plate: np.ndarray | None = None  # the last paired fit's row (warm starts)
-    model: str = "plate"  # its shape: "plate", or a closed family (tracking.warm.prior)
+    plate: np.ndarray | None = None  # the last paired fit's plate row (warm starts)
     # the Birge ratio of the last cold fit behind its measurements (Prior.misfit: warm.keep)
     misfit: float | None = None
     late: bool = False  # that cold fit kept late copies of the light (Prior.late)

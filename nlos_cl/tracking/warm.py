@@ -36,24 +36,30 @@ def can_start(estimator, fixed: bool = False) -> bool:
 
 
 def plate_of(measurement):
-    """The fitted row behind a measurement (a plate's 6 parameters, or a closed shape's 7), or
-    None (another model, a merged pair, an estimator without a typed fit)."""
+    """The fitted plate row (6,) behind a measurement, or None (another model, a closed shape
+    (WARM_SHAPE), a merged pair, an estimator without a typed fit)."""
     fit = getattr(measurement.source, "fit", None)
     if measurement.merged or fit is None:
         return None
-    from ..localization.model.shapes.shape import SHAPES  # (the paper tracker never gets here)
-    if fit.shape not in SHAPES:
+    if fit.shape != WARM_SHAPE:
         return None
     return fit.values()
 
 
+# The tracker warm-starts plate fits only. Closed shapes warm-started in their family
+# (Prior.shape, model.policy.warm.closed_warm_fit) made person tracks 1.7x cheaper but less
+# accurate: scenario clutter draw 0 (a person past a box) 0.044 -> 0.117 m, 72 lost its
+# person (0.32 m -> missed), 56 its second target; the cold fit's closed search finds the
+# person again each frame where a warm cylinder drifts.
+WARM_SHAPE = "plate"
+
+
 def keep(track, measurement) -> None:
-    """The track's warm start from its paired measurement: the fitted row and its shape, and
-    the misfit of the cold fit behind it where one ran this frame (a warm fit's own is not: a
+    """The track's warm start from its paired measurement: the fitted plate row, and the
+    misfit of the cold fit behind it where one ran this frame (a warm fit's own is not: a
     floor that followed the accepted warm fits would climb frame by frame)."""
     track.plate = plate_of(measurement)
     fit = getattr(measurement.source, "fit", None)
-    track.model = fit.shape if track.plate is not None else "plate"
     # the ratio the warm fit's misfit test reads: the Birge ratio, or counts' deviance per
     # degree of freedom (ModelFit.birge_ratio is None for counts)
     ratio = (fit.diagnostics or {}).get("misfit_ratio", fit.birge_ratio) \
@@ -120,15 +126,12 @@ def prior(starters) -> Prior:
     where the track is 3D; a 2D track keeps the plate's own height), and the tracks'
     remembered sizes and their sd (`size_of`; inf: none remembered), which the estimator uses
     for a plate the others partly hide (Prior.size), and the largest of their cold fits'
-    misfits (Prior.misfit; None where a track has none). Where a track's target was fitted
-    as a closed shape (a person's cylinder), every row is warm-started in that family
-    (`in_family`): a plate warm start misses a closed object's data. Prior.measured: the rows
-    as last fitted, where the prediction misses."""
-    family = next((p.track.model for p in starters if p.track.model != "plate"), None)
+    misfits (Prior.misfit; None where a track has none), the rows as last fitted (tried where
+    the prediction misses: Prior.measured) and whether a cold fit kept late copies."""
     rows, measured, size, size_sd = [], [], [], []
     for p in starters:
         tr, x = p.track, p.x
-        row = in_family(tr.plate, tr.model, family)
+        row = tr.plate.copy()
         measured.append(row.copy())
         row[:tr.dims] = x[:tr.dims]
         rows.append(row)
@@ -137,19 +140,8 @@ def prior(starters) -> Prior:
         size_sd.append(known[1])
     misfits = [p.track.misfit for p in starters]
     floor = None if None in misfits else max(misfits)
-    return Prior(np.array(rows), np.array(size), np.array(size_sd), floor, family,
-                 np.array(measured), any(p.track.late for p in starters))
-
-
-def in_family(row, model, family) -> np.ndarray:
-    """A copy of a track's row (of `model`) as a row of `family` (None: plates): a plate
-    among closed targets at the family's least depth; closed families share parameters."""
-    row = np.array(row, float)
-    if family is None or model != "plate":
-        return row
-    from ..localization.model.shapes import box
-    from ..localization.model.shapes.shape import SHAPES
-    return box.from_plate(row, float(SHAPES[family].LOWER[box.DEPTH]))
+    return Prior(np.array(rows), np.array(size), np.array(size_sd), floor,
+                 measured=np.array(measured), late=any(p.track.late for p in starters))
 
 
 def outside_gates(measurements, predictions, gate_probability) -> bool:
