@@ -1,12 +1,14 @@
-"""The closed fit's depth profile (policy.closed.depth_profile: four LM fits at held depths) is
-run only where its answer is read: for the closed shape chosen, and not where the sanity check
-will reject that shape whatever its depth's sd (policy.closed.profiled)."""
+"""What the closed shapes' cascade (policy.closed.closed_or_plate) spends only where its answer
+can be read: the closed fit's depth profile (four LM fits at held depths) for the closed shape
+chosen, and not where the sanity check will reject that shape whatever its depth's sd
+(`profiled`); the closed search itself not where the plate's misfit and unexplained signal
+rule out any closed shape being reported (`beyond_closed`)."""
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from nlos_cl.localization.model.policy import closed, sanity
+from nlos_cl.localization.model.policy import closed, depth, sanity
 from nlos_cl.localization.model.shapes import ellipsoid, plate
 from nlos_cl.localization.model.solve.records import Covariance, ShapeFit
 
@@ -15,25 +17,28 @@ from nlos_cl.localization.model.solve.records import Covariance, ShapeFit
 def cascade(monkeypatch):
     """closed_or_plate with its fits stubbed: a misfit plate, one closed fit of the given BIC
     gain and checks; returns (run(gain, checks, sanity) -> Chosen, the profile's calls)."""
-    profiled = []
-    plate_problem = SimpleNamespace(obs=SimpleNamespace(), shape=plate)
+    profiled, searched, plate_fit = [], [], {"birge": 500.0, "left": 0.05}
+    plate_problem = SimpleNamespace(obs=SimpleNamespace(), shape=plate,
+                                    null_cost=lambda: 1000.0 / plate_fit["left"])
     shaped = SimpleNamespace(obs=SimpleNamespace(), shape=ellipsoid)
     plate_result = SimpleNamespace(params=np.zeros((1, 6)), cost=1000.0)
     closed_result = SimpleNamespace(params=np.zeros((1, 7)), cost=900.0)
-    monkeypatch.setattr(closed, "misfit", lambda *a: (True, 500.0))
+    monkeypatch.setattr(closed, "misfit", lambda *a: (True, plate_fit["birge"]))
     monkeypatch.setattr(closed, "reseat_plate", lambda problem, result, *a: result)
     monkeypatch.setattr(closed, "covariance", lambda *a, **k: Covariance(np.eye(7), {}))
-    monkeypatch.setattr(closed, "closed_fits", lambda *a: (
+    monkeypatch.setattr(closed, "closed_fits", lambda *a: searched.append(a) or (
         [ShapeFit(shaped, closed_result, np.ones(7, bool))], False))
     monkeypatch.setattr(closed, "depth_profile", lambda *a: profiled.append(a) or {
         "depth_profile_sd_m": 0.5, "depth_profile": []})
 
-    def run(gain, checks=None, sanity_on=False):
+    def run(gain, checks=None, sanity_on=False, beyond=True):
         monkeypatch.setattr(closed, "depth_gain", lambda *a: (gain, 1.0))
         monkeypatch.setattr(sanity, "fit_checks", lambda *a: dict(checks or {}))
         on = {"sanity": True} if sanity_on else {}  # the default: no sanity check
+        on["beyond"] = beyond  # model.subset passes it for few detectors
         return closed.closed_or_plate(plate_problem, plate_result, np.ones(6, bool), 30,
                                       Covariance(np.eye(6), {}), **on)
+    run.plate_fit, run.searched = plate_fit, searched
     return run, profiled
 
 
@@ -61,3 +66,31 @@ def test_a_closed_shape_whose_fate_its_depth_can_change_is_profiled(cascade, che
     run, profiled = cascade
     chosen = run(gain=5.0, checks=checks, sanity_on=sanity_on)
     assert len(profiled) == 1 and chosen.cov.info["depth_profile_sd_m"] == 0.5
+
+
+def test_a_plate_that_leaves_more_than_any_reported_closed_shape_may_skips_the_closed_search(
+        cascade):
+    """CC-SOCR's "4" as one laser: the plate's misfit 420-480, 25-34 % of the signal left;
+    closed shapes were fitted for 2-4 s and then lost to the plate or were rejected."""
+    run, _ = cascade
+    run.plate_fit.update(birge=450.0, left=0.3)
+    chosen = run(gain=5.0, sanity_on=True)
+    assert run.searched == [] and chosen.problem.shape is plate
+    assert chosen.cov.info["closed_skipped_left"] == pytest.approx(0.3)
+    note = depth.unseen_note(plate, None, None, chosen.cov.info)
+    assert note.startswith("the depth of target 1 was not found") and "30 %" in note
+
+
+@pytest.mark.parametrize("birge, left, sanity_on, beyond", [
+    (450.0, 0.3, False, True),  # no sanity check: a closed shape is reported whatever it left
+    (450.0, 0.05, True, True),  # a bright closed target's plate: its closed fit may explain it
+    (50.0, 0.5, True, True),  # a closed fit may bring the misfit under MISFIT_BIRGE
+    (450.0, 0.3, True, False),  # many detectors: the subset's doomed fit ends it cheaper
+])
+def test_a_closed_shape_that_could_be_reported_is_searched(cascade, birge, left, sanity_on,
+                                                           beyond):
+    run, _ = cascade
+    run.plate_fit.update(birge=birge, left=left)
+    chosen = run(gain=5.0, checks={"misfit_ratio": 1.0, "explained": 1.0}, sanity_on=sanity_on,
+                 beyond=beyond)
+    assert len(run.searched) == 1 and chosen.problem.shape is ellipsoid

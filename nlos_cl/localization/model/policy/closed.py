@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from ....core.tuning import MISFIT_BIRGE
+from ....core.tuning import EXPLAINED_MIN, MISFIT_BIRGE
 from ..forward.likelihood import take_calls
 from ..shapes import box, plate
 from ..shapes.shape import CLOSED_SHAPES, name_of
@@ -22,6 +22,10 @@ from .criteria import depth_gain, kappa, misfit
 from .select import FINAL_ATOL, best_of
 
 CLOSED = CLOSED_SHAPES  # the closed families tried (box, ellipsoid, cylinder), same parameters
+# A plate that misses the data (misfit above MISFIT_BIRGE) and leaves more than this share of
+# the signal unexplained gets no closed shapes (`beyond_closed`): twice what a closed shape
+# may leave and still be reported (sanity: 1 - EXPLAINED_MIN)
+NO_CLOSED_LEFT = 2.0 * (1.0 - EXPLAINED_MIN)
 
 
 # Depths the closed fit is profiled at (its own depth d: d / 2, 2 d, d -/+ PROFILE_STEP_M),
@@ -118,6 +122,21 @@ def worth_racing(closed_problem, result, free_closed) -> bool:
     return inadequate and birge <= MISFIT_BIRGE
 
 
+def beyond_closed(problem, plate_result, birge) -> float | None:
+    """The share of the signal the plate leaves unexplained (1 - explained, as
+    sanity.fit_checks) where no closed shape can be reported instead, else None: its misfit
+    above MISFIT_BIRGE and more than NO_CLOSED_LEFT left. A closed shape tried there is kept
+    only if it cuts the misfit below MISFIT_BIRGE or the share below 1 - EXPLAINED_MIN
+    (sanity.closed_centre_guessed rejects it otherwise): closed fits to simulated closed
+    targets leave 3e-6 to 5e-5 (core/tuning.py), their plates at most 2.4 % (14 closed draws),
+    and CC-SOCR's "4" as one laser (plate misfit 420-480, 29-34 % left) had its closed fits
+    rejected or beaten by the plate after 2-4 s of the search, twice with the late copies
+    (docs/model-estimator.md, "Speed of small captures")."""
+    null = problem.null_cost()
+    left = plate_result.cost / null if null > 0 else 0.0
+    return left if birge > MISFIT_BIRGE and left > NO_CLOSED_LEFT else None
+
+
 def box_behind(problem, plate_result, plate_cov) -> bool:
     """Would a box behind this plate, which fits the data, explain them better
     (depth.probe)? The probe's findings go into plate_cov's info."""
@@ -127,7 +146,7 @@ def box_behind(problem, plate_result, plate_cov) -> bool:
 
 
 def closed_or_plate(problem, plate_result, free, final_nfev, plate_cov, closed="auto",
-                    probe_depth=True, tried=False, smooth=None, sanity=False):
+                    probe_depth=True, tried=False, smooth=None, sanity=False, beyond=False):
     """Plate or closed shape for one target. The closed shapes (CLOSED) are fitted only where
     the plate, re-seated (`reseat_plate`), still misses the data (`misfit`), a box behind it
     would do better (`box_behind`), tried (the caller's probe on more detectors said so:
@@ -135,7 +154,10 @@ def closed_or_plate(problem, plate_result, free, final_nfev, plate_cov, closed="
     where its one more parameter (depth) passes the BIC test in units of its own residual
     variance (as `accepts`). plate_cov: covariance(...) of the plate. smooth: None, or
     (photon counts) the same detectors' Gauss-filtered frame, where the closed shapes are
-    also sought (`closed_fits`). sanity: the estimator's sanity check is on (`profiled`).
+    also sought (`closed_fits`). sanity: the estimator's sanity check is on (`profiled`);
+    beyond: with it, no closed search where `beyond_closed` rules every closed shape out
+    (model.subset: few detectors only; on many, a doomed closed shape on the subset ends the
+    fit with the argmax, which a plate would not: CC-SOCR's 4,096 points 8 -> 22 s).
     Returns the chosen model's fit and covariance (a Chosen)."""
     inadequate, birge = misfit(problem, plate_result, free, plate_cov.info)
     if inadequate and closed is not True:  # a misfit plate is re-seated first
@@ -145,6 +167,10 @@ def closed_or_plate(problem, plate_result, free, final_nfev, plate_cov, closed="
             inadequate, birge = misfit(problem, plate_result, free, plate_cov.info)
             plate_cov.info.update(plate_reseated=True)
     plate_cov.info.update(plate_birge_ratio=birge, closed_tried=False)
+    if beyond and closed == "auto" and sanity and (
+            left := beyond_closed(problem, plate_result, birge)):
+        plate_cov.info.update(closed_skipped_left=left)  # depth.unseen_note says so
+        return Chosen(problem, plate_result, free, plate_cov)
     if closed == "auto" and not inadequate and probe_depth and not tried:
         inadequate = box_behind(problem, plate_result, plate_cov)
     if closed is False or (closed == "auto" and not inadequate and not tried):

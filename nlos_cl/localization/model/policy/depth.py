@@ -98,6 +98,11 @@ def _face_plates(problem, q, depths) -> list:
     return [(cols[0] + cols[owner == k].sum(axis=0))[None] for k in range(len(depths))]
 
 
+# A plate whose misfit rules the closed shapes out (policy.closed.beyond_closed): not tried.
+SKIPPED_WARNING = ("the depth of target {k} was not found: the plate leaves {left:.0f} % of the "
+                   "signal unexplained (misfit {ratio:.0f}), more than a closed shape may and "
+                   "still be reported, so none was fitted; if it is a closed object, its "
+                   "centre lies behind the found surface")
 CLOSED_WARNING = ("the depth of target {k} is poorly determined (sd {sd:.2f} m): its centre is "
                   "uncertain by half that along its normal")
 
@@ -119,6 +124,9 @@ def unseen_note(shape, result, cov_all, info, k: int = 0) -> str | None:
         sd = info.get("depth_sd_m")
         if sd is not None and sd > DEPTH_SD_LIMIT_M:
             return DEPTH_WARNING.format(k=k + 1, sd=_metres(sd))
+        if info.get("closed_skipped_left") is not None:
+            return SKIPPED_WARNING.format(k=k + 1, left=100 * info["closed_skipped_left"],
+                                          ratio=info.get("plate_birge_ratio") or 0.0)
         if info.get("closed_tried"):
             why = ("a box behind the plate explained the data better (the depth probe)"
                    if info.get("box_probe_better") else "the plate does not explain the data")

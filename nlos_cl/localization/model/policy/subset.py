@@ -131,7 +131,7 @@ def plate_or_closed(est, problem, result, free, cov, choice=None, smooth=None):
     if len(obs.spots) <= CHOICE_DETECTORS or est.closed != "auto":  # few spots, or no choice
         return closed_or_plate(problem, result, free, est.final_nfev, cov, est.closed,
                                smooth=smoothed(est, smooth, problem.backend),
-                               sanity=est.sanity)
+                               sanity=est.sanity, beyond=True)
     if choice is None:
         inadequate, birge = misfit(problem, result, free, cov.info)
         if not inadequate:
