@@ -41,15 +41,21 @@ def split(path, weight, edge0, dpath, sigma, n_bins, os_) -> Split:
     widest pulse's reach (REACH_SIGMAS)."""
     n_det, n_b = path.shape[:2]
     reach = REACH_SIGMAS * float(np.max(sigma))
-    pad = int(math.ceil(reach / float(np.min(dpath)))) + 1  # bins each side of the window
+    pad = math.ceil(reach / float(np.min(dpath))) + 1  # bins each side of the window
     length = (n_bins + 2 * pad) * os_
     base = (edge0.T - pad * dpath[:, None])[:, :, None]  # (D, B, 1): sub-bin 0's lower edge
-    u = (path - base) * (os_ / dpath)[:, None, None] - 0.5  # from sub-bin centres
+    u = path - base  # in place, and t and the rows for the kept points only: the same
+    u *= (os_ / dpath)[:, None, None]  # numbers in 0.6-0.7 of the time
+    u -= 0.5  # from sub-bin centres
     j = np.floor(u)
-    t = u - j
-    ok = (weight > 0) & (j >= 0) & (j < length - 1)
-    row = (np.arange(n_det * n_b).reshape(n_det, n_b, 1) * length + j.astype(np.int64))[ok]
-    return Split(pad, ok, row, t[ok], (n_det, n_b, n_bins + 2 * pad, os_))
+    ok = weight > 0
+    ok &= j >= 0
+    ok &= j < length - 1
+    j, t = j[ok], u[ok]
+    t -= j
+    start = np.arange(n_det * n_b).reshape(n_det, n_b, 1) * length
+    row = np.broadcast_to(start, ok.shape)[ok] + j.astype(np.int64)
+    return Split(pad, ok, row, t, (n_det, n_b, n_bins + 2 * pad, os_))
 
 
 def deposit(plan: Split, values) -> np.ndarray:
@@ -67,15 +73,17 @@ def deposit(plan: Split, values) -> np.ndarray:
 
 def correlate(dep, taps, n_bins) -> np.ndarray:
     """(..., B, D, n) from a deposit (..., D, B, n + 2 pad, os) and per-phase taps (D, B, os,
-    2 pad + 1): hist[k] = sum over i, p of dep[k + i, p] taps[p, i] (sub-bin (k + i) os + p)."""
-    # the windows as a strided view (sliding_window_view's checks were a tenth of a plate's
-    # call: model.batch's per-call overhead)
-    *lead, _, os_ = dep.shape
-    st = dep.strides
-    windows = np.lib.stride_tricks.as_strided(
-        dep, (*lead, n_bins, os_, taps.shape[-1]), (*st[:-2], st[-2], st[-1], st[-2]),
+    2 pad + 1): hist[k] = sum over i, p of dep[k + i, p] taps[p, i] (sub-bin (k + i) os + p).
+    The phases first, as one stacked matrix product m[j, i] = sum_p dep[j, p] taps[p, i],
+    then hist[k] = sum_i m[k + i, i] (a strided diagonal): 3-5x faster than one einsum over
+    the strided windows (0.31 -> 0.06 ms for 2 pieces of 8 detectors, 36 phases, 13 taps),
+    the same sums in another order (within 2e-15 of the peak)."""
+    m = np.matmul(dep, taps)  # (..., D, B, n + 2 pad, 2 pad + 1)
+    st = m.strides
+    diagonal = np.lib.stride_tricks.as_strided(
+        m, (*m.shape[:-2], n_bins, taps.shape[-1]), (*st[:-2], st[-2], st[-2] + st[-1]),
         writeable=False)
-    return np.einsum("...dbkpi,dbpi->...bdk", windows, taps)
+    return np.ascontiguousarray(np.swapaxes(diagonal.sum(axis=-1), -2, -3))
 
 
 WHOLE_TABLES = 8  # whole taps tables taps_of remembers by their scales (bounded memory)
