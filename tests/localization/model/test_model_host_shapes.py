@@ -7,15 +7,13 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from conftest import model_observation, paper_frame
 
 from nlos_cl.localization.model.forward import batch, host_shapes
-
-from nlos_cl.localization.model.shapes import box, cylinder, ellipsoid
 from nlos_cl.localization.model.forward.host_shapes import HostShapeProblem
 from nlos_cl.localization.model.forward.likelihood import Problem
+from nlos_cl.localization.model.shapes import box, cylinder, ellipsoid
 from nlos_cl.physics.reflectance import Retroreflective
-
-from conftest import model_observation, paper_frame
 
 TRUTH = (4.0, 2.0, 0.0)
 # 0.5 x 0.7 x 0.4 m, turned 35 degrees from facing the wall, its top below the spots' plane
@@ -143,3 +141,23 @@ def test_a_start_outside_the_bounds_is_scored_inside_them(obs, shape):
         chosen = starts.best_starts(HostShapeProblem(obs, shape), np.stack([flat, CLOSED]),
                                     keep=2)
     assert len(chosen) == 1 and np.array_equal(chosen[0], CLOSED)
+
+
+@pytest.mark.parametrize("shape", SHAPES, ids=lambda s: s.__name__.rsplit(".", 1)[-1])
+def test_jacobian_rows_that_move_the_centre_reuse_its_points(obs, shape, monkeypatch):
+    """A Jacobian's x, y, z rows (with `like`) are the unmoved row's Gauss points moved, not
+    built again (issue 58: 3 of a closed shape's 7 columns): the same columns as a problem
+    that builds them, and the shape's cells built only for the rows that change its form."""
+    steps = np.diag(shape.STEPS)
+    moved = CLOSED + steps
+    like = np.repeat(CLOSED[None], len(moved), axis=0)
+    built = HostShapeProblem(obs, shape).column_batch(moved, like)  # CLOSED's points unknown
+    host = HostShapeProblem(obs, shape)
+    host.column(CLOSED)  # a residual's row: its points in hand
+    calls = []
+    pieces = shape.pieces
+    monkeypatch.setattr(shape, "pieces", lambda *a: calls.append(1) or pieces(*a))
+    reused = host.column_batch(moved, like)
+    assert len(calls) == len(moved) - 3  # width, height, depth, yaw
+    assert _peak_error(built, reused) < 1e-12
+    assert np.abs(built[:3] - host.column(CLOSED)).max() > 0  # the moves move the histograms

@@ -28,7 +28,7 @@ import numpy as np
 
 from ....core.allocator import keep_freed_memory
 from ....core.constants import TINY
-from ....core.geometry import spot_legs
+from ....core.geometry import Facets, spot_legs
 from ....ops.forward import SUB_BINS_PER_SIGMA
 from ..shapes import plate
 from ..shapes.ellipsoid import culled, lit_mask
@@ -72,8 +72,9 @@ class HostShapeProblem(Problem):
                              "(Retroreflective); use likelihood.Problem for this one")
         self._factor = None if reflectance is None else reflectance.factor_of_cosine
         floor = math.sqrt(max(obs.sigma0_m ** 2 - obs.box_excess_m2, TINY))
-        self.os = max(1, int(math.ceil(float(np.max(obs.dpath)) * SUB_BINS_PER_SIGMA / floor)))
+        self.os = max(1, math.ceil(float(np.max(obs.dpath)) * SUB_BINS_PER_SIGMA / floor))
         self._stats = {}  # row bytes -> per piece (mask, keep, blur2, shift) (`_statistics`)
+        self._near = {}  # row bytes -> per piece its Gauss points (`_points`)
         self._taps = {}
 
     def column(self, p) -> np.ndarray:
@@ -90,14 +91,11 @@ class HostShapeProblem(Problem):
         obs = self.obs
         pieces = []  # (row index, points (M, 3), normals (M, 3), areas (M,), blur2, shift)
         for i, row in enumerate(rows):
-            own = self.shape.pieces(row, self.lattice)
             source = row if like is None else like[i]  # whose culling and statistics
-            stats = self._statistics(source, own if np.array_equal(source, row) else None)
-            for (cells, edges, _), (mask, keep, blur2, shift) in zip(own, stats):
-                if not mask.any():
-                    continue
-                pts = plate._gauss_points(*culled(cells, edges, mask), keep)
-                pieces.append((i, pts.centres, pts.normals, pts.areas, blur2, shift))
+            for pts, (_, _, blur2, shift) in zip(self._points(row, source),
+                                                 self._statistics(source)):
+                if pts is not None:
+                    pieces.append((i, pts.centres, pts.normals, pts.areas, blur2, shift))
         out = np.zeros((len(rows),) + obs.y.shape)
         for group in _groups(pieces, len(obs.spots)):
             hist = self._evaluate(group)
@@ -109,6 +107,30 @@ class HostShapeProblem(Problem):
 
     def columns(self, params) -> np.ndarray:
         return self.column_batch(np.reshape(params, (-1, self.shape.N_PARAMS)))
+
+    def _points(self, row, source) -> list:
+        """Per piece of `row` its pulled-in Gauss points on the cells `source` lights and a
+        spot sees, with source's statistics (None: no cell). A row that moves only the
+        centre from a source whose points are in hand (a Jacobian's x, y, z columns: 3 of a
+        closed shape's 7) is those points moved: every shape is built around its centre
+        (translating it moves its cells, normals and edges stay), so its cells, culling and
+        Gauss points are not built again (the same points to the last bits of the sum)."""
+        near = self._near.get(source.tobytes())
+        if near is not None and np.array_equal(row[3:], source[3:]):
+            delta = row[:3] - source[:3]
+            return [None if p is None else Facets(p.centres + delta, p.normals, p.areas)
+                    for p in near]
+        own = self.shape.pieces(row, self.lattice)
+        mine = np.array_equal(source, row)
+        out = [None if not mask.any() else
+               plate._gauss_points(*culled(cells, edges, mask), keep)
+               for (cells, edges, _), (mask, keep, _, _) in
+               zip(own, self._statistics(source, own if mine else None))]
+        if mine:  # bounded as the statistics
+            if len(self._near) >= STATS_KEPT:
+                self._near.clear()
+            self._near[row.tobytes()] = out
+        return out
 
     def _statistics(self, row, pieces=None):
         """Per piece of closed shape `row`: the lit-and-seen mask of its cells and their

@@ -121,6 +121,13 @@ def lit_mask(centres, normals, spots, laser) -> np.ndarray:
     layouts (laser (D, 3)): lit and seen by one (laser, detector) pair. On a flat face every
     cell gets its face's answer (n . (q - c) is one number over the face): box.seen."""
     spots, laser = np.asarray(spots, float), np.asarray(laser, float)
+    if laser.ndim == 1:  # n . (spot - c) component by component: no (D, F, 3) temporaries
+        (nx, ny, nz), (cx, cy, cz) = normals.T, centres.T
+        s = spots[:, :, None]
+        facing = nx * (s[:, 0] - cx)
+        facing += ny * (s[:, 1] - cy)
+        facing += nz * (s[:, 2] - cz)
+        return (np.einsum("fk,fk->f", normals, laser - centres) > 0) & np.any(facing > 0, axis=0)
     seen = np.einsum("fk,dfk->df", normals, spots[:, None] - centres[None]) > 0
     if laser.ndim == 2:
         lit = np.einsum("fk,dfk->df", normals, laser[:, None] - centres[None]) > 0
@@ -130,10 +137,22 @@ def lit_mask(centres, normals, spots, laser) -> np.ndarray:
 
 def unit_cells(centres, normals, e_u, e_v):
     """Facets of cells (normals made unit, areas |e_u x e_v|) and their edges, none culled."""
-    normals = normals / np.linalg.norm(normals, axis=1, keepdims=True)
-    areas = np.linalg.norm(np.cross(e_u, e_v), axis=1)
+    # component by component: np.linalg.norm's and np.cross's numbers, bit for bit, without
+    # their axis handling (a third of building a closed shape's cells, which a fit does for
+    # every row it evaluates)
+    normals = normals / _length(normals[:, 0], normals[:, 1], normals[:, 2])[:, None]
+    (ux, uy, uz), (vx, vy, vz) = e_u.T, e_v.T
+    areas = _length(uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx)
     return (Facets(np.ascontiguousarray(centres), np.ascontiguousarray(normals), areas),
             (np.ascontiguousarray(e_u), np.ascontiguousarray(e_v)))
+
+
+def _length(x, y, z) -> np.ndarray:
+    """|(x, y, z)| of vectors given by their components (each (F,))."""
+    out = x * x
+    out += y * y
+    out += z * z
+    return np.sqrt(out, out=out)
 
 
 def ellipsoid_facets(p, cells=CELLS) -> Facets:
