@@ -60,7 +60,7 @@ def stubs(monkeypatch):
         return plate_fit, ["search"]
 
     def closed_or_plate(search, rough, free, nfev, cov, closed, tried=False, smooth=None,
-                        sanity=False):
+                        sanity=False, beyond=False):
         calls["choices"] += 1
         calls["sanity"] = sanity
         calls["tried"] = tried
