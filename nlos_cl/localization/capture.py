@@ -229,12 +229,13 @@ def _locate_point(i, hist, frame, region, derived, *, h_s, estimator, log_mode, 
     """The paper's argmax on the region (refined on a fine zoom where the derived region had to
     be coarsened), then the estimator on the final grid; warnings collected, not raised."""
     from ..ops.signals import upload
+    hist, seen = hist  # as recorded (fitted), and as filtered (`_filter_input`)
     log_mode = auto_log_mode(hist.n_detectors) if log_mode is None else bool(log_mode)
     raw = upload(hist, backend)  # once: filtered here, and fitted by the model estimator
-    filtered = gauss_filter(raw, h_s)
+    filtered = gauss_filter(raw if seen is hist else upload(seen, backend), h_s)
     grid = region
     if derived and min(region.step) > region_step(hist, h_s) * 1.001:
-        coarse = locate(_spread(hist, filtered, h_s, backend), region, log_mode=log_mode,
+        coarse = locate(_spread(seen, filtered, h_s, backend), region, log_mode=log_mode,
                         estimator="paper", detect=False)  # the final grid's call detects
         grid = zoom_region(coarse.position, region, hist, h_s)
     notes = list(notes)
@@ -257,6 +258,16 @@ def _locate_point(i, hist, frame, region, derived, *, h_s, estimator, log_mode, 
                      "file's axes) or record a longer time window")
     return PointLocation(i, hist.laser_spot, loc, grid, region, log_mode, frame, tuple(notes),
                          processing)
+
+
+def _filter_input(hist: HistogramSet) -> HistogramSet:
+    """`hist`, or where it was recorded through a gate, a copy with each gate's outside filled
+    with the level inside its edge (measured.gated.ungated): the filter, the detection, the
+    search region and the argmax read that; the fit the data as recorded."""
+    from .measured.gated import ungated
+    data = np.asarray(hist.data)
+    filled = ungated(data) if data.ndim == 2 and data.shape[1] > 1 else None
+    return hist if filled is None else hist.with_data(filled)
 
 
 def _spread(hist, filtered, h_s, backend):
@@ -309,13 +320,14 @@ def locate_capture(capture, *, region=None, step_m: float | None = None,
     backend = resolve_backend(backend)
     points = []
     for i, hist in enumerate(sets):
-        grid, derived = search_region(hist, frame, region, step_m, h_s, names=names)
+        seen = _filter_input(hist)  # a gate's outside filled for the filter (measured.gated)
+        grid, derived = search_region(seen, frame, region, step_m, h_s, names=names)
         point_est, note = (choose_estimator(None, targets=targets, paired=True)
                            if estimator is None and hist.paired else (est, None))
         if isinstance(estimator, str | None) and isinstance(point_est, PaperArgmax):
             point_est = ArgmaxSpread()  # the paper's answer, with its likelihood's spread
-        def located(chosen, i=i, hist=hist, grid=grid, derived=derived, note=note):
-            return _locate_point(i, hist, frame, grid, derived, h_s=h_s, estimator=chosen,
+        def located(chosen, i=i, hist=hist, grid=grid, derived=derived, note=note, seen=seen):
+            return _locate_point(i, (hist, seen), frame, grid, derived, h_s=h_s, estimator=chosen,
                                  log_mode=log_mode, return_map=bool(return_map),
                                  backend=backend, names=names, notes=[note] if note else [],
                                  processing=reports[i])

@@ -20,6 +20,7 @@ from ....core.constants import DEFAULT_JITTER_S, PAPER_H_S, PAPER_PULSE_SIGMA_S,
 from ....core.errors import require
 from ....core.stats import median, row_median
 from ....ops.gauss_filter import gauss_taps
+from ...measured.gated import gate_bounds, in_gate
 
 MAD = 1.4826  # MAD -> standard deviation for Gaussian noise
 
@@ -271,7 +272,8 @@ def counts_group(sigma0_m: float, step_m) -> int:
 def poisson_observation(layout, counts, filtered, *, pulse_sigma_s=PAPER_PULSE_SIGMA_S, jitter_s=DEFAULT_JITTER_S,
                         margin_m=0.35, frac=ONE_TARGET_FRAC) -> Observation:
     """Photon counts per model bin around the signal (windows found on the filtered rows):
-    `counts_group` record bins summed into each, a group valid where all its bins are."""
+    `counts_group` record bins summed into each, a group valid where all its bins are inside
+    the record and its gate (forward.gate)."""
     axis, paths = layout.time_axis, layout.path_axis()
     a = layout.calibration.a_m_per_s
     step = a * axis.dt_s
@@ -282,7 +284,7 @@ def poisson_observation(layout, counts, filtered, *, pulse_sigma_s=PAPER_PULSE_S
     n = -(-int((wins[:, 1] - wins[:, 0]).max() + 1) // group)
     k0 = _starts(wins, n * group, 1, axis.n_bins)
     idx = k0[:, None] + np.arange(n * group)[None, :]
-    inside = (idx >= 0) & (idx < axis.n_bins)
+    inside = (idx >= 0) & (idx < axis.n_bins) & in_gate(idx, gate_bounds(counts))
     y = np.where(inside, np.take_along_axis(counts, np.clip(idx, 0, axis.n_bins - 1), axis=1),
                  0.0).reshape(len(counts), n, group).sum(axis=2)
     valid = inside.reshape(len(counts), n, group).all(axis=2)
