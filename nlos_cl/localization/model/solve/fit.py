@@ -22,6 +22,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from .amplitudes import stepped_residuals
 from .lm import drive, solve
 from .width_vectors import WidthVectors
 
@@ -149,8 +150,8 @@ class _Objective:
         if stepped is None:
             stepped = stepped_columns(self.problem, self.full(theta), cols, self.moves(theta))
         base = self.problem.residual(cols, lin)
-        out = [(self.problem.residual(moved, self.problem.linear(moved, lin)) - base) / step
-               for moved, step in zip(stepped, self.steps)]
+        out = [(r - base) / step for r, step in
+               zip(stepped_residuals(self.problem, stepped, lin), self.steps)]
         return self._with_prior(np.stack(out, axis=1))
 
     def moves(self, theta):
