@@ -25,14 +25,31 @@ def _timed(call):
     return value, time.perf_counter() - start
 
 
-def _located(h):
+def _located(h, fit=None):
     """locate_capture's position with its defaults, or None where it detected nothing (noise:
     `nlos-cl locate` exits 3; the argmax of noise is no location); warnings (e.g. 'paired
-    captures get the paper's argmax by default') are kept in the answer, not printed."""
+    captures get the paper's argmax by default') are kept in the answer, not printed. fit: a
+    dict given the answer's kind and misfit (`_fit_fields`)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         location = nl.locate_capture(h).points[0].location
+    if fit is not None and location.detected:
+        fit.update(_fit_fields(location.targets[0]))
     return location.position if location.detected else None
+
+
+def _fit_fields(target) -> dict:
+    """What answered (the model's shape, or the argmax and which fit it replaced) and the
+    misfit ratio of the fit behind it (Birge ratio; counts: deviance per degree of freedom;
+    the rejected fit's where the argmax replaced it): how well the model explains the capture
+    (issue 57 asks it of every measured dataset)."""
+    if target.fit is not None:
+        return {"answer": target.fit.shape,
+                "misfit_ratio": _round(target.fit.diagnostics.get("misfit_ratio"), 1)}
+    rejected = (target.details or {}).get("rejected_fit") or {}
+    shape = rejected.get("shape") or rejected.get("model")
+    return {"answer": f"argmax ({shape} rejected)" if shape else "argmax",
+            "misfit_ratio": _round(rejected.get("misfit_ratio"), 1)}
 
 
 def ccsocr(cfg: dict, root: Path) -> dict:
@@ -47,10 +64,11 @@ def ccsocr(cfg: dict, root: Path) -> dict:
         for k in cfg.get("reciprocal", [])]
     rows = []
     for name, count, h in cases:
-        position, seconds = _timed(lambda: _located(h))
+        fit: dict = {"answer": None, "misfit_ratio": None}
+        position, seconds = _timed(lambda: _located(h, fit))
         depth = None if position is None else float(position[1])
         rows.append({"case": name, "scan_points": count, "detected": position is not None,
-                     "position_m": _r(position), "depth_m": _round(depth, 3),
+                     "position_m": _r(position), "depth_m": _round(depth, 3), **fit,
                      "error_m": None if depth is None else
                      round(max(low - depth, depth - high, 0.0), 3),
                      "seconds": round(seconds, 2),
@@ -64,11 +82,12 @@ def lct(cfg: dict, root: Path) -> dict:
     rows = []
     for name in cfg["files"]:
         h, read_s = _timed(lambda: nl.read_dataset(root / name))
-        position, seconds = _timed(lambda: _located(h))
+        fit: dict = {"answer": None, "misfit_ratio": None}
+        position, seconds = _timed(lambda: _located(h, fit))
         reference, bp_s = _timed(lambda: backprojection_peak(h, **cfg["backprojection"]))
         error = None if position is None else abs(float(position[1] - reference[1]))
         rows.append({"case": Path(name).stem, "detected": position is not None,
-                     "position_m": _r(position), "reference_m": _r(reference),
+                     "position_m": _r(position), "reference_m": _r(reference), **fit,
                      "depth_error_m": _round(error, 3),
                      "seconds": round(seconds, 2), "read_s": round(read_s, 2),
                      "backprojection_s": round(bp_s, 1),
