@@ -112,7 +112,10 @@ def lit_cells(centres, normals, e_u, e_v, spots=None, laser=None):
 
 
 def culled(cells, edges, keep):
-    """(cells, edges) of the cells `keep` selects."""
+    """(cells, edges) of the cells `keep` selects (given back as they are where it keeps all:
+    a box's lit faces, copied for nothing before)."""
+    if keep.dtype == bool and keep.all():
+        return cells, edges
     return cells.take(keep), tuple(np.ascontiguousarray(e[keep]) for e in edges)
 
 
