@@ -118,6 +118,8 @@ def test_a_closed_shape_whose_depth_is_seen_is_refitted_on_every_detector(stubs)
                                                  Covariance(None, {}), choice)
     assert chosen.shape is box and stubs["choices"] == 1
     assert stubs["fit_on"] == [CHOICE_DETECTORS, n_det, n_det]
+    # the box too finishes from the subset's fit (LCT: ~100 s in 30 evaluations before)
+    assert stubs["nfev"][-1] == FINISH_NFEV
 
 
 def test_without_the_sanity_check_nothing_ends_on_the_subset(stubs):

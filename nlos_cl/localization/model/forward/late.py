@@ -27,6 +27,7 @@ import numpy as np
 
 from ....core.constants import SPEED_OF_LIGHT, TINY
 from ....core.stats import chi2_quantile
+from ....core.tuning import SEARCH_DETECTORS
 
 PS = 1e-12 * SPEED_OF_LIGHT  # m of path per ps
 # ("exp", decay m) and ("lobe", delay m, sd m): the copies' kernels
@@ -240,6 +241,11 @@ def with_late(est, chosen, plate, plates, solvers, smooth=None):
     fit, covariance, cascade = solvers
     problem, result, free, cov = chosen
     if len(result.params) != 1 or getattr(problem.obs, "late", None) is not None:
+        return chosen
+    if len(plates.obs.spots) > SEARCH_DETECTORS:
+        # not on every histogram of a scan: the counts' solve holds a dense Gram of the
+        # backgrounds (LCT's 4,096: 72 least squares of 4,107 unknowns, 254 s CPU)
+        cov.info.update(late_tried=False)
         return chosen
     missed, before = misses(problem, result, cov.info, free)
     if not missed:
