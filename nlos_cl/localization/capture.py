@@ -260,14 +260,20 @@ def _locate_point(i, hist, frame, region, derived, *, h_s, estimator, log_mode, 
                          processing)
 
 
-def _filter_input(hist: HistogramSet) -> HistogramSet:
-    """`hist`, or where it was recorded through a gate, a copy with each gate's outside filled
-    with the level inside its edge (measured.gated.ungated): the filter, the detection, the
-    search region and the argmax read that; the fit the data as recorded."""
-    from .measured.gated import ungated
+def _filter_input(hist: HistogramSet, processing: dict | None):
+    """(`hist`, processing), or where it was recorded through a gate, a copy with each gate's
+    outside filled with the level inside its edge (measured.gated.ungated): the filter, the
+    detection, the search region and the argmax read that; the fit the data as recorded. The
+    processing report gets a `gated` entry then."""
+    from .measured.gated import gate_bounds, gated_report, ungated
     data = np.asarray(hist.data)
-    filled = ungated(data) if data.ndim == 2 and data.shape[1] > 1 else None
-    return hist if filled is None else hist.with_data(filled)
+    if data.ndim != 2 or data.shape[1] < 2:
+        return hist, processing
+    bounds = gate_bounds(data)
+    report = gated_report(bounds, data.shape[1])
+    if report is None:
+        return hist, processing
+    return hist.with_data(ungated(data, bounds)), dict(processing or {}, gated=report)
 
 
 def _spread(hist, filtered, h_s, backend):
@@ -320,17 +326,19 @@ def locate_capture(capture, *, region=None, step_m: float | None = None,
     backend = resolve_backend(backend)
     points = []
     for i, hist in enumerate(sets):
-        seen = _filter_input(hist)  # a gate's outside filled for the filter (measured.gated)
+        # a gate's outside filled for the filter (measured.gated), and said in `processing`
+        seen, processing = _filter_input(hist, reports[i])
         grid, derived = search_region(seen, frame, region, step_m, h_s, names=names)
         point_est, note = (choose_estimator(None, targets=targets, paired=True)
                            if estimator is None and hist.paired else (est, None))
         if isinstance(estimator, str | None) and isinstance(point_est, PaperArgmax):
             point_est = ArgmaxSpread()  # the paper's answer, with its likelihood's spread
-        def located(chosen, i=i, hist=hist, grid=grid, derived=derived, note=note, seen=seen):
+        def located(chosen, i=i, hist=hist, grid=grid, derived=derived, note=note, seen=seen,
+                    processing=processing):
             return _locate_point(i, (hist, seen), frame, grid, derived, h_s=h_s, estimator=chosen,
                                  log_mode=log_mode, return_map=bool(return_map),
                                  backend=backend, names=names, notes=[note] if note else [],
-                                 processing=reports[i])
+                                 processing=processing)
         if given is None and estimator in (None, "model"):  # one, or separate objects
             point = one_or_more(point_est, located)
         else:

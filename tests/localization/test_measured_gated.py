@@ -59,3 +59,21 @@ def test_a_plate_recorded_through_a_tight_gate_is_located(ambient_hz):
         target = nl.locate_capture(counts.with_data(data)).points[0].location.targets[0]
     assert np.linalg.norm(np.asarray(target.position) - [4.0, 2.0, 0.0]) < 0.03
     assert target.fit.diagnostics["misfit_ratio"] < 1.3
+
+
+def test_a_gated_capture_says_so_in_its_processing():
+    """`processing` (the JSON's) names the gated rows and where their gates lie; a capture
+    without gates has no such entry."""
+    scene = nl.paper_scene()
+    counter = nl.PhotonCounter(n_pulses=80e6 * 3000 / 44234, ambient_rate_hz=1e6)
+    counts = counter.counts(nl.simulate(scene).histograms(), seed=2)
+    data = np.asarray(counts.data).copy()
+    data[:, :500], data[:, 800:] = 0, 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        gated_point = nl.locate_capture(counts.with_data(data)).points[0]
+        plain_point = nl.locate_capture(counts).points[0]
+    report = gated_point.processing["gated"]
+    assert report["rows"] == report["of"] == 3
+    assert (report["first_bin_median"], report["last_bin_median"]) == (500, 799)
+    assert "gated" not in (plain_point.processing or {})

@@ -50,13 +50,27 @@ def in_gate(idx: np.ndarray, bounds) -> np.ndarray:
     return (idx >= first[:, None]) & (idx <= last[:, None])
 
 
-def ungated(counts: np.ndarray) -> np.ndarray | None:
+def gated_report(bounds, n_bins: int) -> dict | None:
+    """What a capture's `processing` says of its gates: the rows gated, and the median first
+    and last bin of their gates; None where no row is."""
+    first, last = bounds
+    rows = (first > 0) | (last < n_bins - 1)
+    if not rows.any():
+        return None
+    return {"rows": int(rows.sum()), "of": int(len(first)),
+            "first_bin_median": int(np.median(first[rows])),
+            "last_bin_median": int(np.median(last[rows])),
+            "note": "bins outside a gate are not measurements: the fit leaves them out, the "
+                    "filter reads them filled with the gate's edge level"}
+
+
+def ungated(counts: np.ndarray, bounds=None) -> np.ndarray | None:
     """A copy of `counts` with each gate's outside filled with the level just inside its edge
     (the mean of GATE_EDGE_BINS bins), for the Gauss filter's input only: filtered, a gate's
     edge is a step of the whole ambient level, which the detection and the argmax read as a
     return (a gated plate at 271 counts a bin: a box 0.7 m off). None where no row is gated.
     The fit reads the counts as recorded, without the gated bins (`gate_bounds`)."""
-    first, last = gate_bounds(counts)
+    first, last = gate_bounds(counts) if bounds is None else bounds
     n = counts.shape[1]
     rows = np.flatnonzero((first > 0) | (last < n - 1))
     if not rows.size:
