@@ -16,6 +16,13 @@ Screening (per frame, before any track is looked at):
   0.5 m apart explain 8 spots' data as well as the truth does); with one track it is that
   track's target, fitted twice.
 
+One object, one track: plate fits that touch (model.policy.criteria.object_labels: neither
+apart nor SURFACES_APART_M behind one another) are one object's faces or light, e.g. a person
+fitted as a thin plate on his front and a wide one on the broad late light of his body
+(scenario clutter draw 80). Where one of them is paired with a track, or none is and they are
+free, the object's other plates start no track of their own: they ride with the paired or the
+brightest plate as its track's extra plates (`objects`), which its warm fits carry.
+
 Assignment: squared Mahalanobis distance of each measurement to each track's predicted
 position, chi-square gate at `gate_probability`, SciPy's linear_sum_assignment. Where two or
 more tracks share their gated measurements and there are fewer measurements than tracks (one
@@ -96,6 +103,73 @@ def associate(tracks, measurements, gate_probability):
     pairs = [(tracks[i], measurements[j]) for i, j in zip(rows, cols) if cost[i, j] < BIG]
     used = {id(m) for _, m in pairs} | {id(measurements[j]) for j in blocked[1]}
     return pairs, [m for m in measurements if id(m) not in used]
+
+
+def objects(pairs, free, carried=(), screened=()) -> tuple[list, dict]:
+    """(the free measurements less the other plates of an object whose head is paired or
+    free, {id(head measurement): [the object's other plate rows]}): see the module docstring.
+    Where two paired plates touch (two tracks' targets side by side) nothing changes.
+    carried: the tracks whose extra plates this frame's fit counted (a fit of as many targets
+    as the tracks' plates, warm or cold, not 'auto'); a plate of it that no track took is one
+    of those extras moved off (no new target: births come from 'auto' fits), and rides with
+    the nearest of them; so does a plate of it screened out (`screened`: a vague one still
+    holds light the next fit must explain)."""
+    from ..localization.model.policy.criteria import object_labels
+    paired_ids = {id(m) for _, m in pairs}
+    members = [m for m in [m for _, m in pairs] + list(free) if plate_row(m) is not None]
+    groups: dict = {}
+    for m, g in zip(members, object_labels([plate_row(m) for m in members])):
+        groups.setdefault(g, []).append(m)
+    riders, extras = set(), {}
+    for group in groups.values():
+        heads = [m for m in group if id(m) in paired_ids]
+        if len(group) < 2 or len(heads) > 1:
+            continue
+        head = heads[0] if heads else max(group, key=brightness)
+        others = [m for m in group if m is not head]
+        extras[id(head)] = [plate_row(m) for m in others]
+        riders |= {id(m) for m in others}
+    carriers = {id(tr) for tr in carried}
+    heads = [(tr, m) for tr, m in pairs if id(tr) in carriers]
+    for m in list(free) + list(screened):
+        if id(m) not in riders and heads and plate_row(m) is not None:
+            _, head = min(heads, key=lambda h: np.linalg.norm(h[1].position - m.position))
+            extras.setdefault(id(head), []).append(plate_row(m))
+            riders.add(id(m))
+    return [m for m in free if id(m) not in riders], extras
+
+
+def same_object(a, b) -> bool:
+    """Are measurements a and b plate fits of one object (they touch)?"""
+    from ..localization.model.policy.criteria import object_labels
+    rows = [plate_row(a), plate_row(b)]
+    return rows[0] is not None and rows[1] is not None and len(set(object_labels(rows))) == 1
+
+
+def count_objects(measurements) -> int:
+    """How many objects the measurements are (touching plate fits count once)."""
+    from ..localization.model.policy.criteria import object_labels
+    rows = [plate_row(m) for m in measurements]
+    plates = [r for r in rows if r is not None]
+    return len(rows) - len(plates) + (len(set(object_labels(plates))) if plates else 0)
+
+
+def plate_row(m):
+    """The plate row (x, y, z, width, height, yaw) of a measurement's model fit (a closed
+    shape's without its depth), or None (no fit, a merged pair)."""
+    fit = getattr(m.source, "fit", None)
+    if m.merged or fit is None:
+        return None
+    values = fit.values()
+    if fit.shape == "plate":
+        return values[:6]
+    return values[[0, 1, 2, 3, 4, 6]] if len(values) == 7 else None  # x y z w h depth yaw
+
+
+def brightness(m) -> float:
+    """A plate fit's amplitude x area: the light it returns, up to its distance's factor."""
+    fit = m.source.fit
+    return float(fit.amplitude) * float(fit.values()[3]) * float(fit.values()[4])
 
 
 def _unresolved(gated):

@@ -4,7 +4,8 @@
 Per frame, with the model estimator:
 - while no track is alive, the frame is fitted cold with the model selection's 'auto'
   (model.policy.select: a plate more only where the BIC says the data hold it), up to the cap;
-- while tracks live (tentative ones too), their number is fitted, warm-started from their
+- while tracks live (tentative ones too), their number of plates is fitted (a track's
+  object's extra plates too: tracking.association.objects), warm-started from their
   plates (tracking.warm; a track born this frame keeps its birth fit's plate): a tentative
   track is confirmed by that cheap fit, and a spurious one gets no measurement (below) and dies.
   (Before, a tentative track sent each frame to a cold 'auto' fit up to one target more: on a
@@ -23,6 +24,7 @@ misses.
 from __future__ import annotations
 
 from ..localization.estimate import LEFTOVER
+from .warm import plates
 
 BIRTH_FRAMES = 2
 COOL_FRAMES = 10
@@ -41,7 +43,7 @@ class TargetCount:
         live = [t for t in tracks if t.status in ("tentative", "confirmed")]
         if not live:
             return "auto", self.cap
-        n = min(len(live), self.cap)
+        n = min(plates(live), self.cap)  # a track's object may be fitted as touching plates
         return n, n
 
     def try_more(self, location, targets) -> bool:

@@ -96,6 +96,6 @@ def _last_measured(track):
 def _continue(track, cand) -> None:
     """The candidate's estimate becomes the track's; its record starts a new segment."""
     track.state, track.covariance = cand.state.copy(), cand.covariance.copy()
-    track.plate = cand.plate  # (the track keeps its remembered sizes: the same target)
+    track.plate, track.extra = cand.plate, cand.extra  # (its remembered sizes: the same)
     track.misfit, track.late = cand.misfit, cand.late
     track.pending = None  # no prediction links this frame to the last one: a restart

@@ -37,6 +37,9 @@ class Track:
     steps: deque = field(default_factory=deque)
     pending: tuple | None = None  # (dt, x, P) of the last prediction, until it is recorded
     plate: np.ndarray | None = None  # the last paired fit's plate row (warm starts)
+    # the rows of plates touching it in that fit: its object's other faces or light, which
+    # the warm fits carry (tracking.association.objects)
+    extra: list = field(default_factory=list)
     # the Birge ratio of the last cold fit behind its measurements (Prior.misfit: warm.keep)
     misfit: float | None = None
     late: bool = False  # that cold fit kept late copies of the light (Prior.late)

@@ -102,6 +102,7 @@ class Tracker:
             kalman.measurement, d=self.dims, fallback_sigma_m=self.fallback_sigma_m,
             min_sigma_m=float(noise.min_sigma_m),
             unseen_axis=_unseen_axis(layout))
+        self.counted_fit = False  # this frame fitted as many targets as the tracks' plates
         self.tracks: list[Track] = []  # live
         self.finished: list[Track] = []  # deleted, most recent last (at most 100 kept)
         self.frame_index, self.t_s = -1, None
@@ -160,6 +161,7 @@ class Tracker:
             self.estimator.targets, self.estimator.max_targets = targets, most
             self.slots = most
         fixed = isinstance(getattr(self.estimator, "targets", 1), int)
+        self.counted_fit = fixed  # the tracks' own plates fitted: no 'auto' (association)
         starters = warm.starters(predictions, self.estimator.targets, self.count is not None) \
             if self.warm_start and fixed and predictions is not None else None
         box = gated.search_box(self, predictions)  # None: the whole region
@@ -172,7 +174,7 @@ class Tracker:
                 location, found = self._one_more(sig, location, found)
             # as many tracks as the data hold targets now: a free measurement beyond the
             # live tracks is a birth, one among them a lost target to re-find (recovery)
-            self.slots = max(1, min(self.max_tracks, len(found)))
+            self.slots = max(1, min(self.max_tracks, association.count_objects(found)))
         self.last_location, self.last_measurements = location, found
         return found
 
@@ -187,6 +189,7 @@ class Tracker:
             self.estimator.targets, self.estimator.max_targets = k, k
         more = len(again[1]) > len(found)
         self.count.tried(more)
+        self.counted_fit = not more
         return again if more else (location, found)
 
     def _locate(self, sig, prior, within=None):
@@ -207,25 +210,33 @@ class Tracker:
         self.frame_index += 1
         for prediction in predictions:
             kalman.apply_prediction(prediction, t)
+        given = measurements
         measurements = association.screen(
             measurements, max_sigma_m=self.max_sigma_m, max_birge_ratio=self.max_birge_ratio,
             gate_probability=self.gate_probability)
         pairs, free = association.associate(self.tracks, measurements, self.gate_probability)
+        extras = {}
+        if self.count is not None:  # one object, one track (where K is given, K targets)
+            carried = [tr for tr, _ in pairs if tr.extra] if self.counted_fit else []
+            kept = {id(m.source) for m in measurements}
+            free, extras = association.objects(
+                pairs, free, carried, [m for m in given if id(m.source) not in kept])
         for track, m in pairs:
             kalman.update_track(track, m)
-            warm.remember(track, m)
+            warm.remember(track, m, extras.get(id(m), ()))
         paired = {id(tr) for tr, _ in pairs}
         if self.recovery is not None:  # a lost target re-found continues its track
             recovered, free = self.recovery.step(self.tracks, paired, free, t, self.frame_index,
                                                  len(self.tracks) >= self.slots)
             paired |= recovered
-        _bury_and_bear(self, paired, free, t)
+        _bury_and_bear(self, paired, free, t, extras)
         self.t_s = t
         return list(self.tracks)
 
 
-def _bury_and_bear(tracker, paired: set, free: list, t: float) -> None:
-    """Count each track's hit or miss (deleting where due), then births from `free`."""
+def _bury_and_bear(tracker, paired: set, free: list, t: float, extras: dict) -> None:
+    """Count each track's hit or miss (deleting where due), then births from `free` (each with
+    its object's other plates, `extras`)."""
     for track in list(tracker.tracks):
         if tracker.lifecycle.account(track, id(track) in paired, tracker.frame_index):
             tracker.tracks.remove(track)
@@ -233,7 +244,7 @@ def _bury_and_bear(tracker, paired: set, free: list, t: float) -> None:
     for m in free:
         if len(tracker.tracks) < tracker.slots:
             born = tracker.lifecycle.birth(m, t, tracker.frame_index)
-            warm.keep(born, m)  # a counting tracker warm-starts it next frame
+            warm.keep(born, m, extras.get(id(m), ()))  # a counting tracker warm-starts it
             tracker.tracks.append(born)
 
 def _next_time(previous, t_s, interval):

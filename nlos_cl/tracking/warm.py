@@ -17,7 +17,7 @@ import numpy as np
 
 from ..core.tuning import HIDDEN_SHARE
 from ..localization.estimate import Prior, capabilities_of
-from . import kalman
+from . import association, kalman
 
 
 def can_start(estimator, fixed: bool = False) -> bool:
@@ -54,11 +54,13 @@ def plate_of(measurement):
 WARM_SHAPE = "plate"
 
 
-def keep(track, measurement) -> None:
-    """The track's warm start from its paired measurement: the fitted plate row, and the
-    misfit of the cold fit behind it where one ran this frame (a warm fit's own is not: a
+def keep(track, measurement, extra=()) -> None:
+    """The track's warm start from its paired measurement: the fitted plate row, the object's
+    other plates (`extra`: rows of touching plates fitted with it, tracking.association), and
+    the misfit of the cold fit behind it where one ran this frame (a warm fit's own is not: a
     floor that followed the accepted warm fits would climb frame by frame)."""
     track.plate = plate_of(measurement)
+    track.extra = [np.array(r, float) for r in extra]  # counted in the next fit's targets
     fit = getattr(measurement.source, "fit", None)
     # the ratio the warm fit's misfit test reads: the Birge ratio, or counts' deviance per
     # degree of freedom (ModelFit.birge_ratio is None for counts)
@@ -81,14 +83,14 @@ def keep(track, measurement) -> None:
 SIZE_REL_SD = 0.05
 
 
-def remember(track, measurement) -> None:
+def remember(track, measurement, extra=()) -> None:
     """After pairing: the track's warm-start plate, and its size where the fit saw the plate
     whole (ModelFit.hidden_share <= tuning.HIDDEN_SHARE, taken at the remembered size where that is
     larger: a partly hidden plate fits smaller, model.warm.size_prior). A track's first plate
     seeds the memory whatever it hid (a target hidden from its first frame keeps the size it
     was found with, not the one it shrinks to frame by frame from warm starts: crossing draw
     34, 0.056 -> 0.019 m RMS); the first size seen whole replaces the seed."""
-    keep(track, measurement)
+    keep(track, measurement, extra)
     if track.plate is None:
         return
     hidden = measurement.source.fit.hidden_share
@@ -114,11 +116,16 @@ def size_of(track):
 
 def starters(predictions, targets: int, tentative: bool = False) -> list | None:
     """The predictions of the confirmed tracks with a plate (tentative: and of the tentative
-    ones, as a tracker counting its targets warm-starts them: tracking.births), if there are
-    exactly `targets` of them (else None: no warm start)."""
+    ones, as a tracker counting its targets warm-starts them: tracking.births), if they hold
+    exactly `targets` plates, their extra ones counted (else None: no warm start)."""
     kinds = ("confirmed", "tentative") if tentative else ("confirmed",)
     ready = [p for p in predictions if p.track.status in kinds and p.track.plate is not None]
-    return ready if len(ready) == targets else None
+    return ready if plates(p.track for p in ready) == targets else None
+
+
+def plates(tracks) -> int:
+    """How many plates the tracks' warm fits hold: each track's, and its object's extra ones."""
+    return sum(1 + len(getattr(t, "extra", ())) for t in tracks)
 
 
 def prior(starters) -> Prior:
@@ -138,6 +145,13 @@ def prior(starters) -> Prior:
         known = size_of(tr) or (row[3:5], np.full(2, np.inf))
         size.append(known[0])
         size_sd.append(known[1])
+        for extra in tr.extra:  # the object's other plates move with it
+            measured.append(extra.copy())
+            moved = extra.copy()
+            moved[:tr.dims] += row[:tr.dims] - tr.plate[:tr.dims]
+            rows.append(moved)
+            size.append(extra[3:5])
+            size_sd.append(np.full(2, np.inf))
     misfits = [p.track.misfit for p in starters]
     floor = None if None in misfits else max(misfits)
     return Prior(np.array(rows), np.array(size), np.array(size_sd), floor,
@@ -145,15 +159,24 @@ def prior(starters) -> Prior:
 
 
 def outside_gates(measurements, predictions, gate_probability) -> bool:
-    """Is some warm-fitted measurement outside the gate of every start track?"""
-    for m in measurements:
-        fit = getattr(m.source, "fit", None)
-        if fit is None or fit.warm_start is None or not fit.warm_start.used or not len(m.axes):
-            continue  # (no measured axis: a plate held at amplitude 0 says nothing of where)
+    """Is some warm-fitted measurement outside the gate of every start track, and no plate of
+    an object whose other plate lies inside one (a track's extra plate)?"""
+    def inside(m):
         gate = kalman.gate_threshold(gate_probability, len(m.axes))
-        if all(kalman.gate_distance2(p.x, p.P, p.modes, m) > gate for p in predictions):
-            return True
-    return False
+        return any(kalman.gate_distance2(p.x, p.P, p.modes, m) <= gate for p in predictions)
+    warm = [m for m in measurements if _warm_fitted(m)]
+    held = [m for m in warm if inside(m)]
+    held_ids = {id(m) for m in held}
+    return any(not any(association.same_object(m, h) for h in held)
+               for m in warm if id(m) not in held_ids)
+
+
+def _warm_fitted(m) -> bool:
+    """A warm fit's measurement with a measured axis (a plate held at amplitude 0 says
+    nothing of where)."""
+    fit = getattr(m.source, "fit", None)
+    return fit is not None and fit.warm_start is not None and fit.warm_start.used \
+        and bool(len(m.axes))
 
 
 def better(warm_located, cold_located):
