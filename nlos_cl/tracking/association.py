@@ -21,7 +21,8 @@ apart nor SURFACES_APART_M behind one another) are one object's faces or light, 
 fitted as a thin plate on his front and a wide one on the broad late light of his body
 (scenario clutter draw 80). Where one of them is paired with a track, or none is and they are
 free, the object's other plates start no track of their own: they ride with the paired or the
-brightest plate as its track's extra plates (`objects`), which its warm fits carry.
+brightest plate as its track's extra plates (`objects`), which its warm fits carry. The
+tracker groups so only while it counts its targets ('auto') and no live track missed.
 
 Assignment: squared Mahalanobis distance of each measurement to each track's predicted
 position, chi-square gate at `gate_probability`, SciPy's linear_sum_assignment. Where two or

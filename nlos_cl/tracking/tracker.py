@@ -216,7 +216,9 @@ class Tracker:
             gate_probability=self.gate_probability)
         pairs, free = association.associate(self.tracks, measurements, self.gate_probability)
         extras = {}
-        if self.count is not None:  # one object, one track (where K is given, K targets)
+        # one object, one track; not where K is given (K targets), nor while a live track
+        # missed (a free plate touching another's may be its target, to re-find: recovery)
+        if self.count is not None and len(pairs) == len(self.tracks):
             carried = [tr for tr, _ in pairs if tr.extra] if self.counted_fit else []
             kept = {id(m.source) for m in measurements}
             free, extras = association.objects(

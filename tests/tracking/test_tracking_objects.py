@@ -117,3 +117,16 @@ def test_a_counted_fits_plate_that_no_track_took_rides_with_the_carrier():
     assert free == [] and len(extras[id(m_front)]) == 1
     free, extras = association.objects([(track, m_front)], [far], [])
     assert free == [far] and not extras
+
+
+def test_while_a_track_misses_a_plate_touching_another_is_not_taken_as_its_face():
+    """A followed target lost from its gate (a crossing) may be the free plate beside another
+    track's: it is left free (recovery may re-find it), not made that track's extra plate."""
+    tr = _tracker()
+    for k in range(4):
+        tr.step([_plate(-1.0 + 0.1 * k, 2.2, 0.0, 1.0, 0.5), _plate(1.5, 3.5, 0.0, 1.0, 0.5)],
+                0.1 * k)
+    pair = [_plate(-0.6, 2.2, 0.0, 1.0, 0.5), _plate(0.2, 2.2, 0.0, 1.0, 0.5)]  # B: missed
+    assert association.count_objects([_measured(p) for p in pair]) == 1
+    tracks = tr.step(pair, 0.4)
+    assert not any(t.extra for t in tracks) and len(tracks) == 3  # free: a birth may take it
