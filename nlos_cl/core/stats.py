@@ -66,6 +66,13 @@ def row_median(rows, *, overwrite=False) -> np.ndarray:
     return 0.5 * (part[:, :mid].max(axis=1) + part[:, mid])  # np.median's mean of the two
 
 
+def deviance_residuals(y, lam) -> np.ndarray:
+    """Signed Poisson deviance residuals of counts y against means lam (same shape, lam > 0):
+    sign(y - lam) sqrt(2 (y ln(y / lam) - (y - lam))); their squares sum to the deviance."""
+    ylog = np.where(y > 0, y * np.log(np.where(y > 0, y, 1.0) / lam), 0.0)
+    return np.sign(y - lam) * np.sqrt(np.maximum(2.0 * (ylog - (y - lam)), 0.0))
+
+
 def chi2_quantile(probability: float, dof: float) -> float:
     """x with P(chi^2_dof <= x) = probability (0 < probability < 1, dof > 0)."""
     require(0.0 < probability < 1.0, "probability", f"must be in (0, 1), got {probability!r}",

@@ -225,11 +225,12 @@ def _calibrated(sets, calibration):
 # test_paired.py) but misses the measured ones it has met (CC-SOCR: plate Birge ratio 370-500,
 # depth 1.34 m on 6 points, 7-37 s): by default such captures get the paper's argmax.
 def _locate_point(i, hist, frame, region, derived, *, h_s, estimator, log_mode, return_map,
-                  backend, names, notes=(), processing=None) -> PointLocation:
+                  backend, names, notes=(), processing=None, seen=None) -> PointLocation:
     """The paper's argmax on the region (refined on a fine zoom where the derived region had to
-    be coarsened), then the estimator on the final grid; warnings collected, not raised."""
+    be coarsened), then the estimator on the final grid; warnings collected, not raised.
+    seen: what the filter reads where it is not `hist` (`_filter_input`); the fit reads hist."""
     from ..ops.signals import upload
-    hist, seen = hist  # as recorded (fitted), and as filtered (`_filter_input`)
+    seen = hist if seen is None else seen
     log_mode = auto_log_mode(hist.n_detectors) if log_mode is None else bool(log_mode)
     raw = upload(hist, backend)  # once: filtered here, and fitted by the model estimator
     filtered = gauss_filter(raw if seen is hist else upload(seen, backend), h_s)
@@ -335,10 +336,10 @@ def locate_capture(capture, *, region=None, step_m: float | None = None,
             point_est = ArgmaxSpread()  # the paper's answer, with its likelihood's spread
         def located(chosen, i=i, hist=hist, grid=grid, derived=derived, note=note, seen=seen,
                     processing=processing):
-            return _locate_point(i, (hist, seen), frame, grid, derived, h_s=h_s, estimator=chosen,
+            return _locate_point(i, hist, frame, grid, derived, h_s=h_s, estimator=chosen,
                                  log_mode=log_mode, return_map=bool(return_map),
                                  backend=backend, names=names, notes=[note] if note else [],
-                                 processing=processing)
+                                 processing=processing, seen=seen)
         if given is None and estimator in (None, "model"):  # one, or separate objects
             point = one_or_more(point_est, located)
         else:

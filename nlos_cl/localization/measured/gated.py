@@ -36,11 +36,12 @@ def gate_bounds(counts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         lo[part] = lit.argmax(axis=1)
         hi[part] = n - 1 - lit[:, ::-1].argmax(axis=1)
     any_lit = counts[np.arange(d), lo] > 0  # argmax of an all-zero row is 0, and unlit
-    for r in rows[any_lit[rows] & (hi[rows] - lo[rows] + 1 >= GATE_MIN_SUPPORT)]:
-        if lo[r] > 0 and counts[r, lo[r]:lo[r] + GATE_EDGE_BINS].min() >= GATE_LEVEL:
-            first[r] = lo[r]
-        if hi[r] < n - 1 and counts[r, hi[r] - GATE_EDGE_BINS + 1:hi[r] + 1].min() >= GATE_LEVEL:
-            last[r] = hi[r]
+    rows = rows[any_lit[rows] & (hi[rows] - lo[rows] + 1 >= GATE_MIN_SUPPORT)]
+    inside = np.arange(GATE_EDGE_BINS)  # the support holds >= GATE_MIN_SUPPORT of them
+    after = counts[rows[:, None], lo[rows, None] + inside].min(axis=1) >= GATE_LEVEL
+    before = counts[rows[:, None], hi[rows, None] - inside].min(axis=1) >= GATE_LEVEL
+    starts, ends = rows[after & (lo[rows] > 0)], rows[before & (hi[rows] < n - 1)]
+    first[starts], last[ends] = lo[starts], hi[ends]
     return first, last
 
 
@@ -76,8 +77,13 @@ def ungated(counts: np.ndarray, bounds=None) -> np.ndarray | None:
     if not rows.size:
         return None
     out = np.array(counts, dtype=np.float64)
-    for r in rows:
-        a, b = first[r], last[r]
-        out[r, :a] = out[r, a:a + GATE_EDGE_BINS].mean()
-        out[r, b + 1:] = out[r, b - GATE_EDGE_BINS + 1:b + 1].mean()
+    inside, bins = np.arange(GATE_EDGE_BINS), np.arange(n)[None, :]
+    for at in range(0, len(rows), ROWS_A_PASS):  # bounded temporaries on a SPAD record
+        r = rows[at:at + ROWS_A_PASS]
+        a, b = first[r, None], last[r, None]
+        # each gated row's outside: the mean of the GATE_EDGE_BINS bins inside its edge (an
+        # end that is no gate has an empty mask)
+        lead = out[r[:, None], a + inside].mean(axis=1, keepdims=True)
+        tail = out[r[:, None], b - inside].mean(axis=1, keepdims=True)
+        out[r] = np.where(bins < a, lead, np.where(bins > b, tail, out[r]))
     return out

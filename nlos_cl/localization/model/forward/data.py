@@ -273,7 +273,7 @@ def poisson_observation(layout, counts, filtered, *, pulse_sigma_s=PAPER_PULSE_S
                         margin_m=0.35, frac=ONE_TARGET_FRAC) -> Observation:
     """Photon counts per model bin around the signal (windows found on the filtered rows):
     `counts_group` record bins summed into each, a group valid where all its bins are inside
-    the record and its gate (forward.gate)."""
+    the record and its gate (localization.measured.gated)."""
     axis, paths = layout.time_axis, layout.path_axis()
     a = layout.calibration.a_m_per_s
     step = a * axis.dt_s

@@ -16,6 +16,7 @@ import math
 import numpy as np
 
 from ....core.constants import TINY
+from ....core.stats import deviance_residuals
 from ..shapes import plate
 from . import late, nuisance
 
@@ -251,10 +252,7 @@ class Problem:
         if obs.mode == "gauss":
             r = (obs.y - mu) / obs.noise[:, None]
         else:
-            lam = np.maximum(mu, 1e-12)
-            y = obs.y
-            ylog = np.where(y > 0, y * np.log(np.where(y > 0, y, 1.0) / lam), 0.0)
-            r = np.sign(y - lam) * np.sqrt(np.maximum(2.0 * (ylog - (y - lam)), 0.0))
+            r = deviance_residuals(obs.y, np.maximum(mu, 1e-12))
         return r[obs.valid]
 
     def null_cost(self) -> float:

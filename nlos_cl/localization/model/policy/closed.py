@@ -132,8 +132,9 @@ def beyond_closed(problem, plate_result, birge) -> float | None:
     and CC-SOCR's "4" as one laser (plate misfit 420-480, 29-34 % left) had its closed fits
     rejected or beaten by the plate after 2-4 s of the search, twice with the late copies
     (docs/model-estimator.md, "Speed of small captures")."""
-    null = problem.null_cost()
-    left = plate_result.cost / null if null > 0 else 0.0
+    from .sanity import explained_share
+    share = explained_share(problem, plate_result)
+    left = 0.0 if share is None else 1.0 - share
     return left if birge > MISFIT_BIRGE and left > NO_CLOSED_LEFT else None
 
 

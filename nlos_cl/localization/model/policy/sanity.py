@@ -73,11 +73,17 @@ def fit_checks(chosen, result, free, cov_all, info) -> dict:
     target whose depth these spots cannot tell: depth.unseen_note)."""
     from .depth import unseen_note
     from .criteria import misfit as misfit_of
-    null = chosen.null_cost()
     return {"misfit_ratio": misfit_of(chosen, result, free, info)[1],
-            "explained": 1.0 - result.cost / null if null > 0 else None,
+            "explained": explained_share(chosen, result),
             "depth_unseen": len(result.params) == 1 and
             unseen_note(chosen.shape, result, cov_all, info) is not None}
+
+
+def explained_share(problem, result) -> float | None:
+    """The share of the no-target cost (Problem.null_cost) the fit removes; None where the
+    data hold no cost to remove."""
+    null = problem.null_cost()
+    return 1.0 - result.cost / null if null > 0 else None
 
 
 def leftover_note(problem, result, targets) -> str | None:

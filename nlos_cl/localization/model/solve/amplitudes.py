@@ -1,5 +1,5 @@
 """The photon counts' amplitudes of a forward-difference Jacobian's stepped columns, solved
-together (issue 58): each column set of a Jacobian is the fit's point with one parameter
+together: each column set of a Jacobian is the fit's point with one parameter
 moved, and its amplitudes and backgrounds are likelihood.Problem.linear's Newton solve from
 the point's own (3-4 steps each). Alone, each solve is ~25 small NumPy calls a step on a few
 thousand bins, so its cost is the calls' overhead; here the M solves of a Jacobian run as one
@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from ....core.constants import TINY
+from ....core.stats import deviance_residuals
 from ..forward.likelihood import BOUND_SHARE, NEWTON_ITERS
 
 
@@ -41,9 +42,7 @@ def stepped_residuals(problem, stepped, lin) -> list:
     phi, k, y = np.asarray(lins), np.shape(stepped)[1], obs.y
     lam = np.einsum("mk,mkdn->mdn", phi[:, :k], stepped) + phi[:, k:, None] * obs.valid
     np.maximum(lam, 1e-12, out=lam)
-    ylog = np.where(y > 0, y * np.log(np.where(y > 0, y, 1.0) / lam), 0.0)
-    r = np.sign(y - lam) * np.sqrt(np.maximum(2.0 * (ylog - (y - lam)), 0.0))
-    return list(r[:, obs.valid])
+    return list(deviance_residuals(y, lam)[:, obs.valid])
 
 
 def poisson_newton_many(y, valid, cols, phi, iters) -> np.ndarray:
