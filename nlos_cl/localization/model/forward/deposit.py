@@ -13,11 +13,12 @@ import numpy as np
 from ....ops.forward import REACH_SIGMAS
 
 
-def deposit_bins(path, weight, edge0, dpath, sigma, n_bins, os_, cache=None):
+def deposit_bins(path, weight, edge0, dpath, sigma, n_bins, os_, cache=None, seg=None):
     """hist (B, D, n): bin k of detector d covers paths edge0[b, d] + [k, k + 1) dpath[d] and
-    receives w (erf(z_hi) - erf(z_lo)) from each point (path, weight: (D, B, N)). cache: a
+    receives w (erf(z_hi) - erf(z_lo)) from each point (path, weight: (D, B, N); or, with
+    `seg`, (D, M): the B rows' points one after another, seg (M,) each point's row). cache: a
     dict the problem keeps the taps in (they depend only on the pulse width)."""
-    plan = split(path, weight, edge0, dpath, sigma, n_bins, os_)
+    plan = split(path, weight, edge0, dpath, sigma, n_bins, os_, seg)
     dep = deposit(plan, weight[plan.ok][None])[0]
     return correlate(dep, taps_of(dpath / os_, sigma, plan.pad, os_, {} if cache is None
                                 else cache), n_bins)
@@ -35,25 +36,30 @@ class Split(NamedTuple):
     shape: tuple
 
 
-def split(path, weight, edge0, dpath, sigma, n_bins, os_) -> Split:
-    """The linear split of points (path, weight: (D, B, N)) between the two sub-bins (at most
-    sigma / SUB_BINS_PER_SIGMA wide, os a bin) around each path, on a window padded by the
-    widest pulse's reach (REACH_SIGMAS)."""
-    n_det, n_b = path.shape[:2]
+def split(path, weight, edge0, dpath, sigma, n_bins, os_, seg=None) -> Split:
+    """The linear split of points (path, weight: (D, B, N), or (D, M) with seg (M,) each
+    point's row b: no padding to the largest row) between the two sub-bins (at most sigma /
+    SUB_BINS_PER_SIGMA wide, os a bin) around each path, on a window padded by the widest
+    pulse's reach (REACH_SIGMAS). The deposit's rows and each one's order of points are the
+    same in both forms (so are its sums, bit for bit)."""
+    n_det, n_b = len(dpath), path.shape[1] if seg is None else len(edge0)
     reach = REACH_SIGMAS * float(np.max(sigma))
     pad = math.ceil(reach / float(np.min(dpath))) + 1  # bins each side of the window
     length = (n_bins + 2 * pad) * os_
-    base = (edge0.T - pad * dpath[:, None])[:, :, None]  # (D, B, 1): sub-bin 0's lower edge
+    base = edge0.T - pad * dpath[:, None]  # (D, B): sub-bin 0's lower edge
+    if seg is None:
+        base, start = base[:, :, None], np.arange(n_det * n_b).reshape(n_det, n_b, 1) * length
+    else:  # each point its row's
+        base, start = base[:, seg], (np.arange(n_det)[:, None] * n_b + seg) * length
     u = path - base  # in place, and t and the rows for the kept points only: the same
-    u *= (os_ / dpath)[:, None, None]  # numbers in 0.6-0.7 of the time
+    u *= (os_ / dpath).reshape((n_det,) + (1,) * (path.ndim - 1))  # numbers in 0.6-0.7 of
     u -= 0.5  # from sub-bin centres
     j = np.floor(u)
     ok = weight > 0
     ok &= j >= 0
     ok &= j < length - 1
-    j, t = j[ok], u[ok]
+    j, t = j[ok], u[ok]  # the time
     t -= j
-    start = np.arange(n_det * n_b).reshape(n_det, n_b, 1) * length
     row = np.broadcast_to(start, ok.shape)[ok] + j.astype(np.int64)
     return Split(pad, ok, row, t, (n_det, n_b, n_bins + 2 * pad, os_))
 

@@ -156,28 +156,29 @@ class HostShapeProblem(Problem):
         return got
 
     def _evaluate(self, group) -> np.ndarray:
-        """(G, D, n): the histograms of a group of pieces (padded to its largest with copies
-        of its first point at zero area: zero weight, which the deposit skips)."""
+        """(G, D, n): the histograms of a group of pieces, their points one after another (each
+        piece's own: no padding to the largest, whose zero-area points were a quarter of a
+        box's arithmetic; the deposit's sums are the same, bit for bit: deposit.split)."""
         obs = self.obs
-        size = max(len(p[1]) for p in group)
-        points = np.empty((len(group), size, 3))
-        normals = np.empty((len(group), size, 3))
-        areas = np.zeros((len(group), size))
-        for g, (_, pts, nrm, area, _, _) in enumerate(group):
-            points[g, :len(pts)], normals[g, :len(pts)], areas[g, :len(pts)] = pts, nrm, area
-            points[g, len(pts):], normals[g, len(pts):] = pts[0], nrm[0]  # real geometry
+        sizes = [len(p[1]) for p in group]
+        points = np.concatenate([p[1] for p in group])[None]  # (1, M, 3)
+        normals = np.concatenate([p[2] for p in group])[None]
+        areas = np.concatenate([p[3] for p in group])[None]
+        seg = np.repeat(np.arange(len(group)), sizes)
         blur2 = np.array([p[4] for p in group])
         edge0 = obs.edge0[None] - np.stack([p[5] for p in group])  # (G, D): shifted
         sigma = np.sqrt(obs.sigma0_m ** 2 + blur2 - obs.box_excess_m2)
         laser = np.asarray(obs.laser, float)
         out = np.empty((len(group),) + obs.y.shape)
-        step = max(1, PAIRS_PER_PASS // (len(group) * size))  # detectors a pass
+        # detectors a pass: as many as when pieces were padded to the largest (the same
+        # passes, so the same windows: split's pad is a pass's)
+        step = max(1, PAIRS_PER_PASS // (len(group) * max(sizes)))
         for d in range(0, len(obs.spots), step):
             part = slice(d, d + step)
             path, weight = point_paths(points, normals, areas, obs.spots[part],
                                        laser[part] if laser.ndim == 2 else laser, self._factor)
-            out[:, part] = deposit_bins(path, weight, edge0[:, part], obs.dpath[part], sigma,
-                                        obs.n, self.os, self._taps)
+            out[:, part] = deposit_bins(path[:, 0], weight[:, 0], edge0[:, part],
+                                        obs.dpath[part], sigma, obs.n, self.os, self._taps, seg)
         return out
 
 

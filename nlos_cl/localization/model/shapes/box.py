@@ -16,6 +16,7 @@ zero the others anyway, at full cost.
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -75,11 +76,10 @@ def face_cells(p, lattice, spots=None, laser=None) -> list:
     for (c, u, v, n), (nu, nv), ok in zip(faces(p), _lattices(lattice), keep):
         if not ok:
             continue
-        su = ((np.arange(nu) + 0.5) / nu - 0.5)[:, None, None] * u
-        sv = ((np.arange(nv) + 0.5) / nv - 0.5)[None, :, None] * v
-        centres = (c + su + sv).reshape(-1, 3)
+        fu, fv = _fractions(nu, nv)
+        centres = (c + fu * u + fv * v).reshape(-1, 3)
         count = len(centres)
-        area = abs(float(np.linalg.norm(np.cross(u, v)))) / (nu * nv)
+        area = abs(float(np.linalg.norm(_cross(u, v)))) / (nu * nv)
         parts.append((Facets(centres, np.ascontiguousarray(np.broadcast_to(n, (count, 3))),
                              np.full(count, area)),
                       (np.broadcast_to(u / nu, (count, 3)), np.broadcast_to(v / nv, (count, 3)))))
@@ -87,6 +87,23 @@ def face_cells(p, lattice, spots=None, laser=None) -> list:
         zero = np.zeros((1, 3))
         parts = [(Facets(np.asarray(p[:3], float)[None], zero, np.zeros(1)), (zero, zero))]
     return parts
+
+
+@functools.lru_cache(maxsize=16)
+def _fractions(nu, nv):
+    """The cells' centres along a face's u and v edges as fractions of them, (nu, 1, 1) and
+    (1, nv, 1): the same for every face of a lattice (made once)."""
+    fu = ((np.arange(nu) + 0.5) / nu - 0.5)[:, None, None]
+    fv = ((np.arange(nv) + 0.5) / nv - 0.5)[None, :, None]
+    fu.flags.writeable = fv.flags.writeable = False
+    return fu, fv
+
+
+def _cross(u, v) -> np.ndarray:
+    """np.cross of two 3-vectors, the same products and differences (bit for bit) without
+    its axis handling (a sixth of building a box's cells, which a fit does for every row)."""
+    return np.array([u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2],
+                     u[0] * v[1] - u[1] * v[0]])
 
 
 def pieces(p, lattice):

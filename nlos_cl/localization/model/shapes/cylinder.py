@@ -10,6 +10,7 @@ spot or from every wall spot are dropped before the forward call (as in `ellipso
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -26,26 +27,50 @@ SIDE_CELLS, CAP_CELLS = (64, 16), (64, 4)
 
 def _side(c, n, a, sa, sb, h, n_az, n_h):
     d_az, d_h = 2 * math.pi / n_az, h / n_h
-    az, zz = np.meshgrid((np.arange(n_az) + 0.5) * d_az, ((np.arange(n_h) + 0.5) / n_h - 0.5)
-                         * h, indexing="ij")
-    az, zz = az.reshape(-1, 1), zz.reshape(-1, 1)
+    cos_az, sin_az, zz = _side_lattice(n_az, n_h)
+    zz = zz * h
     k = ellipsoid.chord_mean(d_az)  # the cells' facets at their patches' mean positions
-    centres = c + k * (sb * np.cos(az) * n + sa * np.sin(az) * a) + zz * plate.UP
-    e_az = (-sb * np.sin(az) * n + sa * np.cos(az) * a) * d_az
+    centres = c + k * (sb * cos_az * n + sa * sin_az * a) + zz * plate.UP
+    e_az = (-sb * sin_az * n + sa * cos_az * a) * d_az
     e_z = np.broadcast_to(plate.UP * d_h, e_az.shape)
-    normals = np.cos(az) / sb * n + np.sin(az) / sa * a
+    normals = cos_az / sb * n + sin_az / sa * a
     return centres, normals, e_az, e_z
 
 
 def _cap(c, n, a, sa, sb, up, n_az, n_r):
     d_az, d_r = 2 * math.pi / n_az, 1.0 / n_r
+    cos_az, sin_az, rr = _cap_lattice(n_az, n_r)
+    radial = sb * cos_az * n + sa * sin_az * a
+    centres = c + rr * radial
+    e_az = rr * (-sb * sin_az * n + sa * cos_az * a) * d_az
+    e_r = radial * d_r
+    return centres, np.broadcast_to(up, centres.shape), e_az, e_r
+
+
+@functools.lru_cache(maxsize=8)
+def _side_lattice(n_az, n_h):
+    """The side's cells' cos and sin of azimuth and height as a fraction of h, each (F, 1):
+    the same for every cylinder (made once; every row's surface read them anew before)."""
+    d_az = 2 * math.pi / n_az
+    az, zz = np.meshgrid((np.arange(n_az) + 0.5) * d_az, (np.arange(n_h) + 0.5) / n_h - 0.5,
+                         indexing="ij")
+    return _frozen(np.cos(az), np.sin(az), zz)
+
+
+@functools.lru_cache(maxsize=8)
+def _cap_lattice(n_az, n_r):
+    """A cap's cells' cos and sin of azimuth and radius as a fraction of the rim, (F, 1)."""
+    d_az, d_r = 2 * math.pi / n_az, 1.0 / n_r
     az, rr = np.meshgrid((np.arange(n_az) + 0.5) * d_az, (np.arange(n_r) + 0.5) * d_r,
                          indexing="ij")
-    az, rr = az.reshape(-1, 1), rr.reshape(-1, 1)
-    centres = c + rr * (sb * np.cos(az) * n + sa * np.sin(az) * a)
-    e_az = rr * (-sb * np.sin(az) * n + sa * np.cos(az) * a) * d_az
-    e_r = (sb * np.cos(az) * n + sa * np.sin(az) * a) * d_r
-    return centres, np.broadcast_to(up, centres.shape), e_az, e_r
+    return _frozen(np.cos(az), np.sin(az), rr)
+
+
+def _frozen(*arrays):
+    out = tuple(v.reshape(-1, 1) for v in arrays)
+    for v in out:
+        v.flags.writeable = False  # shared by every call
+    return out
 
 
 def cylinder_cells(p, spots=None, laser=None):
