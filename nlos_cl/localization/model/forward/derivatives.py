@@ -112,7 +112,10 @@ def _deposit_derivatives(path, weight, dpath, dweight, edge0, dpath_m, sigma, n_
     plan = split(path, weight, edge0, dpath_m, sigma, n_bins, os_)
     n_p = len(dpath)
     # the P dweight deposits, then the P (weight x dpath) ones, in one pair of bincounts
-    dep = deposit(plan, np.concatenate([dweight[:, plan.ok], weight[plan.ok] * dpath[:, plan.ok]]))
+    kept, n_all = plan.kept, weight.size  # the kept points by their flat indices (np.take)
+    dep = deposit(plan, np.concatenate([dweight.reshape(-1, n_all).take(kept, axis=1),
+                                        weight.reshape(-1).take(kept)
+                                        * dpath.reshape(-1, n_all).take(kept, axis=1)]))
     dsub = dpath_m / os_
     taps = taps_of(dsub, sigma, plan.pad, os_, {} if cache is None else cache)
     return (correlate(dep[:n_p], taps, n_bins)

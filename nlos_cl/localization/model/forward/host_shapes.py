@@ -164,7 +164,6 @@ class HostShapeProblem(Problem):
         points = np.concatenate([p[1] for p in group])[None]  # (1, M, 3)
         normals = np.concatenate([p[2] for p in group])[None]
         areas = np.concatenate([p[3] for p in group])[None]
-        seg = np.repeat(np.arange(len(group)), sizes)
         blur2 = np.array([p[4] for p in group])
         edge0 = obs.edge0[None] - np.stack([p[5] for p in group])  # (G, D): shifted
         sigma = np.sqrt(obs.sigma0_m ** 2 + blur2 - obs.box_excess_m2)
@@ -178,7 +177,8 @@ class HostShapeProblem(Problem):
             path, weight = point_paths(points, normals, areas, obs.spots[part],
                                        laser[part] if laser.ndim == 2 else laser, self._factor)
             out[:, part] = deposit_bins(path[:, 0], weight[:, 0], edge0[:, part],
-                                        obs.dpath[part], sigma, obs.n, self.os, self._taps, seg)
+                                        obs.dpath[part], sigma, obs.n, self.os, self._taps,
+                                        np.array(sizes))
         return out
 
 
