@@ -69,8 +69,10 @@ def split(path, weight, edge0, dpath, sigma, n_bins, os_, seg=None) -> Split:
     kept = np.flatnonzero(ok)
     j, t = j.reshape(-1).take(kept), u.reshape(-1).take(kept)
     t -= j
-    per_row = ok.reshape(n_det * n_b, -1).sum(axis=1) if seg is None else \
-        np.add.reduceat(ok, np.concatenate([[0], np.cumsum(seg)[:-1]]), axis=1).reshape(-1)
+    # each (D, B) row's first flat index, and so the number of kept points in each row
+    firsts = np.arange(n_det * n_b) * path.shape[-1] if seg is None else \
+        (np.arange(n_det)[:, None] * path.shape[1] + (np.cumsum(seg) - seg)).reshape(-1)
+    per_row = np.diff(np.searchsorted(kept, firsts), append=len(kept))
     row = np.repeat(np.arange(n_det * n_b) * length, per_row) + j.astype(np.int64)
     return Split(pad, ok, row, t, (n_det, n_b, n_bins + 2 * pad, os_), kept)
 

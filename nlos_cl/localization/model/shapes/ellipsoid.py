@@ -114,9 +114,12 @@ def lit_cells(centres, normals, e_u, e_v, spots=None, laser=None):
 def culled(cells, edges, keep):
     """(cells, edges) of the cells `keep` selects (given back as they are where it keeps all:
     a box's lit faces, copied for nothing before)."""
-    if keep.dtype == bool and keep.all():
-        return cells, edges
-    return cells.take(keep), tuple(np.ascontiguousarray(e[keep]) for e in edges)
+    if keep.dtype == bool:
+        if keep.all():
+            return cells, edges
+        keep = np.flatnonzero(keep)  # np.take of rows: ~1/7 of a boolean mask's gather
+    return (Facets(cells.centres.take(keep, axis=0), cells.normals.take(keep, axis=0),
+                   cells.areas.take(keep)), tuple(e.take(keep, axis=0) for e in edges))
 
 
 def lit_mask(centres, normals, spots, laser) -> np.ndarray:

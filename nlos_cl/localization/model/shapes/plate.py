@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ....core.constants import TINY
-from ....core.geometry import Facets
+from ....core.geometry import Facets, distance
 from ....core.stats import unique_sorted
 
 NAMES = ("x", "y", "z", "width", "height", "yaw")
@@ -196,8 +196,8 @@ def _cell_stats(cells, edges, spots, laser):
     var_df = path.sum(axis=1) / safe
     # the centre's path alone (its weight is not read): ops.forward.facet_paths' r1 + r2
     lasers = np.reshape(laser, (-1, 1, 3))  # (1 or D, 1, 3)
-    centre = np.linalg.norm(cells.centres[None] - lasers, axis=2) + np.linalg.norm(
-        spots[:, None] - cells.centres[None], axis=2)
+    centre = distance(cells.centres[None], lasers) + distance(  # np.linalg.norm's numbers,
+        spots[:, None], cells.centres[None])  # component by component
     return mean, centre, var_df, wsum
 
 
