@@ -35,7 +35,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.stats import unique_sorted
-from . import kalman
+from . import depth, kalman
 
 BIG = 1e12
 
@@ -84,16 +84,19 @@ def _mean(a, b):
     return kalman.Measurement(a.axes, z, 0.5 * (a.R + b.R), position, a.source, merged=True)
 
 
-def associate(tracks, measurements, gate_probability):
-    """(track, measurement) pairs, and the measurements free to start tracks."""
+def associate(tracks, measurements, gate_probability, wall=None):
+    """(track, measurement) pairs, and the measurements free to start tracks; a pair's
+    measurement is its track's centre (tracking.depth.centred: wall, the wall spots' centroid)."""
     if len(tracks) >= 2:  # a merged pair cannot tell which target it is (see the docstring)
         measurements = [m for m in measurements if not m.merged]
     if not tracks or not measurements:
         return [], list(measurements)
     from scipy.optimize import linear_sum_assignment
     cost = np.full((len(tracks), len(measurements)), BIG)
+    # each track sees a plate as its centre (tracking.depth: a closed object's behind it)
+    seen = [[depth.centred(tr, m, wall) for m in measurements] for tr in tracks]
     for i, tr in enumerate(tracks):
-        for j, m in enumerate(measurements):
+        for j, m in enumerate(seen[i]):
             d2 = kalman.gate_distance2(tr.state, tr.covariance, tr.predicted_modes, m)
             if d2 <= kalman.gate_threshold(gate_probability, len(m.axes)):
                 cost[i, j] = d2
@@ -101,8 +104,9 @@ def associate(tracks, measurements, gate_probability):
     blocked = _unresolved(cost < BIG) if len(tracks) >= 2 else (empty, empty)
     cost[blocked[0], :] = BIG
     rows, cols = linear_sum_assignment(cost)
-    pairs = [(tracks[i], measurements[j]) for i, j in zip(rows, cols) if cost[i, j] < BIG]
-    used = {id(m) for _, m in pairs} | {id(measurements[j]) for j in blocked[1]}
+    pairs = [(tracks[i], seen[i][j]) for i, j in zip(rows, cols) if cost[i, j] < BIG]
+    used = {id(measurements[j]) for i, j in zip(rows, cols) if cost[i, j] < BIG} | \
+        {id(measurements[j]) for j in blocked[1]}
     return pairs, [m for m in measurements if id(m) not in used]
 
 

@@ -13,6 +13,7 @@ import numpy as np
 from . import kalman
 from .motion import ConstantVelocity
 
+DEPTH_MEMORY = 20  # closed depths a track keeps (tracking.depth)
 SIZE_MEMORY = 20  # recent plate sizes seen whole a track keeps (its size prior: tracking.warm)
 
 @dataclass
@@ -47,6 +48,10 @@ class Track:
     # plate's alone until one did (size_seeded): the size prior of warm fits (warm.remember)
     sizes: deque = field(default_factory=lambda: deque(maxlen=SIZE_MEMORY))
     size_seeded: bool = False
+    # (depth, sd) of the closed shapes paired with it, and where its last measurement lay from
+    # its plate (tracking.depth: a closed object's centre behind the plate a warm fit finds)
+    depths: deque = field(default_factory=lambda: deque(maxlen=DEPTH_MEMORY))
+    offset: np.ndarray | None = None
     # under an IMM (motion.Interacting): the modes whose mixture is state/covariance (valid
     # while those equal modes_of, copies of the mixture's: a state set or edited otherwise,
     # e.g. by a re-acquisition, restarts the modes), and this frame's predicted modes (the

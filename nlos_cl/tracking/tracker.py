@@ -103,6 +103,9 @@ class Tracker:
             min_sigma_m=float(noise.min_sigma_m),
             unseen_axis=_unseen_axis(layout))
         self.counted_fit = False  # this frame fitted as many targets as the tracks' plates
+        # the wall spots' centroid: a closed object's centre lies away from it (tracking.depth)
+        self.wall = np.vstack([np.reshape(layout.laser_spot, (-1, 3)),
+                               layout.detector_spots]).mean(axis=0)
         self.tracks: list[Track] = []  # live
         self.finished: list[Track] = []  # deleted, most recent last (at most 100 kept)
         self.frame_index, self.t_s = -1, None
@@ -166,7 +169,8 @@ class Tracker:
             if self.warm_start and fixed and predictions is not None else None
         box = gated.search_box(self, predictions)  # None: the whole region
         location, found = self._locate(sig, starters and warm.prior(starters), box)
-        if starters is not None and warm.outside_gates(found, starters, self.gate_probability):
+        if starters is not None and \
+                warm.outside_gates(found, starters, self.gate_probability, self.wall):
             location, found = warm.better((location, found), self._locate(sig, None))  # cold
         if self.count is not None:
             found = supported(found)
@@ -214,7 +218,8 @@ class Tracker:
         measurements = association.screen(
             measurements, max_sigma_m=self.max_sigma_m, max_birge_ratio=self.max_birge_ratio,
             gate_probability=self.gate_probability)
-        pairs, free = association.associate(self.tracks, measurements, self.gate_probability)
+        pairs, free = association.associate(self.tracks, measurements, self.gate_probability,
+                                                 self.wall)
         extras = {}
         # one object, one track; not where K is given (K targets), nor while a live track
         # missed (a free plate touching another's may be its target, to re-find: recovery)

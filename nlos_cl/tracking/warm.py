@@ -17,7 +17,7 @@ import numpy as np
 
 from ..core.tuning import HIDDEN_SHARE
 from ..localization.estimate import Prior, capabilities_of
-from . import association, kalman
+from . import association, depth, kalman
 
 
 def can_start(estimator, fixed: bool = False) -> bool:
@@ -60,6 +60,8 @@ def keep(track, measurement, extra=()) -> None:
     the misfit of the cold fit behind it where one ran this frame (a warm fit's own is not: a
     floor that followed the accepted warm fits would climb frame by frame)."""
     track.plate = plate_of(measurement)
+    track.offset = depth.offset(track, measurement)  # the centre behind it (tracking.depth)
+    depth.learn(track, measurement)
     track.extra = [np.array(r, float) for r in extra]  # counted in the next fit's targets
     fit = getattr(measurement.source, "fit", None)
     # the ratio the warm fit's misfit test reads: the Birge ratio, or counts' deviance per
@@ -140,7 +142,8 @@ def prior(starters) -> Prior:
         tr, x = p.track, p.x
         row = tr.plate.copy()
         measured.append(row.copy())
-        row[:tr.dims] = x[:tr.dims]
+        shift = np.zeros(3) if tr.offset is None else tr.offset  # centre - plate
+        row[:tr.dims] = x[:tr.dims] - shift[:tr.dims]
         rows.append(row)
         known = size_of(tr) or (row[3:5], np.full(2, np.inf))
         size.append(known[0])
@@ -158,12 +161,14 @@ def prior(starters) -> Prior:
                  measured=np.array(measured), late=any(p.track.late for p in starters))
 
 
-def outside_gates(measurements, predictions, gate_probability) -> bool:
+def outside_gates(measurements, predictions, gate_probability, wall=None) -> bool:
     """Is some warm-fitted measurement outside the gate of every start track, and no plate of
-    an object whose other plate lies inside one (a track's extra plate)?"""
+    an object whose other plate lies inside one (a track's extra plate)? (Each track sees a
+    plate as its centre: tracking.depth.centred, wall the wall spots' centroid.)"""
     def inside(m):
         gate = kalman.gate_threshold(gate_probability, len(m.axes))
-        return any(kalman.gate_distance2(p.x, p.P, p.modes, m) <= gate for p in predictions)
+        return any(kalman.gate_distance2(p.x, p.P, p.modes, depth.centred(p.track, m, wall)) <= gate
+                   for p in predictions)
     warm = [m for m in measurements if _warm_fitted(m)]
     held = [m for m in warm if inside(m)]
     held_ids = {id(m) for m in held}
