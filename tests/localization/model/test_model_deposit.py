@@ -22,6 +22,26 @@ def test_correlate_is_the_sum_over_window_and_phase():
                        atol=1e-12)  # a slice of rows (model.derivatives' slope rows)
 
 
+def test_correlate_over_the_used_bins_is_the_whole_sum():
+    """Deposits that fill only some bins (a target's return in a long window), at the
+    window's start, middle and end, and none at all: correlate multiplies only the bins used
+    and returns the whole window's histograms (zeros elsewhere), as the definition."""
+    rng = np.random.default_rng(2)
+    n_bins, pad, os_ = 40, 3, 4
+    taps = rng.standard_normal((3, 5, os_, 2 * pad + 1))
+    for lo, hi in [(0, 4), (17, 23), (n_bins + 2 * pad - 5, n_bins + 2 * pad), (9, 10)]:
+        dep = np.zeros((2, 3, 5, n_bins + 2 * pad, os_))
+        dep[..., lo:hi, :] = rng.standard_normal(dep[..., lo:hi, :].shape)
+        want = np.zeros((2, 5, 3, n_bins))
+        for k in range(n_bins):
+            for i in range(2 * pad + 1):
+                want[..., k] += np.einsum("edbp,dbp->ebd", dep[:, :, :, k + i, :], taps[..., i])
+        got = deposit.correlate(dep, taps, n_bins)
+        assert got.shape == want.shape
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-12 * np.abs(want).max())
+    assert not deposit.correlate(np.zeros_like(dep), taps, n_bins).any()
+
+
 def test_taps_from_a_warm_cache_equal_a_cold_ones_and_the_cache_stays_bounded():
     rng = np.random.default_rng(1)
     dsub = np.array([0.004, 0.004, 0.005])

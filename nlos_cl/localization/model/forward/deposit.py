@@ -96,13 +96,34 @@ def correlate(dep, taps, n_bins) -> np.ndarray:
     The phases first, as one stacked matrix product m[j, i] = sum_p dep[j, p] taps[p, i],
     then hist[k] = sum_i m[k + i, i] (a strided diagonal): 3-5x faster than one einsum over
     the strided windows (0.31 -> 0.06 ms for 2 pieces of 8 detectors, 36 phases, 13 taps),
-    the same sums in another order (within 2e-15 of the peak)."""
-    m = np.matmul(dep, taps)  # (..., D, B, n + 2 pad, 2 pad + 1)
+    the same sums in another order (within 2e-15 of the peak). Only the bins any row deposits
+    into are multiplied (`_used`): a target's return fills a fifth of the observation's window
+    (median over a scenario draw's 1,920 calls: 0.18), and the product over the rest, zeros,
+    was 60 % of a 56-spot, two-target locate."""
+    width = taps.shape[-1]
+    shape = (*dep.shape[:-4], dep.shape[-3], dep.shape[-4], n_bins)
+    span = _used(dep)
+    if span is None:
+        return np.zeros(shape)
+    lo, hi = span
+    k0, k1 = max(lo - width + 1, 0), min(hi, n_bins)  # the bins those rows reach
+    hi = min(hi, k1 + width - 1)
+    m = np.zeros((*dep.shape[:-2], k1 - k0 + width - 1, width))  # rows k0 .. k1 + width - 2
+    m[..., lo - k0:hi - k0, :] = np.matmul(dep[..., lo:hi, :], taps)
     st = m.strides
     diagonal = np.lib.stride_tricks.as_strided(
-        m, (*m.shape[:-2], n_bins, taps.shape[-1]), (*st[:-2], st[-2], st[-2] + st[-1]),
+        m, (*m.shape[:-2], k1 - k0, width), (*st[:-2], st[-2], st[-2] + st[-1]),
         writeable=False)
-    return np.ascontiguousarray(np.swapaxes(diagonal.sum(axis=-1), -2, -3))
+    out = np.zeros(shape)
+    out[..., k0:k1] = np.swapaxes(diagonal.sum(axis=-1), -2, -3)
+    return out
+
+
+def _used(dep):
+    """(first, last + 1) of the deposit's bin rows (axis -2) that any row deposits into, or
+    None where it is all zeros."""
+    used = np.flatnonzero(dep.any(axis=-1).reshape(-1, dep.shape[-2]).any(axis=0))
+    return None if not len(used) else (int(used[0]), int(used[-1]) + 1)
 
 
 WHOLE_TABLES = 8  # whole taps tables taps_of remembers by their scales (bounded memory)
