@@ -22,7 +22,7 @@ from ..region import unseen_axis
 from .forward import data, late
 from .forward.likelihood import Problem
 from .options import GROUPS, FitBudget, Instrument, check_options, model_reflectance
-from .policy.depth import unseen_note
+from .policy.depth import several_unseen_note, uncertain_note, unseen_note
 from .policy.filtered_search import searched, smooth_observation
 from .policy.criteria import support
 from .policy.sanity import checked, fit_checks, leftover_note, unfittable_line
@@ -311,10 +311,16 @@ def _reported(chosen, result, free, cov_all, info, warm_info) -> dict:
 
 def _notes(held, shape, result, cov_all, info) -> list[str]:
     """What every answer of this fit says: an axis unobservable (collinear spots); one
-    target's depth not seen by these spots."""
+    target's depth not seen by these spots; a target whose centre is poorly determined
+    (numbered as reported: `_order`)."""
     notes = [] if held.axis is None else [HELD_WARNINGS[held.axis].format(v=held.value)]
-    if len(result.params) == 1 and (why := unseen_note(shape, result, cov_all, info)):
-        notes.append(why)
+    depth = len(result.params) == 1 and unseen_note(shape, result, cov_all, info)
+    if depth:
+        notes.append(depth)
+    for at, k in enumerate(_order(result)):
+        notes.extend(why for why in (
+            not shape.CLOSED and several_unseen_note(info, k, at),
+            not depth and uncertain_note(centre_covariance(cov_all, k, shape), at)) if why)
     return notes
 
 

@@ -4,6 +4,7 @@ import math
 import warnings
 
 import numpy as np
+import pytest
 
 import nlos_cl as nl
 from nlos_cl.core.geometry import Facets
@@ -243,3 +244,45 @@ def test_front_of_is_from_plates_inverse():
         assert np.allclose(box.front_of(box.from_plate(q, d)), q, atol=1e-12)
         p = box.from_plate(q, d)  # the centre lies d / 2 behind the face, along -normal
         assert np.allclose(q[:3] - p[:3], 0.5 * d * box.normal_of(p), atol=1e-12)
+
+
+def test_several_plates_depth_sds_are_the_probes_and_say_so():
+    """depth.depth_sds (each of several plates against a box behind it, the others held) for
+    one plate is the probe's sd (the same comparison: 1e-9); for two plates apart each is its
+    own, finite here (3 spots below a box see a side), and a plate whose sd passes
+    DEPTH_SD_LIMIT_M is reported with DEPTH_WARNING under its reported number."""
+    from nlos_cl.localization.model.forward import batch
+    from nlos_cl.localization.model.solve.fit import FitResult
+    centre = tuple(BOX[:3])
+    setup = nl.paper_setup(detector_spots=SPOTS)
+    raw = nl.add_noise(nl.simulate(nl.Scene(setup, nl.Target(nl.box((0.75, 0.75, 0.67),
+                                                                     centre=centre)),
+                                            truth=centre)), 20, seed=1)
+    filtered = nl.gauss_filter(raw)
+    host = batch.HostProblem(model_observation(filtered, raw))
+    front = np.r_[BOX[:3] + 0.5 * BOX[5] * box.normal_of(BOX), BOX[3], BOX[4], BOX[6]]
+    other = front + np.array([-2.5, 0.5, 0.0, 0.0, 0.0, 0.0])
+    one = FitResult(front[None], np.ones(1), 0.0, 0, 0)
+    want = depth.probe(host, one, 1.3)["depth_sd_m"]
+    assert math.isfinite(want)
+    assert depth.depth_sds(host, one, 1.3)[0] == pytest.approx(want, rel=1e-9)
+    two = depth.depth_sds(host, FitResult(np.array([front, other]), np.ones(2), 0.0, 0, 0), 1.3)
+    assert all(0 < sd < math.inf for sd in two)
+    info = {depth.DEPTH_SDS_KEY: [0.05, 0.5]}
+    assert depth.several_unseen_note(info, 0, 0) is None
+    note = depth.several_unseen_note(info, 1, 0)
+    assert note == DEPTH_WARNING.format(k=1, sd="0.50 m")
+
+
+def test_a_poorly_determined_position_is_said():
+    """uncertain_note: the largest principal sd of the centre's covariance against
+    POSITION_SD_LIMIT_M (a correlated pair whose axis sds are each below it still passes it);
+    an axis the layout cannot see (infinite variance: its own notice) is left out."""
+    sd = depth.POSITION_SD_LIMIT_M
+    small = np.diag([0.5 * sd] * 3) ** 2
+    assert depth.uncertain_note(small, 0) is None
+    tied = np.array([[0.8, 0.79, 0], [0.79, 0.8, 0], [0, 0, 0.01]]) * sd ** 2
+    assert np.sqrt(np.diag(tied)).max() < sd
+    assert depth.uncertain_note(tied, 2).startswith("the position of target 3 is poorly")
+    held = np.diag([0.5 * sd, 0.5 * sd, np.inf]) ** 2
+    assert depth.uncertain_note(held, 0) is None

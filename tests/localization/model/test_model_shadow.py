@@ -482,3 +482,21 @@ def test_remembered_occluders_are_the_same_answers_and_the_callers_own():
     apart = rows.copy()
     apart[0, :3] = (-3.0, 1.0, 0.0)
     assert [list(w) for w in shadow.occluders_of(apart, laser, spots, lattice)] == [[], []]
+
+
+def test_closed_shapes_of_no_depth_shadow_as_the_plates(host):
+    """The closed shapes' host model takes the same shadows (its targets' front faces as
+    occluders): two boxes of depth 0 are the two plates, shadows and all, to the last bits of
+    the ramps; without the shadows the far one's histograms are larger (a real shadow)."""
+    from nlos_cl.localization.model.forward.host_shapes import HostShapeProblem
+    from nlos_cl.localization.model.shapes import box
+    closed = HostShapeProblem(host.obs, box, host.lattice)
+    boxes = np.array([box.from_plate(p, 0.0) for p in (NEAR, FAR)])
+    want = host.columns(np.array([NEAR, FAR]))
+    got = closed.columns(boxes)
+    assert shadowed_by(closed, boxes) is not None
+    assert [list(w) for w in shadowed_by(closed, boxes)] == \
+        [list(w) for w in shadowed_by(host, np.array([NEAR, FAR]))]
+    np.testing.assert_allclose(got, want, atol=1e-9 * np.abs(want).max())
+    alone = closed.column_batch(boxes)
+    assert alone[1].sum() > 1.2 * got[1].sum()

@@ -30,10 +30,11 @@ from ....core.allocator import keep_freed_memory
 from ....core.constants import TINY
 from ....core.geometry import Facets, spot_legs
 from ....ops.forward import SUB_BINS_PER_SIGMA
-from ..shapes import plate
+from ..shapes import box, plate
 from ..shapes.ellipsoid import culled, lit_mask
 from .deposit import deposit_bins
 from .likelihood import Problem
+from .shadow import cell_size, occluders_of, visible
 
 # point-detector pairs per NumPy pass (each temporary ~8 bytes a pair): bounds the memory
 PAIRS_PER_PASS = 1_500_000
@@ -76,26 +77,28 @@ class HostShapeProblem(Problem):
         self._stats = {}  # row bytes -> per piece (mask, keep, blur2, shift) (`_statistics`)
         self._near = {}  # row bytes -> per piece its Gauss points (`_points`)
         self._taps = {}
+        # the closed targets' mutual shadows (`occluders`), as HostProblem's plates: one laser
+        self.shadows = np.asarray(obs.laser).ndim == 1
 
     def column(self, p) -> np.ndarray:
         return self.column_batch(np.asarray(p, float)[None])[0]
 
     def column_batch(self, rows, like=None, occluders=None) -> np.ndarray:
         """(B, D, n) unit-amplitude histograms of rows (B, 7); like: None, or (B, 7) rows
-        whose culling and cell statistics each row borrows (a Jacobian's)."""
-        if occluders is not None and any(o is not None and len(o) for o in occluders):
-            raise NotImplementedError("closed shapes are fitted one target at a time: no "
-                                      "shadows between targets")
+        whose culling and cell statistics each row borrows (a Jacobian's). occluders: None,
+        or per row the (K', 7) closed rows that can shadow it (`occluders`): their front
+        faces block its points' rays as plates do (model.shadow)."""
         t = time.perf_counter()
         rows = np.atleast_2d(np.asarray(rows, np.float64))
         obs = self.obs
-        pieces = []  # (row index, points (M, 3), normals (M, 3), areas (M,), blur2, shift)
+        pieces = []  # (row index, points, normals, areas, blur2, shift, (fronts, cell) or None)
         for i, row in enumerate(rows):
             source = row if like is None else like[i]  # whose culling and statistics
+            shade = self._shading(row, None if occluders is None else occluders[i])
             for pts, (_, _, blur2, shift) in zip(self._points(row, source),
                                                  self._statistics(source)):
                 if pts is not None:
-                    pieces.append((i, pts.centres, pts.normals, pts.areas, blur2, shift))
+                    pieces.append((i, pts.centres, pts.normals, pts.areas, blur2, shift, shade))
         out = np.zeros((len(rows),) + obs.y.shape)
         for group in _groups(pieces, len(obs.spots)):
             hist = self._evaluate(group)
@@ -106,7 +109,29 @@ class HostShapeProblem(Problem):
         return np.where(obs.valid[None], out, 0.0)
 
     def columns(self, params) -> np.ndarray:
-        return self.column_batch(np.reshape(params, (-1, self.shape.N_PARAMS)))
+        """(K, D, n): each target's histograms, shadowed by the others' front faces where
+        they can be (`occluders`), as model.batch.HostProblem's plates."""
+        rows = np.reshape(params, (-1, self.shape.N_PARAMS))
+        return self.column_batch(rows, occluders=self.occluders(rows))
+
+    def occluders(self, params) -> list | None:
+        """Per row of params (K, 7) the other rows whose front faces can shadow it (None where
+        none can): model.shadow's bounding test on the front faces (box.front_of). A closed
+        target's sides and back lie behind its front face, inside the rays' pyramid from the
+        wall to it as the test grows it (MARGIN_M) only roughly: an occluder that only a side's
+        rays would meet is left out. Not for paired lasers (the shadow model knows one)."""
+        rows = np.reshape(params, (-1, self.shape.N_PARAMS))
+        if len(rows) < 2 or not self.shadows:
+            return None
+        which = occluders_of(front_plates(rows), self.obs.laser, self.obs.spots, self.lattice)
+        return None if not any(len(w) for w in which) else [rows[w] for w in which]
+
+    def _shading(self, row, occluders):
+        """(front-face plate rows of `occluders`, the ramp's cell on `row`) or None."""
+        if occluders is None or not len(occluders):
+            return None
+        front = front_plates(np.atleast_2d(row))
+        return front_plates(occluders), float(cell_size(front, self.lattice)[0])
 
     def _points(self, row, source) -> list:
         """Per piece of `row` its pulled-in Gauss points on the cells `source` lights and a
@@ -176,10 +201,27 @@ class HostShapeProblem(Problem):
             part = slice(d, d + step)
             path, weight = point_paths(points, normals, areas, obs.spots[part],
                                        laser[part] if laser.ndim == 2 else laser, self._factor)
+            _shade(weight[:, 0], points[0], group, sizes, laser, obs.spots[part])
             out[:, part] = deposit_bins(path[:, 0], weight[:, 0], edge0[:, part],
                                         obs.dpath[part], sigma, obs.n, self.os, self._taps,
                                         np.array(sizes))
         return out
+
+
+def front_plates(rows) -> np.ndarray:
+    """(K, 6) the front faces of closed rows (K, 7) as plate rows (box.front_of)."""
+    return np.array([box.front_of(r) for r in np.atleast_2d(rows)])
+
+
+def _shade(weight, points, group, sizes, laser, spots) -> None:
+    """weight (D, M) of a group's points (M, 3), piece after piece (`sizes`), times each
+    shaded piece's share past its occluders' front faces (model.shadow.visible), in place."""
+    at = 0
+    for piece, size in zip(group, sizes):
+        if piece[6] is not None:
+            fronts, cell = piece[6]
+            weight[:, at:at + size] *= visible(points[at:at + size], laser, spots, fronts, cell)
+        at += size
 
 
 def _groups(pieces, n_det):

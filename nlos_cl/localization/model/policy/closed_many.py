@@ -23,7 +23,8 @@ from ..solve.records import Chosen
 from . import starts
 from ..solve.lockstep import fit_together
 from .closed_search import CLOSED_NFEV, SHORT_NFEV, closed_free
-from .criteria import depth_gain, misfit, separate
+from .criteria import depth_gain, kappa, misfit, objects
+from .depth import DEPTH_SDS_KEY, depth_sds
 from .select import FINAL_ATOL
 
 # Depths (m) each target's closed starts are tried at behind its plate's face: a plate (the
@@ -56,8 +57,9 @@ def closed_instead(problem, plates: Chosen, final_nfev) -> Chosen:
     # (targets crossing, one object's faces) the misfit is their meeting's, which closed
     # shapes absorbed:
     # two 0.3 m squares crossing lost a track (tests/tracking/test_tracking_end_to_end.py)
-    tried = inadequate and separate(result.params)
+    tried = inadequate and objects(result.params) == len(result.params)
     plates.cov.info.update(plate_birge_ratio=birge, closed_tried=bool(tried))
+    plates.cov.info[DEPTH_SDS_KEY] = depth_sds(problem, result, kappa(problem.obs))
     if not tried:
         return plates
     shorts = [_family(problem, shape, result, free) for shape in CLOSED_SHAPES]

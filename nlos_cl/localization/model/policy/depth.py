@@ -74,6 +74,39 @@ def probe(problem, plate_result, kappa: float) -> dict:
             "probe_box_cost": best}
 
 
+def depth_sds(problem, result, kappa: float) -> list:
+    """Per plate of a fit of K >= 2 plates, the depth's sd these spots predict, as `probe`'s
+    (a box as deep as the plate is wide against the plate, amplitudes refitted), the other
+    plates' columns held at the fit's; inf where such a box shows only its front. Read by the
+    answer's notes (DEPTH_WARNING): a person among several targets fitted as a plate on its
+    front (scenario draws 15, 57: 0.16-0.25 m from its centre) was reported with no notice."""
+    from ..forward.host_shapes import shape_problem
+    from ..forward.likelihood import Problem
+    params = np.asarray(result.params, float)
+    cols = problem.columns(params)
+    lin = problem.linear(cols)
+    as_data = Problem(replace(problem.obs, y=problem.mean(cols, lin)), problem.backend,
+                      problem.lattice)
+    out, boxes = [], None
+    for k, q in enumerate(params):
+        width = max(float(q[plate.WIDTH]), MIN_PROBE_M)
+        faces = _visible(box.from_plate(q, width), problem.obs)
+        if len(faces) == 1:
+            out.append(math.inf)
+            continue
+        moved = np.array(cols, float)
+        if problem.plates_on_host and all(abs(f[3][2]) < 1e-12 for f in faces):
+            front, deep = _face_plates(problem, q, [0.0, width])
+            moved[k] += deep[0] - front[0]  # its sides, beside its (shadowed) front
+        else:
+            boxes = boxes or shape_problem(problem, box)
+            moved[k] = boxes.columns(box.from_plate(q, width)[None])[0]
+        r = as_data.residual(moved, as_data.linear(moved))
+        dchi2 = float(r @ r) / kappa
+        out.append(width / math.sqrt(dchi2) if dchi2 > 0 else math.inf)
+    return out
+
+
 def _visible(p, obs) -> list:
     """Box p's faces (centre, u, v, normal) that the laser spot lights and a wall spot sees."""
     return [f for f, ok in zip(box.faces(p), box.shown(p, obs.spots, obs.laser)) if ok]
@@ -136,6 +169,41 @@ def unseen_note(shape, result, cov_all, info, k: int = 0) -> str | None:
     sd = math.sqrt(max(float(cov_all[k * n + box.DEPTH, k * n + box.DEPTH]), 0.0))
     sd = max(sd, float(info.get("depth_profile_sd_m", 0.0)))  # closed.depth_profile's secants
     return CLOSED_WARNING.format(k=k + 1, sd=sd) if sd > DEPTH_SD_LIMIT_M else None
+
+
+# A target whose centre's sd exceeds this along some direction (the largest principal sd of
+# its 3 x 3 covariance) is reported with UNCERTAIN_WARNING: an error of 1.5 sds is then past
+# 0.15 m. A faint far plate among brighter targets trades size for position (scenario draw
+# 41: a 0.28 x 0.89 m plate 5 m out fitted 1.42 x 1.43 m, 0.40 m off, sds 0.17 / 0.12 / 0.13
+# m, and no word of it).
+POSITION_SD_LIMIT_M = 0.1
+UNCERTAIN_WARNING = ("the position of target {k} is poorly determined (sd {sd:.2f} m along its "
+                     "least certain direction): the data constrain it weakly (a faint or "
+                     "partly seen target)")
+
+
+def several_unseen_note(info, k: int, at: int) -> str | None:
+    """DEPTH_WARNING for plate k of a fit of several, reported as target at + 1, where its
+    `depth_sds` (info's DEPTH_SDS_KEY) is above DEPTH_SD_LIMIT_M, else None."""
+    sds = info.get(DEPTH_SDS_KEY)
+    if sds is None or sds[k] <= DEPTH_SD_LIMIT_M:
+        return None
+    return DEPTH_WARNING.format(k=at + 1, sd=_metres(sds[k]))
+
+
+DEPTH_SDS_KEY = "depth_sds_m"  # diagnostics: per plate of several, `depth_sds`
+
+
+def uncertain_note(centre_cov, k: int) -> str | None:
+    """UNCERTAIN_WARNING for the k-th reported target (0-based) whose centre covariance
+    (3, 3) has a principal sd above POSITION_SD_LIMIT_M, else None. Axes held by the layout
+    (infinite variance: their own warning) are left out."""
+    c = np.asarray(centre_cov, float)
+    seen = np.isfinite(np.diag(c))
+    if not seen.any():
+        return None
+    sd = math.sqrt(max(float(np.linalg.eigvalsh(c[np.ix_(seen, seen)]).max()), 0.0))
+    return UNCERTAIN_WARNING.format(k=k + 1, sd=sd) if sd > POSITION_SD_LIMIT_M else None
 
 
 def _metres(sd: float) -> str:
