@@ -65,3 +65,41 @@ def test_the_default_locate_reports_the_box_and_the_plate(frame):
     assert len(found) == 2
     box = _nearest(found, BOX_CENTRE)
     assert box.fit.shape != "plate" and np.linalg.norm(box.position - BOX_CENTRE) < 0.08
+
+
+def test_a_plate_given_a_depth_among_closed_targets_is_made_flat_again():
+    """The K depths of a closed family pass the BIC test together, so a plate beside a box
+    could keep a spurious depth (scenario occluders draw 47: an occluder fitted 0.11 m deep,
+    its centre 0.057 m behind its face). _flat_where_unneeded holds each depth the data do not
+    ask for at the family's least: here a plate fitted with its depth held at 0.11 m goes back
+    to depth 0 on its face (within 5 mm), the box keeps its 0.45 m."""
+    from nlos_cl.localization.estimate import Scored
+    from nlos_cl.localization.model import ModelEstimator
+    from nlos_cl.localization.model.forward.host_shapes import shape_problem
+    from nlos_cl.localization.model.policy.closed_search import closed_free
+    from nlos_cl.localization.model.shapes import box
+    from nlos_cl.localization.model.solve.covariance import covariance
+    from nlos_cl.localization.model.solve.fit import fit
+    from nlos_cl.physics import layouts
+    setup = nl.paper_setup(detector_spots=layouts.circle(centre=[-1.0, 0, 0], radius_m=0.6,
+                                                         count=8))
+    solid, face = (2.4, 3.0, 0.0), (1.5, 1.8, 0.2)
+    scene = nl.Scene(setup, nl.Target(nl.box((0.45, 0.45, 0.9), centre=solid, cell_m=0.01)),
+                     truth=solid, more_targets=(nl.Target(nl.rectangle(
+                         0.5, 0.3, centre=face, normal=(-0.5, -0.866, 0.0), cell_m=0.01)),))
+    raw = nl.add_noise(nl.simulate(scene, nl.default_time_axis(setup, 1e-12)), 20.0, seed=3)
+    filtered = nl.gauss_filter(raw)
+    est = ModelEstimator(targets=2)
+    obs = est.observation(Scored(filtered.backend, None, nl.Grid(), False,
+                                 filtered.n_detectors, filtered, raw))
+    problem = est.problem(obs, filtered.backend)
+    closed, free = shape_problem(problem, box), closed_free(np.ones(6, bool))
+    rows = np.array([[*solid, 0.45, 0.9, 0.45, -np.pi], [*face, 0.5, 0.3, 0.11, -2.094]])
+    held = np.full(rows.shape, np.inf)
+    held[1, box.DEPTH] = 1e-4
+    deep = fit(closed, rows, free, 30, prior=(rows, held))
+    got, _ = closed_many._flat_where_unneeded(problem, closed, deep, free,
+                                              covariance(closed, deep, free), 30)
+    assert got.params[1, box.DEPTH] < 1e-3 < deep.params[1, box.DEPTH] - 0.1
+    assert np.linalg.norm(box.front_of(got.params[1])[:3] - face) < 0.005
+    assert got.params[0, box.DEPTH] > 0.3
