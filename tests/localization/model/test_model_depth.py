@@ -85,19 +85,25 @@ def test_a_small_patch_says_it_cannot_see_the_depth_and_a_wide_circle_does_not_n
     assert found.fit.diagnostics["depth_sd_m"] < 0.2
 
 
-def test_the_probes_host_boxes_are_the_box_model():
+@pytest.fixture(scope="module")
+def box_frame():
+    """(filtered, raw): BOX (closed draw 8) seen by SPOTS at 20 dB."""
+    centre = tuple(BOX[:3])
+    setup = nl.paper_setup(detector_spots=SPOTS)
+    raw = nl.add_noise(nl.simulate(nl.Scene(setup, nl.Target(nl.box((0.75, 0.75, 0.67),
+                                                                     centre=centre)),
+                                            truth=centre)), 20, seed=1)
+    return nl.gauss_filter(raw), raw
+
+
+def test_the_probes_host_boxes_are_the_box_model(box_frame):
     """depth._face_plates (a box's visible upright faces as host plates, summed) against the
     box model on the forward op: the same histograms but for the lattice across the depth
     (16 host cells against the box's 8), within 0.5 % (L2, per detector)."""
     from nlos_cl.localization.model.forward import batch
     from nlos_cl.localization.model.policy import depth
     from nlos_cl.localization.model.forward.likelihood import Problem
-    centre = tuple(BOX[:3])
-    setup = nl.paper_setup(detector_spots=SPOTS)
-    raw = nl.add_noise(nl.simulate(nl.Scene(setup, nl.Target(nl.box((0.75, 0.75, 0.67),
-                                                                     centre=centre)),
-                                            truth=centre)), 20, seed=1)
-    filtered = nl.gauss_filter(raw)
+    filtered, raw = box_frame
     obs = model_observation(filtered, raw)
     front = np.r_[BOX[:3] + 0.5 * BOX[5] * box.normal_of(BOX), BOX[3], BOX[4], BOX[6]]
     host = batch.HostProblem(obs)
@@ -246,19 +252,14 @@ def test_front_of_is_from_plates_inverse():
         assert np.allclose(q[:3] - p[:3], 0.5 * d * box.normal_of(p), atol=1e-12)
 
 
-def test_several_plates_depth_sds_are_the_probes_and_say_so():
+def test_several_plates_depth_sds_are_the_probes_and_say_so(box_frame):
     """depth.depth_sds (each of several plates against a box behind it, the others held) for
     one plate is the probe's sd (the same comparison: 1e-9); for two plates apart each is its
     own, finite here (3 spots below a box see a side), and a plate whose sd passes
     DEPTH_SD_LIMIT_M is reported with DEPTH_WARNING under its reported number."""
     from nlos_cl.localization.model.forward import batch
     from nlos_cl.localization.model.solve.fit import FitResult
-    centre = tuple(BOX[:3])
-    setup = nl.paper_setup(detector_spots=SPOTS)
-    raw = nl.add_noise(nl.simulate(nl.Scene(setup, nl.Target(nl.box((0.75, 0.75, 0.67),
-                                                                     centre=centre)),
-                                            truth=centre)), 20, seed=1)
-    filtered = nl.gauss_filter(raw)
+    filtered, raw = box_frame
     host = batch.HostProblem(model_observation(filtered, raw))
     front = np.r_[BOX[:3] + 0.5 * BOX[5] * box.normal_of(BOX), BOX[3], BOX[4], BOX[6]]
     other = front + np.array([-2.5, 0.5, 0.0, 0.0, 0.0, 0.0])
