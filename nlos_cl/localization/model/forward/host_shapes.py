@@ -30,11 +30,11 @@ from ....core.allocator import keep_freed_memory
 from ....core.constants import TINY
 from ....core.geometry import Facets, spot_legs
 from ....ops.forward import SUB_BINS_PER_SIGMA
-from ..shapes import box, plate
+from ..shapes import plate
 from ..shapes.ellipsoid import culled, lit_mask
 from .deposit import deposit_bins
 from .likelihood import Problem
-from .shadow import cell_size, occluders_of, visible
+from .shadow import cell_size, occluders_of, plate_rows, visible
 
 # point-detector pairs per NumPy pass (each temporary ~8 bytes a pair): bounds the memory
 PAIRS_PER_PASS = 1_500_000
@@ -116,22 +116,20 @@ class HostShapeProblem(Problem):
 
     def occluders(self, params) -> list | None:
         """Per row of params (K, 7) the other rows whose front faces can shadow it (None where
-        none can): model.shadow's bounding test on the front faces (box.front_of). A closed
-        target's sides and back lie behind its front face, inside the rays' pyramid from the
-        wall to it as the test grows it (MARGIN_M) only roughly: an occluder that only a side's
-        rays would meet is left out. Not for paired lasers (the shadow model knows one)."""
+        none can): model.shadow's bounding test on the front faces (shadow.plate_rows). Not
+        for paired lasers (the shadow model knows one)."""
         rows = np.reshape(params, (-1, self.shape.N_PARAMS))
         if len(rows) < 2 or not self.shadows:
             return None
-        which = occluders_of(front_plates(rows), self.obs.laser, self.obs.spots, self.lattice)
+        which = occluders_of(plate_rows(rows), self.obs.laser, self.obs.spots, self.lattice)
         return None if not any(len(w) for w in which) else [rows[w] for w in which]
 
     def _shading(self, row, occluders):
         """(front-face plate rows of `occluders`, the ramp's cell on `row`) or None."""
         if occluders is None or not len(occluders):
             return None
-        front = front_plates(np.atleast_2d(row))
-        return front_plates(occluders), float(cell_size(front, self.lattice)[0])
+        front = plate_rows(np.atleast_2d(row))
+        return plate_rows(occluders), float(cell_size(front, self.lattice)[0])
 
     def _points(self, row, source) -> list:
         """Per piece of `row` its pulled-in Gauss points on the cells `source` lights and a
@@ -206,11 +204,6 @@ class HostShapeProblem(Problem):
                                         obs.dpath[part], sigma, obs.n, self.os, self._taps,
                                         np.array(sizes))
         return out
-
-
-def front_plates(rows) -> np.ndarray:
-    """(K, 6) the front faces of closed rows (K, 7) as plate rows (box.front_of)."""
-    return np.array([box.front_of(r) for r in np.atleast_2d(rows)])
 
 
 def _shade(weight, points, group, sizes, laser, spots) -> None:

@@ -43,7 +43,7 @@ import math
 import numpy as np
 
 from ....core.constants import TINY
-from ..shapes import plate
+from ..shapes import box, plate
 
 # The bounding test's slack beyond the ramps' reach: the most a finite-difference step moves a
 # plate's points or edges (2 mm steps; 4 mrad of yaw on a 3 m plate's 1.5 m half-width: 6 mm)
@@ -131,6 +131,18 @@ def _meets_pyramid(occluder, shadowed, ends, lattice) -> bool:
     apart = (p_max < on_quad.min(axis=2)) | (on_quad.max(axis=2) < p_min)
     apart &= norm > 1e-12  # a degenerate axis separates nothing
     return bool((~apart.any(axis=1)).any())  # some wall point's pyramid meets the occluder
+
+
+def plate_rows(params) -> np.ndarray:
+    """(K, 6) the plates this model reads for targets `params` (K, 6 plate or 7 closed-shape
+    parameters): a plate itself, a closed shape its front face (box.front_of), which blocks
+    rays as a plate does and bounds the rays its sides send (only roughly: an occluder that
+    only a side's rays would meet is left out)."""
+    rows = np.asarray(params, np.float64)
+    rows = rows.reshape(len(rows), -1)
+    if rows.shape[1] == plate.N_PARAMS:
+        return rows
+    return np.array([box.front_of(r) for r in rows]).reshape(len(rows), plate.N_PARAMS)
 
 
 def occluders_of(params, laser, spots, lattice) -> list[np.ndarray]:

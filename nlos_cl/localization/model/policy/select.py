@@ -80,8 +80,8 @@ def add_plate(problem, current, free, held, final_nfev, passes):
 # Passes of reseat_each, with K given and in 'auto' alike, while a pass lowers the cost by at
 # least one unit of the noise's chi^2 (kappa): two persons as plates (scenario multi draw 33,
 # 56 spots) ran every pass for drops of 1e-6 to 1e-2 of a 15,036-38,558 cost, 57 of a
-# 125 s locate. 'auto' weighs each larger model with the plates' shadows (`weigh`): weighed on the unshadowed search's costs, a spare
-# plate re-seated near the wall absorbed two squares' unmodelled shadow well enough to pass
+# 125 s locate. 'auto' weighs each larger model with the plates' shadows (`weigh`): weighed
+# on the unshadowed search's costs, a spare plate re-seated near the wall absorbed two squares' unmodelled shadow well enough to pass
 # the BIC test (tests/localization/model/test_model_selection.py).
 RESEAT_PASSES = 3
 AUTO_RESEAT_PASSES = RESEAT_PASSES

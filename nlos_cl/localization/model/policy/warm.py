@@ -262,11 +262,9 @@ def hidden_diagnostics(problem, result, prior=None) -> list[dict]:
     degenerate: crossing draw 8's frames 19-22 were 0.06-0.14 m off with fitted sds of 3-9
     mm); 0.0 or None as the share. It is not in the covariance, which stays the data's.
     `size_held`: the warm fit's size prior held its width and height (`size_prior`).
-    Closed shapes: their front faces' (what shadows them: forward.host_shapes.occluders)."""
-    params = np.array(result.params, float)
-    if params.shape[1] != plate.N_PARAMS:
-        from ..forward.host_shapes import front_plates
-        params = front_plates(params)
+    Closed shapes: their front faces' (forward.shadow.plate_rows)."""
+    from ..forward.shadow import plate_rows
+    params = np.array(plate_rows(result.params))  # a copy: the prior's sizes go in below
     held = np.zeros(len(params), bool) if result.prior is None else \
         np.isfinite(np.asarray(result.prior[1])[:, [plate.WIDTH, plate.HEIGHT]]).any(axis=1)
     if len(params) < 2 or not problem.shadows:

@@ -210,15 +210,10 @@ def shadowed_by(problem, params):
     (likelihood.Problem.shadows), or targets that cannot shadow each other."""
     if not problem.shadows or len(params) < 2:
         return None
-    occluders = problem.occluders(params)  # the problem's own rows (closed: front faces')
-    if occluders is None:
-        return None
-    from ..forward.shadow import occluders_of
-    rows = np.reshape(np.asarray(params, np.float64), (len(params), -1))
-    if shape_of(problem).CLOSED:
-        from ..forward.host_shapes import front_plates
-        rows = front_plates(rows)
-    return occluders_of(rows, problem.obs.laser, problem.obs.spots, problem.lattice)
+    from ..forward.shadow import occluders_of, plate_rows  # closed shapes: front faces
+    which = occluders_of(plate_rows(params), problem.obs.laser, problem.obs.spots,
+                         problem.lattice)
+    return which if any(len(w) for w in which) else None
 
 
 def stepped_columns(problem, params, cols, moves) -> np.ndarray:
