@@ -170,8 +170,8 @@ class Prior:
     targets last reached (the model's own floor on these data, e.g. a learned background's
     residue): a warm fit that misses the data by no more than that, within the noise's 99.9 %
     point, is kept, as the cold fit would land there too (model.policy.warm.warm_fit). shape:
-    None (plates), or a closed family's name ('box', 'ellipsoid', 'cylinder': rows of its 7
-    parameters, x, y, z, width, height, depth, yaw), warm-fitted in that family (a tracked
+    None (plates), or a closed family's name ('box', 'ellipsoid', 'cylinder', 'capsule': rows of
+    its 7 parameters, x, y, z, width, height, depth, yaw), warm-fitted in that family (a tracked
     person's cylinder; plates among them at the family's least depth). measured: None, or the
     rows as last fitted, before a motion model moved them (tried where `rows` miss: a velocity
     learnt from a poor measurement or a turn sends a prediction out of the basin). late: the

@@ -16,7 +16,8 @@ import numpy as np
 # The share of each half-size kept as the inscribed box (across, up, along the normal).
 INSCRIBED = {"plate": (1.0, 1.0, 1.0), "box": (1.0, 1.0, 1.0),
              "cylinder": (math.sqrt(0.5), 1.0, math.sqrt(0.5)),
-             "ellipsoid": (math.sqrt(1 / 3),) * 3}
+             "ellipsoid": (math.sqrt(1 / 3),) * 3,
+             "capsule": (math.sqrt(1 / 3),) * 3}  # holds the ellipsoid of its size: its box
 SAMPLES = 24  # points per axis of the search region tried for the shadow's bounds
 RULE = ("a point whose straight path to the apex (the laser spot) crosses the box gets no "
         "light: a target there returns little or none")

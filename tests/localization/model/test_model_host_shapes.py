@@ -12,14 +12,14 @@ from conftest import model_observation, paper_frame
 from nlos_cl.localization.model.forward import batch, host_shapes
 from nlos_cl.localization.model.forward.host_shapes import HostShapeProblem
 from nlos_cl.localization.model.forward.likelihood import Problem
-from nlos_cl.localization.model.shapes import box, cylinder, ellipsoid
+from nlos_cl.localization.model.shapes import box, capsule, cylinder, ellipsoid
 from nlos_cl.physics.reflectance import Retroreflective
 
 TRUTH = (4.0, 2.0, 0.0)
 # 0.5 x 0.7 x 0.4 m, turned 35 degrees from facing the wall, its top below the spots' plane
 # (the paper's spots and laser at z = 0): the front, one side and the top are lit and seen
 CLOSED = np.array([4.0, 2.0, -0.45, 0.5, 0.7, 0.4, np.pi + 0.6])
-SHAPES = (box, ellipsoid, cylinder)
+SHAPES = (box, ellipsoid, cylinder, capsule)
 TOL = 1e-3
 
 
@@ -129,7 +129,8 @@ def test_a_glossy_target_stays_on_the_device(obs):
         HostShapeProblem(obs, box, reflectance=GGX(specular=0.6, roughness=0.3, diffuse=0.2))
 
 
-@pytest.mark.parametrize("shape", (ellipsoid, cylinder), ids=["ellipsoid", "cylinder"])
+@pytest.mark.parametrize("shape", (ellipsoid, cylinder, capsule),
+                         ids=["ellipsoid", "cylinder", "capsule"])
 def test_a_start_outside_the_bounds_is_scored_inside_them(obs, shape):
     """policy.closed's rounder starts from a plate fit (depth 0: sqrt(w d) = 0 across) divided
     by a zero semi-axis ('invalid value encountered in matmul' in `nlos-cl track` on

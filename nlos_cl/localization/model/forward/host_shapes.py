@@ -1,5 +1,5 @@
-"""Closed shapes (box, ellipsoid, cylinder) evaluated on the host, a batch of rows per call:
-the model of `likelihood.Problem(shape=...)`, whose `column` makes one forward launch per
+"""Closed shapes (box, ellipsoid, cylinder, capsule) evaluated on the host, a batch of rows
+per call: the model of `likelihood.Problem(shape=...)`, whose `column` makes one forward launch per
 lit face, in float64 NumPy and vectorised over every piece of every row of a Jacobian.
 
 Why: a one-target fit that tries the closed shapes makes ~2,000 of their columns (44 LM
@@ -58,8 +58,8 @@ def host_can(reflectance) -> bool:
 
 
 class HostShapeProblem(Problem):
-    """A `Problem` for one closed shape (`shape`: model.box, .ellipsoid or .cylinder: their
-    `pieces`) evaluated on the host. reflectance: None (Lambertian) or one with
+    """A `Problem` for one closed shape (`shape`: model.box, .ellipsoid, .cylinder or .capsule:
+    their `pieces`) evaluated on the host. reflectance: None (Lambertian) or one with
     factor_of_cosine (Retroreflective), as model.batch.HostProblem; the laser one spot (3,)
     or one per detector (D, 3)."""
 

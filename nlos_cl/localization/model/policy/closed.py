@@ -1,7 +1,7 @@
 """Plate or closed shape for one target (`closed_or_plate`): where the plate, re-seated, still
 misses the data (criteria.misfit) or the depth probe finds a box behind it better, the closed
-shapes (box, ellipsoid, cylinder) are fitted from starts around the plate and at the centroid,
-and the one of lowest cost is kept where its one more parameter (depth) passes the BIC test."""
+shapes (box, ellipsoid, cylinder, capsule) are fitted from starts around the plate and at the
+centroid, and the one of lowest cost is kept where its one more parameter (depth) passes the BIC test."""
 from __future__ import annotations
 
 import math
@@ -21,7 +21,7 @@ from .closed_search import CLOSED_NFEV, MIN_CROSS_DEPTH_M
 from .criteria import depth_gain, kappa, misfit
 from .select import FINAL_ATOL, best_of
 
-CLOSED = CLOSED_SHAPES  # the closed families tried (box, ellipsoid, cylinder), same parameters
+CLOSED = CLOSED_SHAPES  # the closed families tried (box, ellipsoid, cylinder, capsule)
 # A plate that misses the data (misfit above MISFIT_BIRGE) and leaves more than this share of
 # the signal unexplained gets no closed shapes (`beyond_closed`): twice what a closed shape
 # may leave and still be reported (sanity: 1 - EXPLAINED_MIN)

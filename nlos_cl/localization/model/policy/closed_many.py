@@ -1,6 +1,6 @@
 """Closed shapes for a fit of several targets: where K >= 2 plates that lie apart
-(criteria.separate) miss the data, each closed
-family (box, ellipsoid, cylinder) is fitted to all K targets at once, started from the plates
+(criteria.separate) miss the data, each closed family (box, ellipsoid, cylinder, capsule) is
+fitted to all K targets at once, started from the plates
 (each target in turn from START_DEPTHS behind its plate, short fits, the cheapest kept),
 and the family of lowest cost, fitted to convergence, replaces the plates where its K more parameters (the depths)
 pass the BIC test, as one target's closed shape does (policy.closed.closed_or_plate).

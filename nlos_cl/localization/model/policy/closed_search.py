@@ -1,4 +1,5 @@
-"""The closed shapes' search for one target (box, ellipsoid, cylinder), pooled in three stages:
+"""The closed shapes' search for one target (box, ellipsoid, cylinder, capsule), pooled in
+three stages:
 
 1. each family's best starts, by one forward call each (the plate's lattice of depths, yaws
    and widths, and sizes at the centroid start: `box_rows`), POOL_PLATE_STARTS from around

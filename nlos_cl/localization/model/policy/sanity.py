@@ -13,7 +13,7 @@ One target: a fit that fails one is replaced by the paper's argmax (no covarianc
 uses its fallback sigma) and the reason is warned. Several targets: the paper's argmax gives
 one position only, on one of them, so the paths check is skipped and a target failing the
 others is kept and warned about.
-- misfit, and depth unseen or signal unexplained: a closed shape (box, ellipsoid, cylinder)
+- misfit, and depth unseen or signal unexplained: a closed shape (box, ellipsoid, cylinder, capsule)
   whose Birge ratio is above MISFIT_BIRGE AND whose depth these spots cannot tell
   (depth.unseen_note) OR that leaves more than 1 - EXPLAINED_MIN of the signal unexplained
   (the share of the no-target cost its fit leaves: likelihood.Problem.null_cost): the closed

@@ -1,7 +1,7 @@
 """How many plates, and where they start: one plate from the centroid start (and the paper's
 argmax), then, greedily, one more from the centroid of what the plates so far leave
 unexplained, followed by a joint fit of all of them. For one target, where the plate misses
-the data, the closed shapes (box, ellipsoid, cylinder) are fitted too (model.closed).
+the data, the closed shapes (box, ellipsoid, cylinder, capsule) are fitted too (model.closed).
 
 'auto' keeps a new plate only where it passes the selection's tests (model.policy.criteria:
 the BIC in the noise's units, the shares of the fitted energy).

@@ -1,2 +1,2 @@
-"""Target shapes (plate, box, ellipsoid, cylinder): parameters, facets, lattices; the lowest
+"""Target shapes (plate, box, ellipsoid, cylinder, capsule): parameters, facets, lattices; the lowest
 room of the model, importing nothing else in it."""

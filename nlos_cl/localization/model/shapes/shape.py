@@ -1,6 +1,6 @@
 """The Shape protocol: what the model fit needs of a target shape, and the shapes it knows.
 
-A shape is a module (plate.py, box.py, ellipsoid.py, cylinder.py) whose rows of parameters
+A shape is a module (plate.py, box.py, ellipsoid.py, cylinder.py, capsule.py) whose rows of parameters
 start x, y, z (the centre) and end with the yaw; the fit reads its names, bounds, steps and
 scales, and asks it for the lit facets of a row, its extent and its normal. A closed shape
 (CLOSED) has the box's parameters, is fitted from the plate's starts (policy.closed) and says
@@ -12,7 +12,7 @@ from typing import Protocol
 
 import numpy as np
 
-from . import box, cylinder, ellipsoid, plate
+from . import box, capsule, cylinder, ellipsoid, plate
 
 MEMBERS = ("NAMES", "N_PARAMS", "YAW", "LOWER", "UPPER", "STEPS", "X_SCALE", "CLOSED",
            "model_facets", "extent", "normal_of")
@@ -40,7 +40,8 @@ class Shape(Protocol):
         """The unit normal of the face towards the wall."""
 
 
-SHAPES: dict[str, Shape] = {"plate": plate, "box": box, "ellipsoid": ellipsoid, "cylinder": cylinder}
+SHAPES: dict[str, Shape] = {"plate": plate, "box": box, "ellipsoid": ellipsoid, "cylinder": cylinder,
+                             "capsule": capsule}
 MODELS = {name: f"upright {name}" for name in SHAPES}  # how reports name them
 # The closed families a target is tried as (policy.closed), in SHAPES' order.
 CLOSED_SHAPES = tuple(s for s in SHAPES.values() if s.CLOSED)
