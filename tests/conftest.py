@@ -99,6 +99,26 @@ def paper_frame(runtime, snr_db=10.0, seed=3, truth=(4.0, 2.0, 0.0)):
     return nl.gauss_filter(raw), raw
 
 
+def circle_frame(runtime, mesh, grid, seed, snr_db=10.0):
+    """A model-ready frame of `mesh` (2 cm cells) seen by 8 spots on a 0.5 m circle about
+    (-1, 0, 0), 10 ps bins: (Scored over `grid`, its cold one-target model answer)."""
+    import warnings
+
+    from nlos_cl.localization.estimate import Scored
+    from nlos_cl.localization.model import ModelEstimator
+    from nlos_cl.physics import layouts
+    setup = nl.paper_setup(detector_spots=layouts.circle((-1.0, 0.0, 0.0), 0.5, 8))
+    scene = nl.Scene(setup, nl.Target(mesh), 0.02)
+    raw = nl.add_noise(nl.simulate(scene, nl.default_time_axis(setup, 10e-12),
+                                   backend=runtime), snr_db, seed=seed)
+    filtered = nl.gauss_filter(raw)
+    scores = nl.Locator(filtered, grid, estimator="model").scores(filtered)
+    scored = Scored(filtered.backend, scores, grid, False, filtered.n_detectors, filtered, raw)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return scored, ModelEstimator(targets=1).estimate(scored).targets[0]
+
+
 def model_observation(filtered, raw):
     """The model estimator's Observation of a frame, handed over without a score map."""
     from nlos_cl.localization.estimate import Scored

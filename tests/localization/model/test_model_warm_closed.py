@@ -6,11 +6,11 @@ import warnings
 
 import numpy as np
 import pytest
+from conftest import circle_frame
 
 import nlos_cl as nl
-from nlos_cl.localization.estimate import Prior, Scored
+from nlos_cl.localization.estimate import Prior
 from nlos_cl.localization.model import ModelEstimator
-from nlos_cl.physics import layouts
 
 GRID = nl.Grid.from_ranges(x=(1.5, 4.5), y=(1.0, 4.0), step_m=0.02)
 
@@ -18,17 +18,8 @@ GRID = nl.Grid.from_ranges(x=(1.5, 4.5), y=(1.0, 4.0), step_m=0.02)
 @pytest.fixture(scope="module")
 def box_frame(runtime):
     """(scored, cold answer) of a 0.5 x 0.5 x 1 m box 2.6 m out, 8 spots on a 0.5 m circle."""
-    setup = nl.paper_setup(detector_spots=layouts.circle((-1.0, 0.0, 0.0), 0.5, 8))
-    scene = nl.Scene(setup, nl.Target(nl.box((0.5, 0.5, 1.0), centre=(2.8, 2.6, 0.0),
-                                             cell_m=0.02)), 0.02)
-    raw = nl.add_noise(nl.simulate(scene, nl.default_time_axis(setup, 10e-12),
-                                   backend=runtime), 10.0, seed=1)
-    filtered = nl.gauss_filter(raw)
-    scores = nl.Locator(filtered, GRID, estimator="model").scores(filtered)
-    scored = Scored(filtered.backend, scores, GRID, False, filtered.n_detectors, filtered, raw)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        return scored, ModelEstimator(targets=1).estimate(scored).targets[0]
+    return circle_frame(runtime, nl.box((0.5, 0.5, 1.0), centre=(2.8, 2.6, 0.0), cell_m=0.02),
+                        GRID, seed=1)
 
 
 def _warm(scored, prior):

@@ -7,11 +7,11 @@ import warnings
 
 import numpy as np
 import pytest
+from conftest import circle_frame
 
 import nlos_cl as nl
-from nlos_cl.localization.estimate import Prior, Scored
+from nlos_cl.localization.estimate import Prior
 from nlos_cl.localization.model import ModelEstimator
-from nlos_cl.physics import layouts
 
 GRID = nl.Grid.from_ranges(x=(1.5, 4.5), y=(0.5, 3.5), step_m=0.02)
 
@@ -19,17 +19,8 @@ GRID = nl.Grid.from_ranges(x=(1.5, 4.5), y=(0.5, 3.5), step_m=0.02)
 @pytest.fixture(scope="module")
 def walk_frame(runtime):
     """(scored, cold answer): walk.yaml's 0.3 x 1.6 m plate at (3, 1.6), 8 spots, 10 dB."""
-    setup = nl.paper_setup(detector_spots=layouts.circle((-1.0, 0.0, 0.0), 0.5, 8))
-    plate = nl.rectangle(0.3, 1.6, centre=(3.0, 1.6, 0.0), cell_m=0.02)
-    scene = nl.Scene(setup, nl.Target(plate), 0.02)
-    raw = nl.add_noise(nl.simulate(scene, nl.default_time_axis(setup, 10e-12),
-                                   backend=runtime), 10.0, seed=3)
-    filtered = nl.gauss_filter(raw)
-    scores = nl.Locator(filtered, GRID, estimator="model").scores(filtered)
-    scored = Scored(filtered.backend, scores, GRID, False, filtered.n_detectors, filtered, raw)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        return scored, ModelEstimator(targets=1).estimate(scored).targets[0]
+    return circle_frame(runtime, nl.rectangle(0.3, 1.6, centre=(3.0, 1.6, 0.0), cell_m=0.02),
+                        GRID, seed=3)
 
 
 def test_a_warm_fit_out_of_budget_is_continued_not_refitted_cold(walk_frame):

@@ -18,7 +18,6 @@ the cylinder's side and the ellipsoid's lattice over half the polar range per en
 """
 from __future__ import annotations
 
-import functools
 import math
 
 import numpy as np
@@ -38,33 +37,12 @@ def end_height(w, h, d) -> float:
     return min(0.5 * math.sqrt(w * d), 0.5 * h)
 
 
-@functools.lru_cache(maxsize=8)
-def _end_angles(n_az, n_po, upper):
-    """sin and cos of an end's cells' polar and azimuth angles (F,), and the two steps: polar
-    0..pi/2 from the top (upper) or pi/2..pi."""
-    d_az, d_po = 2 * math.pi / n_az, 0.5 * math.pi / n_po
-    start = 0.0 if upper else 0.5 * math.pi
-    az, po = np.meshgrid((np.arange(n_az) + 0.5) * d_az, start + (np.arange(n_po) + 0.5) * d_po,
-                         indexing="ij")
-    az, po = az.reshape(-1), po.reshape(-1)
-    out = (np.sin(po), np.cos(po), np.sin(az), np.cos(az))
-    for v in out:
-        v.flags.writeable = False  # shared by every call
-    return (*out, d_az, d_po)
-
-
 def _end(centre, turn, sa, sb, sc, upper):
-    """Cell centres, normals and edge vectors of one half-ellipsoid end (as
-    ellipsoid._surface, over its half of the polar range)."""
-    s_po, c_po, s_az, c_az, d_az, d_po = _end_angles(*END_CELLS, upper)
-    k_az, k_po = ellipsoid.chord_mean(d_az), ellipsoid.chord_mean(d_po)
-    local = np.stack([k_po * k_az * sb * s_po * c_az, k_po * k_az * sa * s_po * s_az,
-                      k_po * sc * c_po], axis=1)
-    centres = local @ turn + centre
-    e_az = np.stack([-sb * s_po * s_az, sa * s_po * c_az, np.zeros_like(s_po)], axis=1) @ turn
-    e_po = np.stack([sb * c_po * c_az, sa * c_po * s_az, -sc * s_po], axis=1) @ turn
-    normals = np.stack([s_po * c_az / sb, s_po * s_az / sa, c_po / sc], axis=1) @ turn
-    return centres, normals, e_az * d_az, e_po * d_po
+    """Cell centres, normals and edge vectors of one half-ellipsoid end: the ellipsoid's
+    surface over the upper (polar 0..pi/2) or lower half of its polar range."""
+    polar = (0.0, 0.5 * math.pi) if upper else (0.5 * math.pi, math.pi)
+    return ellipsoid.surface_cells(centre, turn, sa, sb, sc,
+                                   ellipsoid._angles(END_CELLS, polar))
 
 
 def _surface(p):
@@ -83,29 +61,9 @@ def _surface(p):
     return tuple(np.concatenate([q[i] for q in parts]) for i in range(4))
 
 
-def capsule_cells(p, spots=None, laser=None):
-    """Cells of capsule p (only those lit and seen, when spots and laser are given): Facets
-    of the cell centres and the cells' two edge vectors (each (F, 3))."""
-    return ellipsoid.lit_cells(*_surface(p), spots, laser)
-
-
-def pieces(p, lattice=None):
-    """Every cell of capsule p, none culled, as the pieces that share one pulse blur (one):
-    as ellipsoid.pieces."""
-    cells, edges = ellipsoid.unit_cells(*_surface(p))
-    return [(cells, edges, ellipsoid.CURVED_BLUR_SHARE)]
-
-
-def capsule_facets(p):
-    """Facets of the whole capsule p (no culling): for simulating the model itself."""
-    return capsule_cells(p)[0]
-
-
-def model_facets(p, lattice, spots, laser):
-    """What the forward call sees of capsule p: as plate.model_facets, over the lit cells."""
-    cells, edges = capsule_cells(p, spots, laser)
-    return plate.cell_model(cells, edges, spots, laser, ellipsoid.CURVED_BLUR_SHARE)
-
-
+# capsule_cells(p, spots, laser): the lit and seen cells (Facets, edges); pieces(p): every cell,
+# one blur; capsule_facets(p): the whole surface (to simulate the model); model_facets: what
+# the forward call sees (as plate.model_facets)
+capsule_cells, pieces, capsule_facets, model_facets = ellipsoid.curved_members(_surface)
 rounder_sizes = cylinder.rounder_sizes
 extent, normal_of = box.extent, box.normal_of

@@ -82,8 +82,7 @@ def cylinder_cells(p, spots=None, laser=None):
 def pieces(p, lattice=None):
     """Every cell of cylinder p, none culled, as the pieces that share one pulse blur (one):
     as ellipsoid.pieces."""
-    cells, edges = ellipsoid.unit_cells(*_surface(p))
-    return [(cells, edges, ellipsoid.CURVED_BLUR_SHARE)]
+    return ellipsoid.curved_pieces(_surface(p))
 
 
 def _surface(p):
@@ -113,8 +112,7 @@ def rounder_sizes(w, h, d) -> list:
 
 def model_facets(p, lattice, spots, laser):
     """What the forward call sees of cylinder p: as plate.model_facets, over the lit cells."""
-    cells, edges = cylinder_cells(p, spots, laser)
-    return plate.cell_model(cells, edges, spots, laser, ellipsoid.CURVED_BLUR_SHARE)
+    return ellipsoid.curved_model(*cylinder_cells(p, spots, laser), spots, laser)
 
 
 extent, normal_of = box.extent, box.normal_of

@@ -55,7 +55,13 @@ def ellipsoid_cells(p, spots=None, laser=None, cells=CELLS):
 def pieces(p, lattice=None):
     """Every cell of ellipsoid p, none culled, as the pieces that share one pulse blur: one
     (Facets, edges, blur share) (model.host_shapes culls them itself)."""
-    cells, edges = unit_cells(*_surface(p, CELLS))
+    return curved_pieces(_surface(p, CELLS))
+
+
+def curved_pieces(surface):
+    """A curved shape's `pieces` from its cells' (centres, normals, e_u, e_v): one piece,
+    every cell, the curved surfaces' blur share."""
+    cells, edges = unit_cells(*surface)
     return [(cells, edges, CURVED_BLUR_SHARE)]
 
 
@@ -64,15 +70,21 @@ def _surface(p, cells):
     built in the shape's own frame (along n, across, up) and turned once (a fit builds ~10
     surfaces per Jacobian: 0.45 -> ~0.1 ms each)."""
     x, y, z, w, h, d, yaw = (float(v) for v in p)
-    sa, sc, sb = 0.5 * w, 0.5 * h, 0.5 * d  # across, up, along n
-    s_po, c_po, s_az, c_az, d_az, d_po = _angles(tuple(cells))
+    return surface_cells(np.array([x, y, z]), frame(yaw), 0.5 * w, 0.5 * d, 0.5 * h,
+                         _angles(tuple(cells)))
+
+
+def surface_cells(centre, turn, sa, sb, sc, angles):
+    """Cell centres, normals and edge vectors of the ellipsoid surface of semi-axes sa
+    (across), sb (along n), sc (up) about `centre`, over the cells of `angles` (`_angles`:
+    the whole surface, or a polar band of it: capsule's ends)."""
+    s_po, c_po, s_az, c_az, d_az, d_po = angles
     # each cell's facet at its patch's mean position (chord_mean: the mean of sin and cos over
     # a cell of angle step is the centre's times sinc(step / 2))
     k_az, k_po = chord_mean(d_az), chord_mean(d_po)
-    turn = frame(yaw)
     local = np.stack([k_po * k_az * sb * s_po * c_az, k_po * k_az * sa * s_po * s_az,
                       k_po * sc * c_po], axis=1)
-    centres = local @ turn + np.array([x, y, z])
+    centres = local @ turn + centre
     e_az = np.stack([-sb * s_po * s_az, sa * s_po * c_az, np.zeros_like(s_po)], axis=1) @ turn
     e_po = np.stack([sb * c_po * c_az, sa * c_po * s_az, -sc * s_po], axis=1) @ turn
     normals = np.stack([s_po * c_az / sb, s_po * s_az / sa, c_po / sc], axis=1) @ turn
@@ -86,12 +98,13 @@ def frame(yaw) -> np.ndarray:
 
 
 @functools.lru_cache(maxsize=8)
-def _angles(cells):
-    """sin and cos of the cells' polar and azimuth angles (F,) and the two steps."""
+def _angles(cells, polar=(0.0, math.pi)):
+    """sin and cos of the cells' polar and azimuth angles (F,) and the two steps: `cells`
+    (azimuth, polar) over the polar range `polar` (the whole surface by default)."""
     n_az, n_po = cells
-    d_az, d_po = 2 * math.pi / n_az, math.pi / n_po
-    az, po = np.meshgrid((np.arange(n_az) + 0.5) * d_az, (np.arange(n_po) + 0.5) * d_po,
-                         indexing="ij")
+    d_az, d_po = 2 * math.pi / n_az, (polar[1] - polar[0]) / n_po
+    az, po = np.meshgrid((np.arange(n_az) + 0.5) * d_az,
+                         polar[0] + (np.arange(n_po) + 0.5) * d_po, indexing="ij")
     az, po = az.reshape(-1), po.reshape(-1)
     out = (np.sin(po), np.cos(po), np.sin(az), np.cos(az))
     for v in out:
@@ -168,7 +181,30 @@ def ellipsoid_facets(p, cells=CELLS) -> Facets:
 
 def model_facets(p, lattice, spots, laser):
     """What the forward call sees of ellipsoid p: as plate.model_facets, over the lit cells."""
-    cells, edges = ellipsoid_cells(p, spots, laser)
+    return curved_model(*ellipsoid_cells(p, spots, laser), spots, laser)
+
+
+def curved_members(surface_of):
+    """(cells, pieces, facets, model_facets): a curved shape's members from `surface_of(p)`,
+    its cells' (centres, normals, e_u, e_v) (the capsule's; as ellipsoid_cells, pieces,
+    ellipsoid_facets and model_facets above)."""
+    def cells(p, spots=None, laser=None):
+        return lit_cells(*surface_of(p), spots, laser)
+
+    def pieces(p, lattice=None):
+        return curved_pieces(surface_of(p))
+
+    def facets(p):
+        return cells(p)[0]
+
+    def model_facets(p, lattice, spots, laser):
+        return curved_model(*cells(p, spots, laser), spots, laser)
+    return cells, pieces, facets, model_facets
+
+
+def curved_model(cells, edges, spots, laser):
+    """What the forward call sees of a curved shape's lit cells (plate.cell_model at the
+    curved surfaces' blur share)."""
     return plate.cell_model(cells, edges, spots, laser, CURVED_BLUR_SHARE)
 
 
