@@ -1,7 +1,7 @@
 """A track's body behind its plate: the depth a closed object's plate fits cannot see.
 
 A plate fit of a closed object (a person, a box) lies on the surface that faces the wall
-spots, and a warm fit is a plate (tracking.warm.WARM_SHAPE): a person's track followed his
+spots, and a warm fit is a plate where the last cold fit was one: a person's track followed his
 front, his radius (0.15-0.3 m) short of his centre, while the frames whose cold fit found a
 closed shape (model.policy.closed: a cylinder, box or ellipsoid, its centre the object's
 own) measured the centre. Both kinds then pulled on one track. An object's depth does not

@@ -97,5 +97,6 @@ def _continue(track, cand) -> None:
     """The candidate's estimate becomes the track's; its record starts a new segment."""
     track.state, track.covariance = cand.state.copy(), cand.covariance.copy()
     track.plate, track.extra = cand.plate, cand.extra  # (its remembered sizes: the same)
+    track.model = cand.model
     track.misfit, track.late, track.offset = cand.misfit, cand.late, cand.offset
     track.pending = None  # no prediction links this frame to the last one: a restart

@@ -37,7 +37,8 @@ class Track:
     history: deque = field(default_factory=deque)
     steps: deque = field(default_factory=deque)
     pending: tuple | None = None  # (dt, x, P) of the last prediction, until it is recorded
-    plate: np.ndarray | None = None  # the last paired fit's plate row (warm starts)
+    plate: np.ndarray | None = None  # the last paired fit's row (warm starts)
+    model: str = "plate"  # its shape: "plate", or a closed family (tracking.warm.prior)
     # the rows of plates touching it in that fit: its object's other faces or light, which
     # the warm fits carry (tracking.association.objects)
     extra: list = field(default_factory=list)

@@ -1,8 +1,8 @@
 """Warm starts for the model estimator inside the Tracker: the prior provider.
 
 Where each of the K targets the estimator fits is followed by a confirmed track whose last
-measurement was a plate fit, the next frame's fit starts from those plates moved to the tracks'
-predicted positions (a localization.estimate.Prior, `Locator(..., prior=...)`, then
+measurement was a model fit (a plate, or a closed shape: then every row in that family, `prior`),
+the next frame's fit starts from those rows moved to the tracks' predicted positions (a localization.estimate.Prior, `Locator(..., prior=...)`, then
 `ModelEstimator.estimate(scored, prior)`, nlos_cl.localization.model.policy.warm): only the final fit
 runs, ~30 model evaluations on the host instead of ~150 forward calls. Two fallbacks to the
 cold (full) fit: the estimator's own (the warm fit misses the data: Birge ratio above its
@@ -36,22 +36,15 @@ def can_start(estimator, fixed: bool = False) -> bool:
 
 
 def plate_of(measurement):
-    """The fitted plate row (6,) behind a measurement, or None (another model, a closed shape
-    (WARM_SHAPE), a merged pair, an estimator without a typed fit)."""
+    """The fitted row behind a measurement (a plate's 6 parameters, or a closed shape's 7), or
+    None (another model, a merged pair, an estimator without a typed fit)."""
     fit = getattr(measurement.source, "fit", None)
     if measurement.merged or fit is None:
         return None
-    if fit.shape != WARM_SHAPE:
+    from ..localization.model.shapes.shape import SHAPES  # (the paper tracker never gets here)
+    if fit.shape not in SHAPES:
         return None
     return fit.values()
-
-
-# The tracker warm-starts plate fits only. Closed shapes warm-started in their family
-# (Prior.shape, model.policy.warm.closed_warm_fit) made person tracks 1.7x cheaper but less
-# accurate: scenario clutter draw 0 (a person past a box) 0.044 -> 0.117 m, 72 lost its
-# person (0.32 m -> missed), 56 its second target; the cold fit's closed search finds the
-# person again each frame where a warm cylinder drifts.
-WARM_SHAPE = "plate"
 
 
 def keep(track, measurement, extra=()) -> None:
@@ -60,10 +53,11 @@ def keep(track, measurement, extra=()) -> None:
     the misfit of the cold fit behind it where one ran this frame (a warm fit's own is not: a
     floor that followed the accepted warm fits would climb frame by frame)."""
     track.plate = plate_of(measurement)
+    fit = getattr(measurement.source, "fit", None)
+    track.model = fit.shape if track.plate is not None else "plate"
     track.offset = depth.offset(track, measurement)  # the centre behind it (tracking.depth)
     depth.learn(track, measurement)
     track.extra = [np.array(r, float) for r in extra]  # counted in the next fit's targets
-    fit = getattr(measurement.source, "fit", None)
     # the ratio the warm fit's misfit test reads: the Birge ratio, or counts' deviance per
     # degree of freedom (ModelFit.birge_ratio is None for counts)
     ratio = (fit.diagnostics or {}).get("misfit_ratio", fit.birge_ratio) \
@@ -137,10 +131,11 @@ def prior(starters) -> Prior:
     for a plate the others partly hide (Prior.size), and the largest of their cold fits'
     misfits (Prior.misfit; None where a track has none), the rows as last fitted (tried where
     the prediction misses: Prior.measured) and whether a cold fit kept late copies."""
+    family = next((p.track.model for p in starters if p.track.model != "plate"), None)
     rows, measured, size, size_sd = [], [], [], []
     for p in starters:
         tr, x = p.track, p.x
-        row = tr.plate.copy()
+        row = in_family(tr.plate, tr.model, family)
         measured.append(row.copy())
         shift = np.zeros(3) if tr.offset is None else tr.offset  # centre - plate
         row[:tr.dims] = x[:tr.dims] - shift[:tr.dims]
@@ -149,6 +144,7 @@ def prior(starters) -> Prior:
         size.append(known[0])
         size_sd.append(known[1])
         for extra in tr.extra:  # the object's other plates move with it
+            extra = in_family(extra, "plate", family)
             measured.append(extra.copy())
             moved = extra.copy()
             moved[:tr.dims] += row[:tr.dims] - tr.plate[:tr.dims]
@@ -157,8 +153,19 @@ def prior(starters) -> Prior:
             size_sd.append(np.full(2, np.inf))
     misfits = [p.track.misfit for p in starters]
     floor = None if None in misfits else max(misfits)
-    return Prior(np.array(rows), np.array(size), np.array(size_sd), floor,
-                 measured=np.array(measured), late=any(p.track.late for p in starters))
+    return Prior(np.array(rows), np.array(size), np.array(size_sd), floor, family,
+                 np.array(measured), any(p.track.late for p in starters))
+
+
+def in_family(row, model, family) -> np.ndarray:
+    """A copy of a track's row (of `model`) as a row of `family` (None: plates): a plate
+    among closed targets at the family's least depth; closed families share parameters."""
+    row = np.array(row, float)
+    if family is None or model != "plate":
+        return row
+    from ..localization.model.shapes import box
+    from ..localization.model.shapes.shape import SHAPES
+    return box.from_plate(row, float(SHAPES[family].LOWER[box.DEPTH]))
 
 
 def outside_gates(measurements, predictions, gate_probability, wall=None) -> bool:

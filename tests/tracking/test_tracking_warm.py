@@ -236,6 +236,44 @@ def test_a_track_keeps_the_misfit_of_its_cold_fits_only():
     assert b.misfit == 3.5 and warm.prior(predictions).misfit == 3.5
 
 
+def test_a_closed_track_warm_starts_its_whole_frame_in_its_family():
+    """warm.prior: where a track's last fit was a closed shape (a person's capsule), every row
+    is a row of that family (Prior.shape), a plate track's at the family's least depth; a
+    frame whose warm fit misses and whose cold fit returns plates reads the closed prior's
+    sizes through their front faces (policy.warm.hidden_diagnostics: it raised ValueError,
+    reshaping 14 numbers into plates of 6)."""
+    from types import SimpleNamespace
+
+    from nlos_cl.localization.model.policy.warm import hidden_diagnostics
+    from nlos_cl.localization.model.shapes import box, capsule
+    from nlos_cl.tracking.track import Track
+
+    def measured(shape, values):
+        names = ("x", "y", "z", "width", "height", "depth", "yaw")[:len(values)]
+        if shape == "plate":
+            names = ("x", "y", "z", "width", "height", "yaw")
+        params = tuple(Parameter(n, v, -9.0, 9.0, True, 0.01) for n, v in zip(names, values))
+        fit = ModelFit(shape, f"upright {shape}", params, 1.0, np.zeros(3), "gauss", 0.0, 1,
+                       1.2, True, warm_start=None)
+        src = nl.LocatedTarget(np.array(values[:3]), np.diag([1e-4] * 3), fit=fit)
+        return kalman.measurement(src, 2, fallback_sigma_m=0.05, min_sigma_m=0.002)
+    person, wall = (Track(i, np.zeros(4), np.eye(4), 0.0, status="confirmed") for i in (1, 2))
+    warm.remember(person, measured("capsule", (3.0, 2.0, 0.0, 0.5, 1.7, 0.5, 3.1)))
+    warm.remember(wall, measured("plate", (1.0, 3.0, 0.0, 0.6, 0.8, 2.0)))
+    assert (person.model, wall.model) == ("capsule", "plate")
+    prior = warm.prior([kalman.Prediction(t, np.array([x, y, 0, 0]), np.eye(4))
+                        for t, x, y in ((person, 3.1, 2.0), (wall, 1.0, 3.0))])
+    assert prior.shape == "capsule" and prior.rows.shape == (2, 7)
+    thin = box.from_plate([1.0, 3.0, 0.0, 0.6, 0.8, 2.0], float(capsule.LOWER[box.DEPTH]))
+    np.testing.assert_allclose(prior.rows[1, 2:], thin[2:])  # at its predicted x, y
+    assert prior.rows[0][0] == 3.1 and prior.measured.shape == (2, 7)
+    plates = np.array([[3.0, 2.0, 0.0, 0.5, 1.7, 3.1], [1.0, 3.0, 0.0, 0.6, 0.8, 2.0]])
+    problem = SimpleNamespace(shadows=True, obs=SimpleNamespace(
+        laser=np.zeros(3), spots=np.array([[-0.5, 0.0, 0.0], [0.5, 0.0, 0.2]])))
+    got = hidden_diagnostics(problem, SimpleNamespace(params=plates, prior=None), prior)
+    assert len(got) == 2
+
+
 def test_start_rows_are_checked(scored):
     with pytest.raises(nl.InputError, match="start"):
         ModelEstimator().estimate(scored, start=np.zeros((1, 5)))

@@ -298,7 +298,8 @@ def hidden_diagnostics(problem, result, prior=None) -> list[dict]:
     else:
         from ..forward.shadow import hidden_shares
         if prior and prior.size_sd is not None:
-            rows = np.asarray(prior.rows, float).reshape(-1, params.shape[1])
+            prior_rows = np.asarray(prior.rows, float)  # plates or a closed family's rows
+            rows = np.array(plate_rows(prior_rows.reshape(len(prior_rows), -1)))
             known = np.isfinite(np.asarray(prior.size_sd, float)).all(axis=1)
             size = np.asarray(prior.size, float)
             for k, j in _nearest_rows(params[:, :3], rows[:, :3]):
