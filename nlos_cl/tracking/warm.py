@@ -1,8 +1,9 @@
 """Warm starts for the model estimator inside the Tracker: the prior provider.
 
 Where each of the K targets the estimator fits is followed by a confirmed track whose last
-measurement was a model fit (a plate, or a closed shape: then every row in that family, `prior`),
-the next frame's fit starts from those rows moved to the tracks' predicted positions (a localization.estimate.Prior, `Locator(..., prior=...)`, then
+measurement was a model fit (a plate, or a closed shape: then every row in that family,
+`prior`), the next frame's fit starts from those rows moved to the tracks' predicted positions
+(a localization.estimate.Prior, `Locator(..., prior=...)`, then
 `ModelEstimator.estimate(scored, prior)`, nlos_cl.localization.model.policy.warm): only the final fit
 runs, ~30 model evaluations on the host instead of ~150 forward calls. Two fallbacks to the
 cold (full) fit: the estimator's own (the warm fit misses the data: Birge ratio above its
@@ -48,7 +49,8 @@ def plate_of(measurement):
 
 
 def keep(track, measurement, extra=()) -> None:
-    """The track's warm start from its paired measurement: the fitted plate row, the object's
+    """The track's warm start from its paired measurement: the fitted row and its shape
+    (`model`), where the centre lies from it (tracking.depth), the object's
     other plates (`extra`: rows of touching plates fitted with it, tracking.association), and
     the misfit of the cold fit behind it where one ran this frame (a warm fit's own is not: a
     floor that followed the accepted warm fits would climb frame by frame)."""
@@ -174,8 +176,8 @@ def outside_gates(measurements, predictions, gate_probability, wall=None) -> boo
     plate as its centre: tracking.depth.centred, wall the wall spots' centroid.)"""
     def inside(m):
         gate = kalman.gate_threshold(gate_probability, len(m.axes))
-        return any(kalman.gate_distance2(p.x, p.P, p.modes, depth.centred(p.track, m, wall)) <= gate
-                   for p in predictions)
+        return any(kalman.gate_distance2(p.x, p.P, p.modes, depth.centred(p.track, m, wall))
+                   <= gate for p in predictions)
     warm = [m for m in measurements if _warm_fitted(m)]
     held = [m for m in warm if inside(m)]
     held_ids = {id(m) for m in held}

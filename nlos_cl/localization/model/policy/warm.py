@@ -132,13 +132,8 @@ def warm_fit(est, obs, rows, free, held, backend=None, sizes=None, floor=None, s
     prior = size_prior(problem, rows, sizes)
     if prior is not None:
         rows = prior[0]  # the hidden plates start at their known size
-
-    def warm_lm(start, nfev):
-        return fit(problem, start, free, nfev, tau=WARM_TAU, atol=WARM_ATOL, prior=prior,
-                   keep_jacobian=REUSE_JACOBIAN, width_vectors=WIDTH_VECTORS,
-                   best_gain=len(rows) <= BEST_GAIN_PLATES, speculate=SPECULATE)
     result, cov, (inadequate, birge, floored), nfev = _settled(
-        warm_lm, problem, rows, free, est.warm_nfev, floor)
+        problem, rows, free, est.warm_nfev, floor, prior=prior, width_vectors=WIDTH_VECTORS)
     info = {"used": not inadequate, "birge_ratio": birge, "nfev": nfev,
             "forward_calls": problem.calls,
             "moved_m": float(np.max(np.linalg.norm(result.params[:, :3] - rows[:, :3], axis=1)))}
@@ -155,10 +150,15 @@ def warm_fit(est, obs, rows, free, held, backend=None, sizes=None, floor=None, s
     return Fitted(problem, chosen, history), info, None
 
 
-def _settled(warm_lm, problem, rows, free, nfev, floor):
-    """(result, cov, misses(...), evaluations): the warm LM fit `warm_lm(start, nfev)` from
-    `rows`, continued once (CONTINUE_NFEV times the budget) where it misses the data having
-    spent its whole budget: stopped by the budget, not settled in a basin."""
+def _settled(problem, rows, free, nfev, floor, **options):
+    """(result, cov, misses(...), evaluations): the warm LM fit from `rows` (model.fit with
+    the warm settings and `options`), continued once (CONTINUE_NFEV times the budget) where it
+    misses the data having spent its whole budget: stopped by the budget, not settled in a
+    basin."""
+    def warm_lm(start, budget):
+        return fit(problem, start, free, budget, tau=WARM_TAU, atol=WARM_ATOL,
+                   keep_jacobian=REUSE_JACOBIAN, best_gain=len(rows) <= BEST_GAIN_PLATES,
+                   speculate=SPECULATE, **options)
     result = warm_lm(rows, nfev)
     cov = covariance(problem, result, free, reuse=REUSE_JACOBIAN)
     missed, spent = misses(problem, result, free, cov.info, floor), result.nfev
@@ -202,12 +202,8 @@ def closed_warm_fit(est, problem, rows, free, shape, floor=None):
     closed = shape_problem(problem, SHAPES[shape])
     free_closed = closed_free(free)
     rows = np.clip(rows, closed.shape.LOWER, closed.shape.UPPER)
-    def warm_lm(start, nfev):
-        return fit(closed, start, free_closed, nfev, tau=WARM_TAU, atol=WARM_ATOL,
-                   keep_jacobian=REUSE_JACOBIAN, best_gain=len(rows) <= BEST_GAIN_PLATES,
-                   speculate=SPECULATE)
-    result, cov, (inadequate, birge, _), nfev = _settled(
-        warm_lm, closed, rows, free_closed, est.warm_nfev, floor)
+    result, cov, (inadequate, birge, _), nfev = _settled(closed, rows, free_closed,
+                                                         est.warm_nfev, floor)
     take_calls(problem, closed)
     info = {"used": not inadequate, "birge_ratio": birge, "nfev": nfev,
             "forward_calls": problem.calls,

@@ -146,8 +146,8 @@ def from_plate(q, depth) -> np.ndarray:
 
 
 def front_of(p) -> np.ndarray:
-    """The front face of closed shape p (box, ellipsoid, cylinder, capsule: same parameters) as a plate
-    row (x, y, z, width, height, yaw): `from_plate`'s inverse."""
+    """The front face of closed shape p (box, ellipsoid, cylinder, capsule: same parameters)
+    as a plate row (x, y, z, width, height, yaw): `from_plate`'s inverse."""
     p = np.asarray(p, float)
     front = p[:3] + 0.5 * p[DEPTH] * normal_of(p)
     return np.array([*front, p[WIDTH], p[HEIGHT], p[YAW]])

@@ -42,7 +42,7 @@ def _end(centre, turn, sa, sb, sc, upper):
     surface over the upper (polar 0..pi/2) or lower half of its polar range."""
     polar = (0.0, 0.5 * math.pi) if upper else (0.5 * math.pi, math.pi)
     return ellipsoid.surface_cells(centre, turn, sa, sb, sc,
-                                   ellipsoid._angles(END_CELLS, polar))
+                                   ellipsoid.cell_angles(END_CELLS, polar))
 
 
 def _surface(p):
@@ -56,7 +56,7 @@ def _surface(p):
     sa, sb, sc = 0.5 * w, 0.5 * d, end_height(w, h, d)
     side = max(h - 2.0 * sc, 0.0)
     up = 0.5 * side * plate.UP
-    parts = [cylinder._side(c, n, a, sa, sb, side, *cylinder.SIDE_CELLS),
+    parts = [cylinder.side_cells(c, n, a, sa, sb, side, *cylinder.SIDE_CELLS),
              _end(c + up, turn, sa, sb, sc, True), _end(c - up, turn, sa, sb, sc, False)]
     return tuple(np.concatenate([q[i] for q in parts]) for i in range(4))
 

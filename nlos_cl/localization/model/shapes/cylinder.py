@@ -25,7 +25,8 @@ LOWER, UPPER, STEPS, X_SCALE = ellipsoid.LOWER, box.UPPER, box.STEPS, box.X_SCAL
 SIDE_CELLS, CAP_CELLS = (64, 16), (64, 4)
 
 
-def _side(c, n, a, sa, sb, h, n_az, n_h):
+def side_cells(c, n, a, sa, sb, h, n_az, n_h):
+    """Cell centres, normals and edge vectors of the side of height h (the capsule's too)."""
     d_az, d_h = 2 * math.pi / n_az, h / n_h
     cos_az, sin_az, zz = _side_lattice(n_az, n_h)
     zz = zz * h
@@ -73,18 +74,6 @@ def _frozen(*arrays):
     return out
 
 
-def cylinder_cells(p, spots=None, laser=None):
-    """Cells of cylinder p (only those lit and seen, when spots and laser are given): Facets
-    of the cell centres and the cells' two edge vectors (each (F, 3))."""
-    return ellipsoid.lit_cells(*_surface(p), spots, laser)
-
-
-def pieces(p, lattice=None):
-    """Every cell of cylinder p, none culled, as the pieces that share one pulse blur (one):
-    as ellipsoid.pieces."""
-    return ellipsoid.curved_pieces(_surface(p))
-
-
 def _surface(p):
     """Cell centres, normals and the two edge vectors of cylinder p (side, top, bottom)."""
     x, y, z, w, h, d, yaw = (float(v) for v in p)
@@ -92,15 +81,10 @@ def _surface(p):
     n = np.array([math.cos(yaw), math.sin(yaw), 0.0])
     a = np.array([-math.sin(yaw), math.cos(yaw), 0.0])
     sa, sb = 0.5 * w, 0.5 * d
-    parts = [_side(c, n, a, sa, sb, h, *SIDE_CELLS),
+    parts = [side_cells(c, n, a, sa, sb, h, *SIDE_CELLS),
              _cap(c + 0.5 * h * plate.UP, n, a, sa, sb, plate.UP, *CAP_CELLS),
              _cap(c - 0.5 * h * plate.UP, n, a, sa, sb, -plate.UP, *CAP_CELLS)]
     return tuple(np.concatenate([q[i] for q in parts]) for i in range(4))
-
-
-def cylinder_facets(p):
-    """Facets of the whole cylinder p (no culling): for simulating the model itself."""
-    return cylinder_cells(p)[0]
 
 
 def rounder_sizes(w, h, d) -> list:
@@ -110,9 +94,8 @@ def rounder_sizes(w, h, d) -> list:
     return [(m, h, m)]
 
 
-def model_facets(p, lattice, spots, laser):
-    """What the forward call sees of cylinder p: as plate.model_facets, over the lit cells."""
-    return ellipsoid.curved_model(*cylinder_cells(p, spots, laser), spots, laser)
-
-
+# cylinder_cells(p, spots, laser): the lit and seen cells (Facets, edges); pieces(p): every
+# cell, one blur; cylinder_facets(p): the whole surface (to simulate the model); model_facets:
+# what the forward call sees (as plate.model_facets)
+cylinder_cells, pieces, cylinder_facets, model_facets = ellipsoid.curved_members(_surface)
 extent, normal_of = box.extent, box.normal_of

@@ -71,13 +71,13 @@ def _surface(p, cells):
     surfaces per Jacobian: 0.45 -> ~0.1 ms each)."""
     x, y, z, w, h, d, yaw = (float(v) for v in p)
     return surface_cells(np.array([x, y, z]), frame(yaw), 0.5 * w, 0.5 * d, 0.5 * h,
-                         _angles(tuple(cells)))
+                         cell_angles(tuple(cells)))
 
 
 def surface_cells(centre, turn, sa, sb, sc, angles):
     """Cell centres, normals and edge vectors of the ellipsoid surface of semi-axes sa
-    (across), sb (along n), sc (up) about `centre`, over the cells of `angles` (`_angles`:
-    the whole surface, or a polar band of it: capsule's ends)."""
+    (across), sb (along n), sc (up) about `centre`, over the cells of `angles`
+    (`cell_angles`: the whole surface, or a polar band of it: the capsule's ends)."""
     s_po, c_po, s_az, c_az, d_az, d_po = angles
     # each cell's facet at its patch's mean position (chord_mean: the mean of sin and cos over
     # a cell of angle step is the centre's times sinc(step / 2))
@@ -98,7 +98,7 @@ def frame(yaw) -> np.ndarray:
 
 
 @functools.lru_cache(maxsize=8)
-def _angles(cells, polar=(0.0, math.pi)):
+def cell_angles(cells, polar=(0.0, math.pi)):
     """sin and cos of the cells' polar and azimuth angles (F,) and the two steps: `cells`
     (azimuth, polar) over the polar range `polar` (the whole surface by default)."""
     n_az, n_po = cells
@@ -186,8 +186,8 @@ def model_facets(p, lattice, spots, laser):
 
 def curved_members(surface_of):
     """(cells, pieces, facets, model_facets): a curved shape's members from `surface_of(p)`,
-    its cells' (centres, normals, e_u, e_v) (the capsule's; as ellipsoid_cells, pieces,
-    ellipsoid_facets and model_facets above)."""
+    its cells' (centres, normals, e_u, e_v) (the cylinder's and the capsule's; as
+    ellipsoid_cells, pieces, ellipsoid_facets and model_facets above)."""
     def cells(p, spots=None, laser=None):
         return lit_cells(*surface_of(p), spots, laser)
 

@@ -1,7 +1,7 @@
 """The Shape protocol: what the model fit needs of a target shape, and the shapes it knows.
 
-A shape is a module (plate.py, box.py, ellipsoid.py, cylinder.py, capsule.py) whose rows of parameters
-start x, y, z (the centre) and end with the yaw; the fit reads its names, bounds, steps and
+A shape is a module (plate.py, box.py, ellipsoid.py, cylinder.py, capsule.py) whose rows of
+parameters start x, y, z (the centre) and end with the yaw; the fit reads its names, bounds, steps and
 scales, and asks it for the lit facets of a row, its extent and its normal. A closed shape
 (CLOSED) has the box's parameters, is fitted from the plate's starts (policy.closed) and says
 how rounder starts look (`rounder_sizes`). A new shape is one module with these members and
@@ -40,8 +40,8 @@ class Shape(Protocol):
         """The unit normal of the face towards the wall."""
 
 
-SHAPES: dict[str, Shape] = {"plate": plate, "box": box, "ellipsoid": ellipsoid, "cylinder": cylinder,
-                             "capsule": capsule}
+SHAPES: dict[str, Shape] = {"plate": plate, "box": box, "ellipsoid": ellipsoid,
+                             "cylinder": cylinder, "capsule": capsule}
 MODELS = {name: f"upright {name}" for name in SHAPES}  # how reports name them
 # The closed families a target is tried as (policy.closed), in SHAPES' order.
 CLOSED_SHAPES = tuple(s for s in SHAPES.values() if s.CLOSED)
