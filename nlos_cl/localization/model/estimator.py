@@ -23,6 +23,7 @@ from .forward import data, late
 from .forward.likelihood import Problem
 from .options import GROUPS, FitBudget, Instrument, check_options, model_reflectance
 from .policy.depth import several_unseen_note, uncertain_note, unseen_note
+from .policy.rivals import rival_note
 from .policy.filtered_search import searched, smooth_observation
 from .policy.criteria import support
 from .policy.sanity import checked, fit_checks, leftover_note, unfittable_line
@@ -311,8 +312,9 @@ def _reported(chosen, result, free, cov_all, info, warm_info) -> dict:
 
 def _notes(held, shape, result, cov_all, info) -> list[str]:
     """What every answer of this fit says: an axis unobservable (collinear spots); one
-    target's depth not seen by these spots; a target whose centre is poorly determined
-    (numbered as reported: `_order`)."""
+    target's depth not seen by these spots; a target whose centre is poorly determined or
+    whose closed family a rival's fits nearly as well elsewhere (numbered as reported:
+    `_order`)."""
     notes = [] if held.axis is None else [HELD_WARNINGS[held.axis].format(v=held.value)]
     depth = len(result.params) == 1 and unseen_note(shape, result, cov_all, info)
     if depth:
@@ -320,7 +322,8 @@ def _notes(held, shape, result, cov_all, info) -> list[str]:
     for at, k in enumerate(_order(result)):
         notes.extend(why for why in (
             not shape.CLOSED and several_unseen_note(info, k, at),
-            not depth and uncertain_note(centre_covariance(cov_all, k, shape), at)) if why)
+            not depth and uncertain_note(centre_covariance(cov_all, k, shape), at),
+            rival_note(info, k, at)) if why)
     return notes
 
 

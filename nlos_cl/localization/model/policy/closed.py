@@ -17,6 +17,7 @@ from ..solve.fit import fit
 from ..solve.lockstep import fit_together
 from ..solve.records import Chosen, ShapeFit
 from . import closed_search, depth
+from .rivals import RIVALS_KEY, rivals
 from .closed_search import CLOSED_NFEV, MIN_CROSS_DEPTH_M
 from .criteria import depth_gain, kappa, misfit
 from .select import FINAL_ATOL, best_of
@@ -187,6 +188,8 @@ def closed_or_plate(problem, plate_result, free, final_nfev, plate_cov, closed="
     if closed is not True and gain <= 0:  # the plate stands
         plate_cov.info.update(why)
         return Chosen(problem, plate_result, free, plate_cov)
+    shaped_cov.info[RIVALS_KEY] = rivals(
+        [(name_of(f.problem.shape), f.result) for f in fits], name_of(shaped.shape), result, unit)
     if profiled(shaped, result, free_shaped, shaped_cov, sanity):
         shaped_cov.info.update(depth_profile(shaped, result, free_shaped, final_nfev, unit))
     shaped_cov.info.update(why)

@@ -25,6 +25,7 @@ from ..solve.lockstep import fit_together
 from .closed_search import CLOSED_NFEV, SHORT_NFEV, closed_free
 from .criteria import depth_gain, kappa, misfit, objects
 from .depth import DEPTH_SDS_KEY, depth_sds
+from .rivals import RIVALS_KEY, rivals
 from .select import FINAL_ATOL
 
 # Depths (m) each target's closed starts are tried at behind its plate's face: a plate (the
@@ -68,14 +69,16 @@ def closed_instead(problem, plates: Chosen, final_nfev) -> Chosen:
     fits = [(closed, fitted) if f[0] is closed else f for f in shorts]
     cov = covariance(closed, fitted, free_closed)
     fitted, cov = _flat_where_unneeded(problem, closed, fitted, free_closed, cov, final_nfev)
-    gain, _ = depth_gain(problem.obs, result.cost, closed, fitted, free_closed, cov.info,
-                         depths=len(result.params))
+    gain, unit = depth_gain(problem.obs, result.cost, closed, fitted, free_closed, cov.info,
+                            depths=len(result.params))
     why = {"closed_tried": True, "closed_bic_gain": gain,
            "closed_costs": {name_of(f[0].shape): f[1].cost for f in fits}}
     if gain <= 0:
         plates.cov.info.update(why)
         return plates
-    cov.info.update(why, plate_birge_ratio=birge)
+    # the other families' fits here are short (`_family`): their rivals are the fewer
+    cov.info.update(why, plate_birge_ratio=birge, **{RIVALS_KEY: rivals(
+        [(name_of(f[0].shape), f[1]) for f in fits], name_of(closed.shape), fitted, unit)})
     flat = _at_least_depth(closed.shape, fitted.params)
     return Chosen(closed, fitted, free_closed, cov._replace(
         matrix=given_depths(cov.matrix, flat, closed.shape.N_PARAMS)))
