@@ -98,5 +98,9 @@ def _continue(track, cand) -> None:
     track.state, track.covariance = cand.state.copy(), cand.covariance.copy()
     track.plate, track.extra = cand.plate, cand.extra  # (its remembered sizes: the same)
     track.model = cand.model
-    track.misfit, track.late, track.offset = cand.misfit, cand.late, cand.offset
+    track.late, track.offset = cand.late, cand.offset
+    # the model's misfit floor on these data (Prior.misfit) is the object's: a candidate
+    # fitted warm brings none, and a reset one sent walk.yaml's next misfit warm fit to a
+    # cold fit that landed on the same plate
+    track.misfit = track.misfit if cand.misfit is None else cand.misfit
     track.pending = None  # no prediction links this frame to the last one: a restart

@@ -97,3 +97,18 @@ def test_two_targets_lost_at_once_each_continue_their_own_track():
     assert sorted(by_id) == [1, 2]
     assert np.linalg.norm(by_id[1] - np.add(_a(9), shift)[:2]) < 0.02
     assert np.linalg.norm(by_id[2] - np.subtract(_b(9), shift)[:2]) < 0.02
+
+
+def test_a_continued_track_keeps_its_misfit_floor_unless_the_candidate_brings_one():
+    """recovery._continue: the model's misfit floor on these data (Prior.misfit) is the
+    object's; a candidate fitted warm brings none and must not erase it."""
+    from types import SimpleNamespace
+
+    from nlos_cl.tracking.recovery import _continue
+    track = SimpleNamespace(misfit=1.12)
+    cand = SimpleNamespace(state=np.zeros(4), covariance=np.eye(4), plate=None, extra=[],
+                           model="plate", misfit=None, late=False, offset=None)
+    _continue(track, cand)
+    assert track.misfit == 1.12
+    _continue(track, SimpleNamespace(**dict(vars(cand), misfit=1.6)))
+    assert track.misfit == 1.6

@@ -338,6 +338,30 @@ def test_a_prediction_that_misses_is_retried_from_the_last_fit(runtime):
     assert tracker.last_measurements[0].source.fit.warm_start.start == "last fit"
 
 
+def test_the_gate_fallback_of_plate_tracks_fits_plates_only(runtime, monkeypatch):
+    """A warm fit outside every gate is checked by a cold fit over the whole region; where
+    every start track is a plate, that fit tries no closed shapes (warm.better compares the two
+    fits' costs, which a closed shape's one more parameter would win alone), and the
+    estimator's own setting is back after it."""
+    seen = []
+    locate, recheck = Tracker._locate, Tracker._recheck
+
+    def spy(self, sig, prior, within=None):
+        seen.append((self.estimator.closed, [t.model for t in self.tracks]))
+        return locate(self, sig, prior, within)
+
+    def checking(self, sig, starters):
+        monkeypatch.setattr(Tracker, "_locate", spy)
+        try:
+            return recheck(self, sig, starters)
+        finally:
+            monkeypatch.setattr(Tracker, "_locate", locate)
+    monkeypatch.setattr(Tracker, "_recheck", checking)
+    tracker, _ = _track(runtime, 3, meddle=_push(also_the_fit=False))
+    assert seen and all(closed is False and models == ["plate"] for closed, models in seen)
+    assert tracker.estimator.closed == "auto"
+
+
 def test_gate_fallback_sees_a_warm_fit_outside_every_gate():
     track = Tracker.__new__(Tracker)  # only the prediction tuple matters here
     x, P = np.array([3.0, 2.0, 0.1, 0.0]), np.diag([1e-4, 1e-4, 1e-2, 1e-2])
