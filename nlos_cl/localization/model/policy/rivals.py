@@ -8,10 +8,10 @@ Every closed family has the same parameters, so their costs compare directly: th
 of -2 log L in units of the chosen fit's residual variance (criteria.depth_gain's `unit`) is
 their BIC difference. A rival is a family within RIVAL_UNITS of the chosen one (Kass and
 Raftery's "very strong" evidence starts at 10) whose centre lies farther than
-RIVAL_DISTANCE_M from the chosen fit's. Measured on the scenario suite's 39 one-target
-person and box draws (stop 69): the chosen family's search had such a rival in 3 of the 4
-3-spot persons reported 0.18-0.48 m off with no warning (rivals 5.4-6.6 units off, their
-centres 0.18-0.51 m away) and in none of the 31 answered within 0.15 m.
+RIVAL_DISTANCE_M from the chosen fit's. Measured on the scenario suite (96 draws, no option,
+stop 69): said on 5 draws, all of them failures, 3 of which had no other warning (persons seen
+by a triangle of 3 spots, 0.23-0.48 m off; rivals 5.4-6.6 units off, centres 0.18-0.51 m away);
+none of the 68 answered within 0.15 m (docs/model-estimator.md, "Uncertainty").
 """
 from __future__ import annotations
 
