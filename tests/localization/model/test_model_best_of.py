@@ -1,9 +1,8 @@
 """select.best_of (the first plate's search: finish_misfit) looks past its best short fit where
 that one's final fit misses the data: a short fit ranks basins by where a few evaluations got,
 and at high SNR the right basin can descend slower (scenario bins draw 36: an oblique plate in
-counts, 0.35 m -> 2 mm). The rule on canned fits (which fits run, which final is kept), and
-the draw."""
-import warnings
+counts, 0.35 m -> 2 mm). The rule on canned fits (which fits run, which final is kept); the
+draw: tests/apps/test_scenario_draws.py."""
 from types import SimpleNamespace
 
 import numpy as np
@@ -81,13 +80,3 @@ def test_an_implausible_final_fit_gives_way_to_the_next_plausible_one(monkeypatc
     for finish in (True, False):
         assert _run(monkeypatch, SHORTS[:2], {1: 0.5 * N, 2: 40 * N},
                     finish_misfit=finish) == (40 * N, [1, 2])
-
-
-def test_scenario_36s_oblique_plate_in_counts_is_found(tmp_path):
-    """A 1.19 x 1.32 m plate 62 degrees off facing the wall, 30 SPAD spots, photon counts in
-    41.5 ps bins: 0.351 m off (a box behind the wrong plate) before, with no warning."""
-    from nlos_cl.apps.reproduce.scenarios.experiment import rerun
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        row = rerun(36, tmp_path)
-    assert row["error_m"] <= 0.05, row
