@@ -312,9 +312,9 @@ def _reported(chosen, result, free, cov_all, info, warm_info) -> dict:
 
 def _notes(held, shape, result, cov_all, info) -> list[str]:
     """What every answer of this fit says: an axis unobservable (collinear spots); one
-    target's depth not seen by these spots; a target whose centre is poorly determined or
-    whose closed family a rival's fits nearly as well elsewhere (numbered as reported:
-    `_order`)."""
+    target's depth not seen by these spots; a target whose centre is poorly determined, or
+    that another closed family fits nearly as well with its centre elsewhere (numbered as
+    reported: `_order`)."""
     notes = [] if held.axis is None else [HELD_WARNINGS[held.axis].format(v=held.value)]
     depth = len(result.params) == 1 and unseen_note(shape, result, cov_all, info)
     if depth:
