@@ -1,6 +1,6 @@
 """What the closed shapes' cascade (policy.closed.closed_or_plate) spends only where its answer
-can be read: the closed fit's depth profile (four LM fits at held depths) for the closed shape
-chosen, and not where the sanity check will reject that shape whatever its depth's sd
+can be read: the closed fit's depth and centre profiles (LM fits at held depths and held
+centres) for the closed shape chosen, and not where the sanity check will reject that shape whatever its depth's sd
 (`profiled`); the closed search itself not where the plate's misfit and unexplained signal
 rule out any closed shape being reported (`beyond_closed`)."""
 from types import SimpleNamespace
@@ -20,7 +20,7 @@ def cascade(monkeypatch):
     profiled, searched, plate_fit = [], [], {"birge": 500.0, "left": 0.05}
     plate_problem = SimpleNamespace(obs=SimpleNamespace(), shape=plate,
                                     null_cost=lambda: 1000.0 / plate_fit["left"])
-    shaped = SimpleNamespace(obs=SimpleNamespace(), shape=ellipsoid)
+    shaped = SimpleNamespace(obs=SimpleNamespace(mode="poisson"), shape=ellipsoid)
     plate_result = SimpleNamespace(params=np.zeros((1, 6)), cost=1000.0)
     closed_result = SimpleNamespace(params=np.zeros((1, 7)), cost=900.0)
     monkeypatch.setattr(closed, "misfit", lambda *a: (True, plate_fit["birge"]))
@@ -30,6 +30,7 @@ def cascade(monkeypatch):
         [ShapeFit(shaped, closed_result, np.ones(7, bool))], False))
     monkeypatch.setattr(closed, "depth_profile", lambda *a: profiled.append(a) or {
         "depth_profile_sd_m": 0.5, "depth_profile": []})
+    monkeypatch.setattr(closed, "centre_profile", lambda *a: profiled.append(a) or [])
 
     def run(gain, checks=None, sanity_on=False, beyond=True):
         monkeypatch.setattr(closed, "depth_gain", lambda *a: (gain, 1.0))
@@ -38,7 +39,7 @@ def cascade(monkeypatch):
         on["beyond"] = beyond  # model.subset passes it for few detectors
         return closed.closed_or_plate(plate_problem, plate_result, np.ones(6, bool), 30,
                                       Covariance(np.eye(6), {}), **on)
-    run.plate_fit, run.searched = plate_fit, searched
+    run.plate_fit, run.searched, run.shaped = plate_fit, searched, shaped
     return run, profiled
 
 
@@ -65,7 +66,11 @@ def test_a_closed_shape_the_sanity_check_rejects_anyway_is_not_profiled(cascade)
 def test_a_closed_shape_whose_fate_its_depth_can_change_is_profiled(cascade, checks, sanity_on):
     run, profiled = cascade
     chosen = run(gain=5.0, checks=checks, sanity_on=sanity_on)
-    assert len(profiled) == 1 and chosen.cov.info["depth_profile_sd_m"] == 0.5
+    assert len(profiled) == 2 and chosen.cov.info["depth_profile_sd_m"] == 0.5  # depth, centre
+    assert chosen.cov.info["centre_rivals"] == []  # counts: the centre profiled too
+    run.shaped.obs.mode = "gauss"
+    chosen = run(gain=5.0, checks=checks, sanity_on=sanity_on)
+    assert len(profiled) == 3 and "centre_rivals" not in chosen.cov.info
 
 
 def test_a_plate_that_leaves_more_than_any_reported_closed_shape_may_skips_the_closed_search(

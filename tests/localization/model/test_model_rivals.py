@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from nlos_cl.localization.model.policy.rivals import (RIVAL_DISTANCE_M, RIVAL_UNITS,
-                                                      RIVALS_KEY, rival_note, rivals)
+from nlos_cl.localization.model.policy.rivals import (CENTRE_RIVALS_KEY, RIVAL_DISTANCE_M,
+                                                      RIVAL_UNITS, RIVALS_KEY, centre_note,
+                                                      rival_note, rivals)
 
 
 def _fit(cost, *centres):
@@ -52,3 +53,29 @@ def test_each_target_is_judged_by_its_own_centre_and_the_farthest_rival_is_named
 
 def test_no_rivals_key_no_note():
     assert rival_note({}, 0, 0) is None
+
+
+@settings(max_examples=100, deadline=None)
+@given(units=st.lists(st.floats(-2.0, 3.0 * RIVAL_UNITS), min_size=0, max_size=4))
+def test_a_held_centre_within_the_rival_line_is_said_the_cheapest_named(units):
+    """centre_note: the one target's centre held RIVAL_DISTANCE_M away (closed.centre_profile)
+    warns exactly where some such point costs at most RIVAL_UNITS more; the cheapest is
+    named; a family rival is said first (rival_note), and no other target gets it."""
+    names = ["least certain", "least certain", "line of sight", "line of sight"]
+    points = [{"direction": names[i], "offset_m": (-1) ** i * RIVAL_DISTANCE_M, "units": u}
+              for i, u in enumerate(units)]
+    info = {CENTRE_RIVALS_KEY: points}
+    note = rival_note(info, 0, 0)
+    near = [p for p in points if p["units"] <= RIVAL_UNITS]
+    assert (note is not None) == bool(near) and note == centre_note(info, 0, 0)
+    if near:
+        cheapest = min(near, key=lambda p: p["units"])
+        assert note.startswith("the position of target 1 is poorly determined")
+        assert f"{max(cheapest['units'], 0.0):.1f} units" in note and "0.15 m away" in note
+        assert ("line of sight" in note) == (cheapest["direction"] == "line of sight")
+    assert centre_note(info, 1, 1) is None
+    rival = _fit(1.0, (0.0, 3.5, 0.0))
+    both = dict(info, **{RIVALS_KEY: rivals([("box", _fit(1.0, (0.0, 3.0, 0.0))),
+                                             ("capsule", rival)], "box",
+                                            _fit(1.0, (0.0, 3.0, 0.0)), 1.0)})
+    assert rival_note(both, 0, 0).startswith("the shape of target 1 is ambiguous")

@@ -12,6 +12,9 @@ RIVAL_DISTANCE_M from the chosen fit's. Measured on the scenario suite (96 draws
 stop 69): said on 5 draws, all of them failures, 3 of which had no other warning (persons seen
 by a triangle of 3 spots, 0.23-0.48 m off; rivals 5.4-6.6 units off, centres 0.18-0.51 m away);
 none of the 68 answered within 0.15 m (docs/model-estimator.md, "Uncertainty").
+
+The same line for the chosen family itself on photon counts (`centre_note`): its fit with the
+centre held RIVAL_DISTANCE_M away (closed.centre_profile) within RIVAL_UNITS is said as well.
 """
 from __future__ import annotations
 
@@ -20,6 +23,13 @@ import numpy as np
 RIVAL_UNITS = 10.0
 RIVAL_DISTANCE_M = 0.15  # the scenario suite's failure line
 RIVALS_KEY = "rival_shapes"  # diagnostics: the chosen closed fit's rivals
+# diagnostics: the chosen closed fit with its centre held RIVAL_DISTANCE_M away
+# (closed.centre_profile), one target
+CENTRE_RIVALS_KEY = "centre_rivals"
+CENTRE_WARNING = ("the position of target {k} is poorly determined: with its centre "
+                  "{distance:.2f} m away along the {direction}, the fit explains the data "
+                  "nearly as well ({units:.1f} units of -2 log L worse; 10 would rule it out), "
+                  "so the centre is uncertain by about that much")
 RIVAL_WARNING = ("the shape of target {k} is ambiguous: a {shape} fits the data nearly as well "
                  "({units:.1f} units of -2 log L worse; 10 would rule it out) with its centre "
                  "{distance:.2f} m from the reported one, so the centre is uncertain by about "
@@ -50,7 +60,21 @@ def rival_note(info, k: int, at: int) -> str | None:
     rival named), else None."""
     far = [r for r in info.get(RIVALS_KEY, ()) if r["distance_m"][k] > RIVAL_DISTANCE_M]
     if not far:
-        return None
+        return centre_note(info, k, at)
     r = max(far, key=lambda r: r["distance_m"][k])
     return RIVAL_WARNING.format(k=at + 1, shape=r["shape"], units=max(r["units"], 0.0),
                                 distance=r["distance_m"][k])
+
+
+def centre_note(info, k: int, at: int) -> str | None:
+    """CENTRE_WARNING where the one target's centre held RIVAL_DISTANCE_M away
+    (CENTRE_RIVALS_KEY) costs at most RIVAL_UNITS more (the cheapest such point named),
+    else None."""
+    near = [r for r in info.get(CENTRE_RIVALS_KEY, ()) if r["units"] <= RIVAL_UNITS]
+    if k != 0 or not near:
+        return None
+    r = min(near, key=lambda r: r["units"])
+    direction = ("line of sight from the laser spot" if r["direction"] == "line of sight"
+                 else "least certain direction")
+    return CENTRE_WARNING.format(k=at + 1, distance=abs(r["offset_m"]), direction=direction,
+                                 units=max(r["units"], 0.0))
