@@ -1,8 +1,8 @@
 """What the closed shapes' cascade (policy.closed.closed_or_plate) spends only where its answer
 can be read: the closed fit's depth and centre profiles (LM fits at held depths and held
-centres) for the closed shape chosen, and not where the sanity check will reject that shape whatever its depth's sd
-(`profiled`); the closed search itself not where the plate's misfit and unexplained signal
-rule out any closed shape being reported (`beyond_closed`)."""
+centres) for the closed shape chosen, and not where the sanity check will reject that shape
+whatever its depth's sd (`profiled`); the closed search itself not where the plate's misfit
+and unexplained signal rule out any closed shape being reported (`beyond_closed`)."""
 from types import SimpleNamespace
 
 import numpy as np

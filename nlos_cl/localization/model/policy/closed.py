@@ -89,8 +89,9 @@ def centre_profile(closed_problem, result, free_closed, cov_matrix, final_nfev, 
     sight = p[:3] - np.mean(np.reshape(closed_problem.obs.laser, (-1, 3)), axis=0)
     sight[~seen] = 0.0
     directions = [("least certain", least)]
-    if np.linalg.norm(sight) > 0 and abs(np.dot(least, sight)) < 0.9 * np.linalg.norm(sight):
-        directions.append(("line of sight", sight / np.linalg.norm(sight)))
+    reach = np.linalg.norm(sight)
+    if reach > 0 and abs(least @ sight) < 0.9 * reach:  # not the least certain axis again
+        directions.append(("line of sight", sight / reach))
     held = np.array(free_closed, bool)
     held[:3] = False
     starts, labels = [], []

@@ -70,8 +70,10 @@ def centre_note(info, k: int, at: int) -> str | None:
     """CENTRE_WARNING where the one target's centre held RIVAL_DISTANCE_M away
     (CENTRE_RIVALS_KEY) costs at most RIVAL_UNITS more (the cheapest such point named),
     else None."""
+    if k != 0:  # profiled for one target only
+        return None
     near = [r for r in info.get(CENTRE_RIVALS_KEY, ()) if r["units"] <= RIVAL_UNITS]
-    if k != 0 or not near:
+    if not near:
         return None
     r = min(near, key=lambda r: r["units"])
     direction = ("line of sight from the laser spot" if r["direction"] == "line of sight"
