@@ -294,13 +294,16 @@ KEEP_ROWS_BYTES = 32 * 2 ** 20
 def detected_in(signals: Signals, window, kept=None, raw=None):
     """(the filtered rows on the host as stored, whether they hold target signal in each row's
     reachable bins `window`: localization.detection.detect): one read, which the model fit's
-    observation reads too (Scored.host_rows). kept: a dict in which a large record's host
-    array is kept for the next frame (KEEP_ROWS_BYTES): the rows are then valid until the
-    Locator's next call. raw: the same frame unfiltered (Signals or HistogramSet), whose white
+    observation reads too (Scored.host_rows). A large record (KEEP_ROWS_BYTES) on a CPU device
+    is mapped in place (Runtime.view), elsewhere read into a host array kept in `kept` for
+    the next frame: either way the rows are valid until the Locator's next call. raw: the same frame unfiltered (Signals or HistogramSet), whose white
     bin noise sets the floor of rows without enough unreachable bins (detection.raw_floor)."""
     rows = None
     handle = signals.handle
-    if kept is not None and signals.host is None and handle.nbytes >= KEEP_ROWS_BYTES and \
+    large = signals.host is None and handle.nbytes >= KEEP_ROWS_BYTES
+    if large and hasattr(signals.backend, "view"):  # a CPU device's buffer, mapped in place
+        rows = signals.backend.view(handle)
+    if rows is None and kept is not None and large and \
             getattr(signals.backend, "reads_into", False):
         out = kept.get("rows")
         if out is None or out.shape != handle.shape or out.dtype != handle.dtype:

@@ -1,6 +1,8 @@
-"""locator.detected_in reads a large record's filtered rows into a host array the Locator
-keeps between frames (KEEP_ROWS_BYTES: a fresh 246 MB array was mostly page faults): the
-values are the device's, frame after frame, in the same array; small records get a new one."""
+"""locator.detected_in gives a large record's filtered rows (KEEP_ROWS_BYTES) without new host
+pages: on a CPU device the buffer mapped in place (Runtime.view: read-only, the device's
+values), elsewhere read into a host array the Locator keeps between frames (a fresh 246 MB
+array was mostly page faults): the values are the device's, frame after frame, in the same
+array; small records get a new one."""
 import numpy as np
 
 import nlos_cl as nl
@@ -15,6 +17,7 @@ def _frames(runtime, n=2):
 def test_a_large_records_rows_are_read_into_the_kept_array(runtime, monkeypatch):
     first, second = _frames(runtime)
     monkeypatch.setattr(locator, "KEEP_ROWS_BYTES", 1)  # every record counts as large
+    monkeypatch.setattr(runtime, "view", lambda handle: None)  # a device that maps by copy
     kept, window = {}, None
     rows1, _ = locator.detected_in(first, window, kept)
     np.testing.assert_array_equal(rows1, first.values())
@@ -31,3 +34,19 @@ def test_small_records_and_host_copies_are_read_as_before(runtime):
     np.testing.assert_array_equal(rows, first.values())
     uploaded = nl.upload(first.histograms())
     assert locator.detected_in(uploaded, None, {})[0] is uploaded.host
+
+
+def test_a_large_records_rows_are_mapped_on_a_cpu_device(runtime, monkeypatch):
+    if not runtime.on_cpu:
+        assert runtime.view(_frames(runtime, 1)[0].handle) is None  # a GPU reads instead
+        return
+    first, second = _frames(runtime)
+    monkeypatch.setattr(locator, "KEEP_ROWS_BYTES", 1)
+    kept = {}
+    rows1, found1 = locator.detected_in(first, None, kept)
+    np.testing.assert_array_equal(rows1, first.values())
+    assert kept == {} and not rows1.flags.writeable  # nothing copied; nothing can write it
+    rows2, found2 = locator.detected_in(second, None, kept)
+    np.testing.assert_array_equal(rows2, second.values())
+    assert found1.detected and found2.detected
+    np.testing.assert_array_equal(rows1, first.values())  # each frame its own buffer
