@@ -21,6 +21,8 @@
 // point with 32-bit integer atomics (core OpenCL 1.1): integer sums do not depend on the
 // order of the additions, so the result is bit-identical run after run. deposit_rows adds the
 // same integers without atomics, one work item per detector (many detectors on a CPU).
+// deposit_direct fuses facet_paths and the deposit for short windows on many detectors of a
+// CPU device, in float sums each work item owns (the same numbers run after run).
 //
 // Build options: -D CHUNK=<facets per chunk> [-D REFLECTANCE_FACTOR(n, to_laser, to_detector)=...]
 // (with the GGX model also -D GGX_A2, GGX_KD, GGX_KS; with the retroreflective one -D
@@ -228,8 +230,8 @@ __kernel void deposit(__global const float *path, __global const float *weight,
 // deposit_rows: the same sums, one work item per detector over all of its facets in order: it
 // owns that detector's sub-bins, so each 64-bit fixed-point sum is a plain read, add and write,
 // and integer addition makes the result the atomic kernel's, bit for bit. For many detectors
-// on CPU devices, whose atomics cost more than the arithmetic (nlos_cl/ops/forward.py
-// `_deposit_kernel`).
+// on CPU devices, whose atomics cost more than the arithmetic (nlos_cl/ops/forward_passes.py
+// `deposit_kernel`).
 __kernel void deposit_rows(__global const float *path, __global const float *weight,
                            const int n_pad,
                            __global const float4 *win,
@@ -288,4 +290,75 @@ __kernel void convolve(__global const float *dep, __constant const float *taps, 
         const int i = i0 + j;
         out[j] = (i >= 0 && i < wnd.y) ? bins[j] : 0.0f;
     }
+}
+
+// deposit_direct: facet_paths and deposit_rows in one pass, for short windows on many
+// detectors on a CPU device (a model fit's columns: ~100 bins a detector; ops/forward_passes.py
+// `direct`). One work item per detector walks the facets 16 at a time (float16 lanes: PoCL
+// does not vectorize the per-detector loop across work items) from structure-of-arrays rows,
+// computes each path and weight as facet_paths does (the four cosines and 1 / (r1^2 r2^2) as
+// one quotient) and adds the linear split straight into the detector's float sub-bins: it owns
+// them, so the additions keep one order and the sums are the same run after run. No path or
+// weight rows are written and read back, and no fixed point is needed. The window is the whole
+// axis: win.x is T bins before bin 0 (convolve's window (0, n_bins)). Lambertian targets
+// without an occlusion mask only (the others take facet_paths).
+// span: each detector's min and max contributing path (facet_paths' chunk ranges reduced).
+__kernel void deposit_direct(__global const float *facets,  // [7][n16]: cx cy cz nx ny nz area
+                             const int n16,                  // facets padded to 16 (area 0)
+                             __global const float4 *spots, LASER_ARG, const int det0,
+                             __global const float4 *win,     // per detector: base path, 1 / dsub
+                             const int padded,
+                             __global float *dep,            // [group][OS][padded], zeroed
+                             __global float2 *span)          // [group]
+{
+    const int det = get_global_id(0);  // within the group
+    const float3 spot = spots[det0 + det].xyz;
+    const float3 o = LASER_OF(det0 + det);
+    const float4 w = win[det0 + det];
+    const float last = (float)(OS * padded);  // sub-bin indices clamped to [-2, last]
+    __global float *row = dep + det * OS * padded;
+    float16 lo16 = (float16)(INFINITY), hi16 = (float16)(-INFINITY);
+    for (int f = 0; f < n16; f += 16) {
+        const float16 cx = vload16(0, facets + f), cy = vload16(0, facets + n16 + f),
+                      cz = vload16(0, facets + 2 * n16 + f);
+        const float16 nx = vload16(0, facets + 3 * n16 + f),
+                      ny = vload16(0, facets + 4 * n16 + f),
+                      nz = vload16(0, facets + 5 * n16 + f),
+                      area = vload16(0, facets + 6 * n16 + f);
+        const float16 ax = cx - o.x, ay = cy - o.y, az = cz - o.z;           // O -> facet
+        const float16 bx = spot.x - cx, by = spot.y - cy, bz = spot.z - cz;  // facet -> spot
+        const float16 r1sq = ax * ax + ay * ay + az * az, r2sq = bx * bx + by * by + bz * bz;
+        const float16 s = sqrt(r1sq) + sqrt(r2sq);
+        const float16 nb1 = -(nx * ax + ny * ay + nz * az);  // r1 cos_b1
+        const float16 na2 = nx * bx + ny * by + nz * bz;     // r2 cos_a2
+        const int16 lit = (nb1 > 0.0f) & (na2 > 0.0f);       // faces O and the spot
+        // cos_a1 cos_b1 cos_a2 cos_b2 area / (r1^2 r2^2); the wall's normal is +y
+        const float16 g = fabs(ay) * nb1 * na2 * fabs(by) * area / (r1sq * r1sq * r2sq * r2sq);
+        lo16 = select(lo16, fmin(lo16, s), lit);
+        hi16 = select(hi16, fmax(hi16, s), lit);
+        const float16 u = (s - w.x) * w.y - 0.5f;  // from sub-bin centres
+        const float16 fu = clamp(floor(u), -2.0f, last);
+        float gs[16], ts[16];
+        int ks[16];
+        vstore16(select((float16)(0.0f), g, lit), 0, gs);
+        vstore16(u - floor(u), 0, ts);
+        vstore16(convert_int16(fu), 0, ks);
+        for (int j = 0; j < 16; ++j) {
+            if (gs[j] == 0.0f) continue;
+            const int k = ks[j];
+            if (k >= 0 && k / OS < padded)
+                row[(k % OS) * padded + k / OS] += gs[j] * (1.0f - ts[j]);
+            if (k + 1 >= 0 && (k + 1) / OS < padded)
+                row[((k + 1) % OS) * padded + (k + 1) / OS] += gs[j] * ts[j];
+        }
+    }
+    float l[16], h[16];
+    vstore16(lo16, 0, l);
+    vstore16(hi16, 0, h);
+    float lo = INFINITY, hi = -INFINITY;
+    for (int j = 0; j < 16; ++j) {
+        lo = fmin(lo, l[j]);
+        hi = fmax(hi, h[j]);
+    }
+    span[det] = (float2)(lo, hi);
 }

@@ -26,8 +26,8 @@ from .ellipse_score import paired
 from .pulse import (REACH_SIGMAS, SUB_BINS_PER_SIGMA, binning, deposit_plan,  # noqa: F401
                     deposit_sizes, deposit_taps, pulse_bins)
 
-FACET_CHUNK = 64  # facets per culling chunk in the kernel
-BLOCK = 15  # bins per work item in pulse_bins (BLOCK in forward.cl)
+from .forward_passes import (BLOCK, FACET_CHUNK, deposit_bins, direct, direct_bins,  # noqa: F401
+                             erf_bins, plan_passes)
 
 
 # ---------------------------------------------------------------------------- twin
@@ -102,7 +102,11 @@ def opencl(rt, facets, spots, laser, edge0, dpath, sigma_path, n_bins, reflectan
                              **(dict(PAIRED=1) if is_paired else {}))
     lasers = rt.constant(float4_rows(laser_spots_of(laser, n_det))) if is_paired else float4(laser)
     hist = out if out is not None else rt.empty((n_det, n_bins))
-    method, passes = _plan_passes(rt, n_det, n_pad, n_bins, sigma_path, dpath, method)
+    method, passes = plan_passes(rt, n_det, n_pad, n_bins, sigma_path, dpath, method)
+    if method == "deposit" and direct(rt, n_det, n_bins, sigma_path, dpath, reflectance,
+                                      visible):
+        return hist, direct_bins(rt, facets, spots_buf, lasers, is_paired, passes, edge0,
+                                 dpath, sigma_path, n_bins, hist)
     spans = []
     for d0, d1 in passes:
         path, weight = rt.empty((d1 - d0, n_pad)), rt.empty((d1 - d0, n_pad))
@@ -115,82 +119,11 @@ def opencl(rt, facets, spots, laser, edge0, dpath, sigma_path, n_bins, reflectan
         spans.append(span)
         group = (path, weight, ranges, n_chunks, d0, d1)
         if method == "erf":
-            _erf_bins(rt, defines, group, edge0, dpath, sigma_path, n_bins, hist)
+            erf_bins(rt, defines, group, edge0, dpath, sigma_path, n_bins, hist)
         else:
-            _deposit_bins(rt, defines, group, span, r[..., 2].sum(axis=1), edge0, dpath,
-                          sigma_path, n_bins, hist)
+            deposit_bins(rt, defines, group, span, r[..., 2].sum(axis=1), edge0, dpath,
+                         sigma_path, n_bins, hist)
     return hist, np.concatenate(spans)
-
-
-# The deposit's scatter into 64-bit fixed-point sub-bins: 32-bit atomics across facets
-# (`deposit`), or one work item per detector (`deposit_rows`: no atomics, the same integer
-# sums, bit-identical) for >= ROWS_MIN_DETECTORS detectors in a pass on a CPU device (oclgrind
-# is one too) with <= ROWS_MAX_FACETS facets a detector. PoCL, 2 cores, ms of deposit, atomic
-# -> rows: a 1,024-spot SPAD patch's model columns (1,536 points) 24 -> 15 (a locate 2.42 ->
-# 2.22 s), its simulate at 4,800 / 19,200 / 76,800 facets 326 -> 236, 1,640 -> 1,209, 4,138
-# -> 3,025; the bench's detailed box (137,664 facets, 32 spots) 46 -> 65. Only speed differs.
-# A GPU keeps the atomics (not measured: no GPU this session).
-ROWS_MIN_DETECTORS, ROWS_MAX_FACETS = 16, 1000
-
-
-def _deposit_kernel(rt, n_detectors: int, n_facets: int) -> str:
-    rows = n_detectors >= ROWS_MIN_DETECTORS and n_facets <= ROWS_MAX_FACETS * n_detectors
-    return "deposit_rows" if rows and rt.on_cpu else "deposit"
-
-
-def _plan_passes(rt, n_det, n_pad, n_bins, sigma_path, dpath, method):
-    """(method, detector groups): the deposit only where its sub-bins fit one device buffer,
-    else erf; a pass's path and weight rows under the device's largest allocation (max_alloc
-    _bytes), and its buffers together (with the deposit's sub-bins) under the memory budget
-    (core.limits: on a CPU device they are host memory)."""
-    from ..core.limits import memory_limit, require_memory
-    method, total_row = binning(method, float(np.max(dpath)), sigma_path), 8 * n_pad
-    if method == "deposit":
-        os_, half = deposit_sizes(float(np.max(dpath)), sigma_path)
-        padded = n_bins + 2 * half + 32  # the most the deposit window can need
-        if 4 * os_ * padded > rt.device.max_mem_alloc_size:
-            method = "erf"
-        else:
-            total_row += 12 * os_ * padded
-    require_memory("facet_size_m", total_row, f"the forward model of {n_pad} facets for one "
-                   "detector", "use larger facets (facet_size_m) or fewer bins")
-    per = max(1, memory_limit() // total_row)
-    return method, [(a, min(a + per, d1)) for d0, d1 in rt.groups(
-        n_det, 4 * n_pad, "facet paths of one detector") for a in range(d0, d1, per)]
-
-
-def _erf_bins(rt, defines, group, edge0, dpath, sigma_path, n_bins, hist):
-    path, weight, ranges, n_chunks, d0, d1 = group
-    axis = rt.constant(np.stack([edge0, dpath], axis=1))
-    rt.run(rt.kernel("forward", "pulse_bins", **defines), (-(-n_bins // BLOCK), d1 - d0), path,
-           weight, ranges, np.int32(n_chunks), axis,
-           np.float32(1.0 / (math.sqrt(2.0) * sigma_path)), np.float32(REACH_SIGMAS * sigma_path),
-           np.int32(n_bins), np.int32(d0), hist)
-
-
-def _deposit_bins(rt, defines, group, span, total, edge0, dpath, sigma_path, n_bins, hist):
-    path, weight, _, n_chunks, d0, d1 = group
-    os_, half, first, count, base, scale = deposit_plan(span, total, edge0[d0:d1], dpath[d0:d1],
-                                                        sigma_path, n_bins)
-    n = d1 - d0
-    padded = int(count.max(initial=0)) + 2 * half + 32
-    taps = rt.constant(deposit_taps(os_, half, float(np.max(dpath)), sigma_path))
-    win = rt.constant(np.stack([base, os_ / dpath[d0:d1], scale, np.zeros(n)], axis=1))
-    wnd = rt.constant(np.stack([first, count], axis=1), np.int32)
-    kw = dict(defines, OS=os_, SPAN=2 * half + 1)
-    low, high = rt.empty((n, os_, padded), np.uint32), rt.empty((n, os_, padded), np.uint32)
-    from ..device.runtime import cl
-    for buf in (low, high):
-        cl.enqueue_fill_buffer(rt.queue, buf.data, np.uint32(0), 0, buf.nbytes)
-    kernel = _deposit_kernel(rt, n, path.shape[1])
-    items = (n,) if kernel == "deposit_rows" else (path.shape[1], n)
-    rt.run(rt.kernel("forward", kernel, **kw), items, path, weight, np.int32(path.shape[1]),
-           win, np.int32(padded), np.int32(0), low, high)
-    dep = rt.empty((n, os_, padded))
-    rt.run(rt.kernel("forward", "resolve", **kw), (os_ * padded, n), low, high, win,
-           np.int32(padded), np.int32(0), dep)
-    rt.run(rt.kernel("forward", "convolve", **kw), (-(-n_bins // 16), n), dep, taps, wnd,
-           np.int32(padded), np.int32(n_bins), np.int32(d0), hist)
 
 
 # ---------------------------------------------------------------------------- examples
@@ -277,7 +210,7 @@ def examples(size):
            Example("one detector per group, erf", lambda be: args + ("erf",), 1e-3, hist_err,
                    max_alloc_bytes=4 * n_pad)]
     out += _occlusion_examples(args, hist_err) + _paired_examples(scene, size, hist_err, n_pad)
-    out.append(_patch_example(size, hist_err))
+    out += _patch_example(size, hist_err)
     if size == "check":  # 1 ps bins: one sub-bin per bin, 363 taps
         fine = scene_inputs(scene, _window(scene, 1e-12))
         out.append(Example("paper rectangle at 1 ps, deposit", lambda be: fine, 1e-3, hist_err))
@@ -285,14 +218,25 @@ def examples(size):
 
 
 def _patch_example(size, hist_err):
-    """A 4 x 4 patch of spots in one pass: a CPU device deposits one detector per work item
+    """A 4 x 4 patch of spots in one pass (ROWS_MIN_DETECTORS) on a short window: a CPU device
+    fuses paths and deposit (`deposit_direct`), one laser and confocal (PAIRED); with an
+    occlusion mask the paths come first and the deposit takes one detector per work item
     (`deposit_rows`; the groups of one above take the atomic `deposit`)."""
     from ..physics import layouts
     from ..physics.scene import paper_scene
-    spots = layouts.spad_patch((-1.0, 0.0, 0.0), (4, 4), (0.1, 0.1))  # ROWS_MIN_DETECTORS
+    spots = layouts.spad_patch((-1.0, 0.0, 0.0), (4, 4), (0.1, 0.1))
     scene = paper_scene(facet_size_m=0.07 if size == "tiny" else 0.02, detector_spots=spots)
     args = scene_inputs(scene, _window(scene, 10e-12))
-    return Example("4 x 4 patch: histograms, deposit", lambda be: args, 1e-3, hist_err)
+    confocal = scene_inputs(scene, _window(scene, 10e-12, laser=spots))
+    confocal = confocal[:2] + (np.array(spots),) + confocal[3:]
+    mask = (np.arange(len(spots) * args[0].count).reshape(len(spots), -1) % 3) != 0
+    fixed = lambda a: lambda be: a  # noqa: E731
+    return [Example("4 x 4 patch: histograms, deposit", fixed(args), 1e-3, hist_err),
+            Example("4 x 4 patch: contributing path span (m)", fixed(args), 1e-5, _span_error),
+            Example("4 x 4 patch, confocal: histograms, deposit", fixed(confocal), 1e-3,
+                    hist_err),
+            Example("4 x 4 patch, occlusion mask: histograms, deposit",
+                    fixed(args + ("deposit", mask)), 1e-3, hist_err)]
 
 
 def _occlusion_examples(args, hist_err):

@@ -103,13 +103,13 @@ def test_the_forward_model_splits_detectors_to_fit_the_budget(runtime, monkeypat
     args = forward.scene_inputs(scene, axis)
     whole = runtime.to_numpy(runtime.call("forward", *args)[0])
     n_pad = -(-args[0].count // forward.FACET_CHUNK) * forward.FACET_CHUNK
-    method, passes = forward._plan_passes(runtime, 3, n_pad, axis.n_bins, args[5], args[4],
+    method, passes = forward.plan_passes(runtime, 3, n_pad, axis.n_bins, args[5], args[4],
                                           "deposit")
     assert method == "deposit" and passes == [(0, 3)]
     os_, half = pulse.deposit_sizes(float(np.max(args[4])), args[5])
     one_detector = 8 * n_pad + 12 * os_ * (axis.n_bins + 2 * half + 32)
     monkeypatch.setenv(limits.MEMORY_LIMIT_ENV, str(one_detector))
-    assert forward._plan_passes(runtime, 3, n_pad, axis.n_bins, args[5], args[4],
+    assert forward.plan_passes(runtime, 3, n_pad, axis.n_bins, args[5], args[4],
                                 "deposit")[1] == [(0, 1), (1, 2), (2, 3)]
     np.testing.assert_array_equal(runtime.to_numpy(runtime.call("forward", *args)[0]), whole)
     monkeypatch.setenv(limits.MEMORY_LIMIT_ENV, str(one_detector // 2))
