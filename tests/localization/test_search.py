@@ -1,10 +1,11 @@
 """Coarse-to-fine scoring (nlos_cl/search.py) finds the same argmax cell, with the same score and
 the same located position, as scoring every cell: on random scenes of one or two point targets
 (two targets' signals summed, near-tied included), noisy or clean, product or log scoring,
-planes and volumes, on the device and on the float64 twins."""
+planes and volumes, on the device and on the float64 twins; with more detectors than one
+scoring pass takes, the host-side search on a SPAD-like patch."""
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 import nlos_cl as nl
@@ -12,17 +13,21 @@ from nlos_cl.localization.estimate import Capabilities
 from nlos_cl.localization.paper import PaperArgmax
 from nlos_cl.localization.locator import Locator
 from nlos_cl.localization.search import CoarseToFine, coarse_factor
+from nlos_cl.ops.ellipse_score import DET_TILE
 
 SETTINGS = dict(deadline=None, derandomize=True,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 DT_S = 10e-12
 
 
-def histograms(targets, amplitudes, n_det, width_m, noise, seed, n_bins=3000):
+def histograms(targets, amplitudes, n_det, width_m, noise, seed, n_bins=3000, patch=False):
     """Filtered-looking rows: a Gaussian of `width_m` (path) per target at its hidden path,
     summed, plus white noise of `noise` x the peak. The record (9 m of path) ends inside the
-    paths of the far targets: signals cut by the record's end are searched too."""
+    paths of the far targets: signals cut by the record's end are searched too. Spots on a
+    line 0.35 m apart, or (patch) on a SPAD-like patch of 5 cm pitch."""
     spots = np.array([[-0.4 - 0.35 * d, 0.0, 0.15 * (d % 3 - 1)] for d in range(n_det)])
+    if patch:
+        spots = np.array([[-1.0 - 0.05 * (d // 6), 0.0, 0.05 * (d % 6)] for d in range(n_det)])
     axis = nl.TimeAxis(2 * 20 / nl.SPEED_OF_LIGHT, DT_S, n_bins)
     cal = nl.PathCalibration(nl.SPEED_OF_LIGHT, np.full(n_det, -40.0))
     centres = cal.a_m_per_s * axis.centres() - 40.0
@@ -68,6 +73,31 @@ def test_coarse_to_fine_finds_the_exhaustive_argmax(runtime, first, second, tie,
     grid = (nl.Grid((2.0, 0.5, -0.5), (0.03, 0.03, 0.05), (140, 120, 21)) if volume
             else nl.Grid.from_ranges(x=(2.0, 6.0), y=(0.5, 4.0), step_m=0.01))
     same_answer(hist, grid, runtime, log_mode, 0.065)
+
+
+near = st.tuples(st.floats(2.3, 4.5), st.floats(0.6, 3.0), st.floats(-0.4, 0.4))  # in the record
+
+
+@settings(max_examples=30, **SETTINGS)
+@given(first=near, second=near, tie=st.sampled_from([0.0, 1e-3, 0.02, 0.3, 1.0]),
+       n_det=st.integers(DET_TILE + 1, 3 * DET_TILE), noise=st.sampled_from([0.02, 0.1]),
+       seed=st.integers(0, 99))
+def test_many_detectors_search_on_the_host_with_the_same_argmax(runtime, first, second, tie,
+                                                                n_det, noise, seed):
+    """More detectors than one scoring pass takes (log scoring: a product of so many rows
+    underflows): the host-side `run`, whose threshold comes from the best-bound centres only
+    (search.TOP_CENTRES), finds the exhaustive argmax, near-ties and exact ties included."""
+    hist = histograms([first, second], [1.0, 1.0 - tie], n_det, 0.065, noise, seed, patch=True)
+    grid = nl.Grid.from_ranges(x=(2.0, 6.0), y=(0.5, 4.0), step_m=0.02)
+    found = {}
+    for search in ("exhaustive", "coarse_to_fine"):
+        plan = Locator(hist.layout, grid, search=search, log_mode=True, backend=runtime,
+                       signal_width_m=0.065, estimator="paper")
+        found[search] = (plan(hist, detect=False), plan.last_search)
+    (ex, _), (c2f, how) = found["exhaustive"], found["coarse_to_fine"]
+    assert not plan._search.fusable(n_det)
+    assume(how is not None)  # `run` answered (a flat map is scored whole: nothing to test)
+    assert np.array_equal(ex.cell_position, c2f.cell_position) and ex.score == c2f.score
 
 
 @pytest.mark.parametrize("log_mode", [False, True])
