@@ -160,18 +160,22 @@ def _windows_by_definition(filtered, noise, margin, frac, n_sigma=6.0):
 
 
 def test_signal_windows_follow_their_definition():
-    """The windows found without float64 copies of the rows (rows > level + floor; the last
-    bin from a reversed copy) are the definition's, rows with no bin above (the peak) and a
-    floor included."""
+    """The windows found without float64 copies of the rows (rows > level + floor, from the
+    maxima of blocks of bins and the first and last block above read bin by bin) are the
+    definition's: rows with no bin above (the peak), a floor, the last bin of a partial last
+    block and a block's edge included."""
     rng = np.random.default_rng(5)
     rows = (0.1 * rng.standard_normal((150, 3000)) + 0.4).astype(np.float32)  # a floor
     rows[:, 1200:1300] += np.linspace(0.5, 6.0, 150)[:, None].astype(np.float32)
     rows[7] = -1.0  # nothing above: the peak's bin
     rows[9, 10:12] += 9.0  # a lone early spike
+    rows[11, 2999] += 20.0  # the last bin, in the partial last block (blocks of 1,024)
+    rows[12, [1023, 1024]] += 20.0  # either side of a block's edge
     noise = np.full(len(rows), 0.1)
     got = data.signal_windows(rows, noise, 40, data.ONE_TARGET_FRAC)
     assert np.array_equal(got, _windows_by_definition(rows, noise, 40, data.ONE_TARGET_FRAC))
     assert tuple(got[7]) == (-40, 40) and got[9, 0] == 10 - 40
+    assert got[11, 1] == 2999 + 40 and got[12, 1] >= 1024 + 40
 
 
 def test_raw_filtered_at_the_samples_is_each_windows_dot_product():

@@ -126,21 +126,49 @@ def signal_windows(filtered, noise, margin_bins, frac=ONE_TARGET_FRAC, n_sigma=6
     floors = row_median(_every(filtered))  # photon counts sit on a dark/ambient floor
     out = np.empty((len(filtered), 2), np.int64)
     for at in range(0, len(filtered), WINDOW_ROWS):
-        # rows - floor > t as rows > t + floor: no float64 copy of the rows (a 1,024 x 60,042
-        # SPAD record: 0.21 -> ~0.1 s); a row's first and last bin above from argmax on
-        # booleans, which stops at the first True (the last: on a reversed contiguous copy)
+        # rows - floor > t as rows > t + floor: no float64 copy of the rows; one pass over
+        # the rows for the maxima of blocks of WINDOW_BLOCK bins (the peak, and which blocks
+        # hold a bin above), then only the first and last such block read bin by bin (a
+        # 1,024 x 60,042-bin SPAD record: 78 -> ~30 ms; the same bins)
         rows, floor = filtered[at:at + WINDOW_ROWS], floors[at:at + WINDOW_ROWS]
+        blocks = _block_maxima(rows)
         level = np.maximum(n_sigma * np.asarray(noise[at:at + WINDOW_ROWS]),
-                           frac * (rows.max(axis=1) - floor)) + floor
-        above = rows > level[:, None]
-        first = above.argmax(axis=1)
-        found = above[np.arange(len(rows)), first]
+                           frac * (blocks.max(axis=1) - floor)) + floor
+        hot = blocks > level[:, None]
+        found = hot.any(axis=1)
+        first = _first_above(rows, level, hot.argmax(axis=1), False)
+        last = _first_above(rows, level, hot.shape[1] - 1 - hot[:, ::-1].argmax(axis=1), True)
         if not found.all():  # none above: the peak
             first[~found] = rows[~found].argmax(axis=1)
-        last = rows.shape[1] - 1 - np.ascontiguousarray(above[:, ::-1]).argmax(axis=1)
         last = np.where(found, last, first)
         out[at:at + WINDOW_ROWS] = np.stack([first - margin_bins, last + margin_bins], axis=1)
     return out
+
+
+WINDOW_BLOCK = 1024  # bins per block of signal_windows' maxima (NumPy reduces long blocks fastest)
+
+
+def _block_maxima(rows) -> np.ndarray:
+    """(D, ceil(n / WINDOW_BLOCK)) the maxima of each row's blocks of WINDOW_BLOCK bins."""
+    n_bins = rows.shape[1]
+    whole = n_bins // WINDOW_BLOCK * WINDOW_BLOCK
+    parts = [rows[:, :whole].reshape(len(rows), -1, WINDOW_BLOCK).max(axis=2)]
+    if whole < n_bins:
+        parts.append(rows[:, whole:].max(axis=1, keepdims=True))
+    return np.concatenate(parts, axis=1)
+
+
+def _first_above(rows, level, block, from_end: bool) -> np.ndarray:
+    """Per row, the first (from_end: the last) bin above `level` in its block `block` (a
+    block holding one; rows with none get a bin of their block, which the caller replaces)."""
+    n_bins = rows.shape[1]
+    bins = block[:, None] * WINDOW_BLOCK + np.arange(WINDOW_BLOCK)[None, :]
+    inside = bins < n_bins
+    above = (np.take_along_axis(rows, np.minimum(bins, n_bins - 1), axis=1)
+             > level[:, None]) & inside
+    if from_end:
+        return bins[:, 0] + WINDOW_BLOCK - 1 - above[:, ::-1].argmax(axis=1)
+    return bins[:, 0] + above.argmax(axis=1)
 
 
 MIN_FLOOR_BINS = 64  # bins outside the signal a row needs for its floor to be estimated
