@@ -21,6 +21,7 @@ from ....core.errors import require
 from ....core.stats import median, row_median
 from ....ops.gauss_filter import gauss_taps
 from ...measured.gated import gate_bounds, in_gate
+from .blocks import block_maxima, first_above
 
 MAD = 1.4826  # MAD -> standard deviation for Gaussian noise
 
@@ -72,6 +73,7 @@ class Observation:
 # read so far) uses every bin, as before: their answers are unchanged.
 MEDIAN_BUDGET = 4_000_000
 WINDOW_ROWS = 64  # rows per pass of signal_windows (bounded temporaries)
+WINDOW_BLOCK = 1024  # bins per block of signal_windows' maxima (NumPy reduces long blocks fastest)
 
 
 def _stride(rows) -> int:
@@ -131,44 +133,19 @@ def signal_windows(filtered, noise, margin_bins, frac=ONE_TARGET_FRAC, n_sigma=6
         # hold a bin above), then only the first and last such block read bin by bin (a
         # 1,024 x 60,042-bin SPAD record: 78 -> ~30 ms; the same bins)
         rows, floor = filtered[at:at + WINDOW_ROWS], floors[at:at + WINDOW_ROWS]
-        blocks = _block_maxima(rows)
+        blocks = block_maxima(rows, WINDOW_BLOCK)
         level = np.maximum(n_sigma * np.asarray(noise[at:at + WINDOW_ROWS]),
                            frac * (blocks.max(axis=1) - floor)) + floor
         hot = blocks > level[:, None]
         found = hot.any(axis=1)
-        first = _first_above(rows, level, hot.argmax(axis=1), False)
-        last = _first_above(rows, level, hot.shape[1] - 1 - hot[:, ::-1].argmax(axis=1), True)
+        first = first_above(rows, level, hot.argmax(axis=1), WINDOW_BLOCK)
+        last = first_above(rows, level, hot.shape[1] - 1 - hot[:, ::-1].argmax(axis=1),
+                           WINDOW_BLOCK, from_end=True)
         if not found.all():  # none above: the peak
             first[~found] = rows[~found].argmax(axis=1)
         last = np.where(found, last, first)
         out[at:at + WINDOW_ROWS] = np.stack([first - margin_bins, last + margin_bins], axis=1)
     return out
-
-
-WINDOW_BLOCK = 1024  # bins per block of signal_windows' maxima (NumPy reduces long blocks fastest)
-
-
-def _block_maxima(rows) -> np.ndarray:
-    """(D, ceil(n / WINDOW_BLOCK)) the maxima of each row's blocks of WINDOW_BLOCK bins."""
-    n_bins = rows.shape[1]
-    whole = n_bins // WINDOW_BLOCK * WINDOW_BLOCK
-    parts = [rows[:, :whole].reshape(len(rows), -1, WINDOW_BLOCK).max(axis=2)]
-    if whole < n_bins:
-        parts.append(rows[:, whole:].max(axis=1, keepdims=True))
-    return np.concatenate(parts, axis=1)
-
-
-def _first_above(rows, level, block, from_end: bool) -> np.ndarray:
-    """Per row, the first (from_end: the last) bin above `level` in its block `block` (a
-    block holding one; rows with none get a bin of their block, which the caller replaces)."""
-    n_bins = rows.shape[1]
-    bins = block[:, None] * WINDOW_BLOCK + np.arange(WINDOW_BLOCK)[None, :]
-    inside = bins < n_bins
-    above = (np.take_along_axis(rows, np.minimum(bins, n_bins - 1), axis=1)
-             > level[:, None]) & inside
-    if from_end:
-        return bins[:, 0] + WINDOW_BLOCK - 1 - above[:, ::-1].argmax(axis=1)
-    return bins[:, 0] + above.argmax(axis=1)
 
 
 MIN_FLOOR_BINS = 64  # bins outside the signal a row needs for its floor to be estimated
