@@ -94,9 +94,13 @@ def leave(code) -> None:
     os._exit(code or 0)
 
 
+STAGE_CHARS = 60  # of the library's stage on the progress line
+
+
 class Elapsed:
     """`with Elapsed("locating"):` a line on a terminal's stderr that counts the seconds of work
-    that lasts longer than `after_s` (a model fit on thousands of histograms takes minutes),
+    that lasts longer than `after_s` (a model fit on thousands of histograms takes minutes)
+    and says what the library is doing (core.progress: "model fit: closed shapes ..."),
     updated once a second from a thread and cleared at the end; nothing where stderr is not a
     terminal (pipes, logs, tests)."""
 
@@ -116,10 +120,14 @@ class Elapsed:
 
     def _tick(self) -> None:
         import time
+
+        from ..core.progress import current
         start, shown = time.monotonic(), False
         while not self._stop.wait(self.after_s if not shown else 1.0):
             shown = True
-            self.stream.write(f"\r{self.what}: {time.monotonic() - start:.0f} s")
+            doing = current()  # the library's stage (core.progress), cut to one line
+            doing = f" - {doing[:STAGE_CHARS]}" if doing else ""
+            self.stream.write(f"\r{self.what}: {time.monotonic() - start:.0f} s{doing}\033[K")
             self.stream.flush()
         if shown:
             self.stream.write("\r\033[K")

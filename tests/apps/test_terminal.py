@@ -167,7 +167,26 @@ def test_long_work_shows_its_elapsed_seconds_on_a_terminal_only():
             time.sleep(0.3)
     with Elapsed("locating", after_s=5.0, stream=quick):
         pass
-    assert any(t.startswith("\rlocating (model estimator): ") and t.endswith(" s")
-               for t in tty.text)
+    assert any(t.startswith("\rlocating (model estimator): ") and t.endswith(" s\033[K")
+               for t in tty.text)  # no stage named: the seconds, the old line's rest cleared
     assert tty.text[-1] == "\r\033[K"
     assert pipe.text == [] and quick.text == []
+
+
+def test_a_terminal_line_shows_the_librarys_stage():
+    """core.progress's stage beside the seconds, the older line's rest cleared."""
+    import time
+
+    from nlos_cl.apps.terminal import Elapsed
+    from nlos_cl.core import progress
+    tty = _Terminal(True)
+    try:
+        with Elapsed("locating (model estimator)", after_s=0.05, stream=tty):
+            progress.stage("model fit: closed shapes (boxes, ellipsoids, cylinders; 3 "
+                           "histograms)")
+            time.sleep(0.3)
+    finally:
+        progress.stage("")
+    shown = [t for t in tty.text if "model fit: closed shapes" in t]
+    assert shown and all(t.startswith("\rlocating (model estimator): ") for t in shown)
+    assert shown[0].endswith("\033[K")

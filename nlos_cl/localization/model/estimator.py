@@ -9,7 +9,8 @@ import time
 
 import numpy as np
 
-from ...core.blas_threads import serial_blas
+from ...core import progress
+from ...core.blas_threads import serial_blas  # small products: threads only cost
 from ...core.constants import FWHM_PER_SIGMA
 from ...ops.gauss_filter import filter_window
 from ...core.errors import refuse_moved, warn
@@ -134,7 +135,7 @@ class ModelEstimator:
         runs, from there (nlos_cl.localization.model.policy.warm), and the full fit replaces it where
         it misses the data; each target's fit.warm_start says which. Its size, size_sd hold a
         plate the others hide (model.warm.size_prior). start=rows is prior=Prior(rows)."""
-        with serial_blas():  # core.blas_threads: small products, threads only cost
+        with serial_blas(), progress.staged("model fit: the histograms' windows and noise"):
             prior = Prior(start) if prior is None and start is not None else prior
             clock = {"start": time.perf_counter()}
             paper = scored.paper  # the Locator's fused search, or (no map read yet) from scores

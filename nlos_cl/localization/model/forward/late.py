@@ -25,6 +25,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from ....core import progress
 from ....core.constants import SPEED_OF_LIGHT, TINY
 from ....core.stats import chi2_quantile
 from ....core.tuning import SEARCH_DETECTORS
@@ -250,6 +251,8 @@ def with_late(est, chosen, plate, plates, solvers, smooth=None):
     missed, before = misses(problem, result, cov.info, free)
     if not missed:
         return chosen
+    progress.stage("model fit: refitted with late copies of the light (an instrument tail, "
+                   "broad returns)")
     p = est.problem(replace(plates.obs, late=BANK), plates.backend)
     params, plate_free = plate
     r = fit(p, params, plate_free, REFIT_NFEV_SCALE * est.final_nfev)

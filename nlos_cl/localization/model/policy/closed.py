@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 
+from ....core import progress
 from ....core.tuning import EXPLAINED_MIN, MISFIT_BIRGE
 from ..forward.likelihood import take_calls
 from ..shapes import box, plate
@@ -46,6 +47,7 @@ def depth_profile(closed_problem, result, free_closed, final_nfev, unit) -> dict
     of spots, fitted 0.20 m deep (sd 0.06, 0.16 m off, unwarned), 0.2 units more at 0.50 m.
     The answer keeps the fit (not refitted from a cheaper profile point): where the profile is
     this flat, its minimum is the noise's."""
+    progress.stage("model fit: the closed shape's depth profiled")
     p = result.params[0]
     fitted = float(p[box.DEPTH])
     lowest = max(float(closed_problem.shape.LOWER[box.DEPTH]), MIN_CROSS_DEPTH_M)
@@ -78,6 +80,7 @@ def centre_profile(closed_problem, result, free_closed, cov_matrix, final_nfev, 
     direction. Photon counts only (closed_or_plate): on the closed family's 200 Gaussian
     draws it warned no failure the notices did not already, at +15 % of the time
     (docs/model-estimator.md, "Uncertainty")."""
+    progress.stage("model fit: the closed shape's centre held aside")
     p = np.asarray(result.params[0], float)
     sd2 = np.diag(np.asarray(cov_matrix, float))[:3]
     seen = np.isfinite(sd2) & np.asarray(free_closed, bool)[:3]
@@ -136,6 +139,8 @@ def closed_fits(problem, plate_result, free, final_nfev, smooth=None) -> tuple[l
     the filtered frame too, as counts' search is (model.filtered_search), and refitted on
     `problem` from that answer; the lower counts cost of the two stands (raced: whether it
     was). The plate's problem counts every forward call made for it."""
+    progress.stage(f"model fit: closed shapes (boxes, ellipsoids, cylinders; "
+                   f"{len(problem.obs.spots):,} histograms)")
     fits = closed_search.search(problem, plate_result, free, final_nfev, atol=FINAL_ATOL)
     raced = smooth is not None and worth_racing(*min(fits, key=lambda f: f.result.cost))
     if raced:

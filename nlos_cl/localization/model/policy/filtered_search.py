@@ -16,6 +16,7 @@ counts search alone failed 27, in the counts search's time. For one target (targ
 """
 from __future__ import annotations
 
+from ....core import progress
 from ..forward import data
 from ..forward.likelihood import take_calls
 from ..solve.fit import fit
@@ -37,6 +38,7 @@ def searched(est, problem, argmax_position, free, held, smooth=None):
     The history (ModelFit.targets_tried) then reports each entry's cost on the filtered frame
     as `filtered_cost` and the counts' cost of the answer as its `cost`, so that the costs a
     fit reports are all of its own likelihood."""
+    progress.stage(f"model fit: starts and short fits ({len(problem.obs.spots):,} histograms)")
     if smooth is None:
         return select.fit_targets(problem, est, argmax_position, free, held)
     filtered = est.problem(smooth, problem.backend)

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ....core import progress
 from ....core.geometry import farthest_points
 from ....core.tuning import (
     CHOICE_DETECTORS,
@@ -85,6 +86,7 @@ def cold_fit(est, problem, argmax_position, free, held, smooth=None):
     take_calls(problem, search)
     if choice is not None and _ended(est, choice) is not None:
         return None, history, choice
+    progress.stage(f"model fit: the final fit on all {len(problem.obs.spots):,} histograms")
     result = fit(problem, rough.params, free, min(est.final_nfev, FINISH_NFEV),
                  keep_jacobian=True)
     return result, history, choice
