@@ -41,7 +41,8 @@ def test_the_search_runs_on_the_filtered_frame_and_the_final_fit_on_the_counts(m
         return _result(2.0)
     monkeypatch.setattr(filtered_search.select, "fit_targets", fit_targets)
     monkeypatch.setattr(filtered_search, "fit", fit)
-    counts = SimpleNamespace(calls=1, model_s=0.1, backend=None)
+    counts = SimpleNamespace(calls=1, model_s=0.1, backend=None,
+                             obs=SimpleNamespace(spots=np.zeros((3, 3))))  # its progress stage
     got, history = filtered_search.searched(_Est(), counts, (0, 1, 0), np.ones(6, bool), None,
                                             smooth)
     if smooth is None:
