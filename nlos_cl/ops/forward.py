@@ -90,23 +90,23 @@ def opencl(rt, facets, spots, laser, edge0, dpath, sigma_path, n_bins, reflectan
     n_det, n_facets = len(spots), facets.count
     n_chunks = -(-n_facets // FACET_CHUNK)
     n_pad = n_chunks * FACET_CHUNK
-    centres, normals = float4_rows(facets.centres), float4_rows(facets.normals)
-    normals[:, 3] = facets.areas
-    centres, normals = rt.from_numpy(centres), rt.from_numpy(normals)
     spots_buf = rt.constant(float4_rows(spots))
-    mask = rt.constant(np.ascontiguousarray(visible if visible is not None else np.ones(1),
-                                            np.uint8), np.uint8)
-    defines = dict(CHUNK=FACET_CHUNK, **(reflectance.kernel_defines() if reflectance else {}))
     is_paired = paired(laser)  # -D PAIRED=1: each detector's laser spot from a buffer
-    paths_kernel = rt.kernel("forward", "facet_paths", **defines,
-                             **(dict(PAIRED=1) if is_paired else {}))
     lasers = rt.constant(float4_rows(laser_spots_of(laser, n_det))) if is_paired else float4(laser)
     hist = out if out is not None else rt.empty((n_det, n_bins))
     method, passes = plan_passes(rt, n_det, n_pad, n_bins, sigma_path, dpath, method)
     if method == "deposit" and direct(rt, n_det, n_bins, sigma_path, dpath, reflectance,
-                                      visible):
+                                      visible):  # its own facet rows: no float4 rows, no mask
         return hist, direct_bins(rt, facets, spots_buf, lasers, is_paired, passes, edge0,
                                  dpath, sigma_path, n_bins, hist)
+    centres, normals = float4_rows(facets.centres), float4_rows(facets.normals)
+    normals[:, 3] = facets.areas
+    centres, normals = rt.from_numpy(centres), rt.from_numpy(normals)
+    mask = rt.constant(np.ascontiguousarray(visible if visible is not None else np.ones(1),
+                                            np.uint8), np.uint8)
+    defines = dict(CHUNK=FACET_CHUNK, **(reflectance.kernel_defines() if reflectance else {}))
+    paths_kernel = rt.kernel("forward", "facet_paths", **defines,
+                             **(dict(PAIRED=1) if is_paired else {}))
     spans = []
     for d0, d1 in passes:
         path, weight = rt.empty((d1 - d0, n_pad)), rt.empty((d1 - d0, n_pad))

@@ -95,12 +95,19 @@ def deposit_bins(rt, defines, group, span, total, edge0, dpath, sigma_path, n_bi
 DIRECT_ROW_BYTES = 64 * 1024
 
 
+def _direct_row(n_bins, dpath, sigma_path) -> tuple[int, int, int]:
+    """(sub-bins per bin OS, taps half-width T, bins of a detector's row): the fused deposit's
+    row covers the whole axis and T bins each side, plus convolve's 16-bin blocks' overrun."""
+    os_, half = deposit_sizes(float(np.max(dpath)), sigma_path)
+    return os_, half, n_bins + 2 * half + 32
+
+
 def direct(rt, n_det, n_bins, sigma_path, dpath, reflectance, visible) -> bool:
     """Whether a pass of `n_det` detectors takes the fused deposit."""
-    os_, half = deposit_sizes(float(np.max(dpath)), sigma_path)
+    os_, _, padded = _direct_row(n_bins, dpath, sigma_path)
     lambertian = reflectance is None or not reflectance.kernel_defines()  # no lobe factor
     return (rt.on_cpu and lambertian and visible is None and n_det >= ROWS_MIN_DETECTORS
-            and 4 * os_ * (n_bins + 2 * half + 32) <= DIRECT_ROW_BYTES)
+            and 4 * os_ * padded <= DIRECT_ROW_BYTES)
 
 
 def direct_bins(rt, facets, spots_buf, lasers, is_paired, passes, edge0, dpath, sigma_path,
@@ -113,8 +120,7 @@ def direct_bins(rt, facets, spots_buf, lasers, is_paired, passes, edge0, dpath, 
     rows[3:6, :facets.count] = facets.normals.T
     rows[6, :facets.count] = facets.areas
     rows = rt.from_numpy(rows)
-    os_, half = deposit_sizes(float(np.max(dpath)), sigma_path)
-    padded = n_bins + 2 * half + 32  # convolve reads 16-bin blocks SPAN - 1 bins on
+    os_, half, padded = _direct_row(n_bins, dpath, sigma_path)
     n_det = len(edge0)
     win = rt.constant(np.stack([edge0 - half * dpath, os_ / dpath, np.zeros(n_det),
                                 np.zeros(n_det)], axis=1))
