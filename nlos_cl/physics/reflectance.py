@@ -110,11 +110,20 @@ class GGX(_LobeOverDiffuse, lobe="specular", knob=("roughness", 1.0),
     def factor(self, normals, to_laser, to_detector) -> np.ndarray:
         """(D, F) f / scale: KD + KS a^2 / den^2 G1(l) G1(v) / (4 cos_l cos_v) (the pi of D
         cancels against the scale's); 0 where either direction is below the surface."""
-        a2, kd, ks = self._weights()
-        cl = np.einsum("fk,fk->f", normals, to_laser)[None]
-        cv = np.einsum("fk,dfk->df", normals, to_detector)
         h = to_laser[None] + to_detector
         ch = np.einsum("fk,dfk->df", normals, h) / np.linalg.norm(h, axis=-1)
+        return self._of(np.einsum("fk,fk->f", normals, to_laser)[None],
+                        np.einsum("fk,dfk->df", normals, to_detector), ch)
+
+    def factor_of_cosines(self, cos_l, cos_v, cos_lv) -> np.ndarray:
+        """f / scale from n.l, n.v and l.v (n.h = (n.l + n.v) / |l + v|, |l + v|^2 =
+        2 + 2 l.v): the host models' form, which has these without (D, F, 3) temporaries."""
+        cos_l, cos_v = np.asarray(cos_l, np.float64), np.asarray(cos_v, np.float64)
+        half = np.sqrt(np.maximum(2.0 + 2.0 * np.asarray(cos_lv, np.float64), 1e-300))
+        return self._of(cos_l, cos_v, (cos_l + cos_v) / half)
+
+    def _of(self, cl, cv, ch) -> np.ndarray:
+        a2, kd, ks = self._weights()
         den = ch * ch * (a2 - 1.0) + 1.0
         ok = (cl > 0) & (cv > 0)
         cl, cv = np.where(ok, cl, 1.0), np.where(ok, cv, 1.0)
@@ -169,6 +178,10 @@ class Retroreflective(_LobeOverDiffuse, lobe="retro", knob=("width_rad", 1e3),
         precision in float64, ample for lobes of width >= 1e-3 rad."""
         half_lam, kd, kl = self._weights()
         return kd + kl * np.exp(-2.0 * half_lam * (1.0 - np.asarray(cos_lv, np.float64)))
+
+    def factor_of_cosines(self, cos_l, cos_v, cos_lv) -> np.ndarray:
+        """The host models' form (GGX.factor_of_cosines): l.v alone shapes this lobe."""
+        return self.factor_of_cosine(cos_lv)
 
     def factor(self, normals, to_laser, to_detector) -> np.ndarray:
         """(D, F) f / scale: KD + KL exp(-(lam / 2) |l - v|^2) (|l - v|^2 from the difference,

@@ -84,6 +84,23 @@ def glossy_scene(model):
     return nl.Scene(setup, nl.Target(mesh, brdf=model), 0.02)
 
 
+@pytest.mark.parametrize("roughness", [0.05, 0.3, 0.9])
+def test_ggx_from_cosines_is_the_vector_form(roughness):
+    """The host models' form (n.l, n.v, l.v; n.h from them) against `factor` on random
+    directions, some below the surface (0 in both)."""
+    model = GGX(specular=0.6, roughness=roughness, diffuse=0.1)
+    rng = np.random.default_rng(5)
+    n = rng.standard_normal((300, 3))
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    l, v = (d / np.linalg.norm(d, axis=-1, keepdims=True) for d in
+            (rng.standard_normal((300, 3)) + 0.8 * n, rng.standard_normal((4, 300, 3)) + 0.8 * n))
+    want = model.factor(n, l, v)
+    got = model.factor_of_cosines(np.sum(n * l, axis=1)[None], np.sum(n[None] * v, axis=2),
+                                  np.sum(l[None] * v, axis=2))
+    assert (want == 0).any() and (want > 0).any()
+    np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12)
+
+
 @pytest.mark.parametrize("method", ["deposit", "erf"])
 def test_ggx_kernel_matches_twin(device_runtime, reference, method):
     scene = glossy_scene(GGX(specular=0.7, roughness=0.25, diffuse=0.1))

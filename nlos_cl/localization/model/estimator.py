@@ -86,7 +86,7 @@ class ModelEstimator:
     place against the paper's argmax and, for one target, report the argmax instead of a fit
     that fails (model.sanity; False: report every fit as is). reflectance: the targets'
     reflectance model (nlos_cl.physics.reflectance: None or a Lambertian BRDF, GGX,
-    Retroreflective), known, not fitted; the amplitude absorbs its scale (GGX: device only)."""
+    Retroreflective), known, not fitted; the amplitude absorbs its scale."""
 
     name = "model"
 

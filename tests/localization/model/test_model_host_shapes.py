@@ -13,7 +13,7 @@ from nlos_cl.localization.model.forward import batch, host_shapes
 from nlos_cl.localization.model.forward.host_shapes import HostShapeProblem
 from nlos_cl.localization.model.forward.likelihood import Problem
 from nlos_cl.localization.model.shapes import box, capsule, cylinder, ellipsoid
-from nlos_cl.physics.reflectance import Retroreflective
+from nlos_cl.physics.reflectance import GGX, Retroreflective
 
 TRUTH = (4.0, 2.0, 0.0)
 # 0.5 x 0.7 x 0.4 m, turned 35 degrees from facing the wall, its top below the spots' plane
@@ -55,15 +55,17 @@ def test_host_columns_are_the_devices(obs, backend, shape):
     assert _peak_error(want, host.column(CLOSED)) < TOL
 
 
-@pytest.mark.parametrize("layout", ["paired", "retroreflective"])
-def test_each_detectors_own_laser_spot_and_a_retroreflector_are_the_devices(obs, backend,
-                                                                            layout):
+@pytest.mark.parametrize("layout", ["paired", "retroreflective", "glossy"])
+def test_each_detectors_own_laser_spot_and_a_lobe_are_the_devices(obs, backend, layout):
     """Paired layouts (a laser spot per detector: the laser spots 5-15 cm beside the
-    detector spots) and a retroreflective target (its factor of l.v) on both models."""
+    detector spots), a retroreflective target (its factor of l.v) and a glossy one (GGX: n.l,
+    n.v and n.h per point and detector, the kernel's from the vectors) on both models."""
     refl = None
     if layout == "paired":
         obs = replace(obs, laser=obs.spots + np.array([0.05, 0.0, 0.1]) * np.arange(
             1, len(obs.spots) + 1)[:, None])
+    elif layout == "glossy":
+        refl = GGX(specular=0.6, roughness=0.15, diffuse=0.05)
     else:
         refl = Retroreflective(retro=0.7, width_rad=0.05, diffuse=0.2)
     for shape in SHAPES:
@@ -123,10 +125,35 @@ def test_a_caller_edit_of_a_row_is_not_served_from_memory(obs):
     assert _peak_error(first, host.column(row)) > 1e-3
 
 
-def test_a_glossy_target_stays_on_the_device(obs):
-    from nlos_cl.physics.reflectance import GGX
+@pytest.mark.parametrize("rough", [0.1, 0.3, 0.6])
+def test_a_glossy_plate_is_the_devices(obs, backend, rough):
+    """HostProblem's plates (batch._paths: one normal a plate, cos_l and cos_v from the plate's
+    plane) with a GGX lobe against the forward op's; the lobe matters (the Lambertian column,
+    scaled to the same peak, is 4.5e-3 (a = 0.6) to 0.18 (a = 0.1) of the peak from both), so a
+    host that dropped its factor would fail."""
+    refl = GGX(specular=0.7, roughness=rough, diffuse=0.05)
+    row = np.array([4.0, 2.0, 0.0, 0.4, 0.8, np.pi + 0.4])
+    want = Problem(obs, backend, reflectance=refl).column(row)
+    got = batch.HostProblem(obs, reflectance=refl).column(row)
+    lambertian = batch.HostProblem(obs).column(row)
+    scale = np.abs(want).max() / np.abs(lambertian).max()
+    error = _peak_error(want, got)
+    assert error < TOL
+    assert _peak_error(want, lambertian * scale) > 4 * max(error, TOL)
+
+
+def test_a_reflectance_without_the_hosts_form_stays_on_the_device(obs):
+    class Lobe:  # a model with only the kernel's macro and its twin (no factor_of_cosines)
+        scale = 0.1
+
+        def kernel_defines(self):
+            return {}
+
+        def factor(self, normals, to_laser, to_detector):
+            return np.ones(to_detector.shape[:-1])
+    assert not host_shapes.host_can(Lobe())
     with pytest.raises(ValueError, match="reflectance"):
-        HostShapeProblem(obs, box, reflectance=GGX(specular=0.6, roughness=0.3, diffuse=0.2))
+        HostShapeProblem(obs, box, reflectance=Lobe())
 
 
 @pytest.mark.parametrize("shape", (ellipsoid, cylinder, capsule),

@@ -67,8 +67,8 @@ class HostProblem(Problem):
 
     def __init__(self, obs, lattice=(16, 24), backend=None, reflectance=None, kernel=False):
         # backend: for the closed shapes' Problems. reflectance: None (Lambertian) or a model
-        # with factor_of_cosine (its factor from l.v alone: Retroreflective), applied to the
-        # points' weights; the cell statistics (pull-in, blur, shift) stay Lambertian's.
+        # with factor_of_cosines (its factor from n.l, n.v and l.v: GGX, Retroreflective),
+        # applied to the points' weights; the cell statistics (pull-in, blur, shift) stay Lambertian's.
         # kernel: evaluate the plates with the plate_model operation on `backend` (the same
         # model in float32, many plates a launch: ops/plate_model.py) where it has them: a
         # Lambertian plate no other plate shadows, on a lattice of <= MAX_KERNEL_CELLS cells;
@@ -82,7 +82,7 @@ class HostProblem(Problem):
         keep_freed_memory()  # core.allocator: the deposit's passes 4x faster with it
         # False: every plate alone, as likelihood.Problem (comparisons; paired layouts)
         self.shadows = not self.paired
-        self._factor = None if reflectance is None else reflectance.factor_of_cosine
+        self._factor = None if reflectance is None else reflectance.factor_of_cosines
         floor = math.sqrt(max(obs.sigma0_m ** 2 - obs.box_excess_m2, TINY))
         # one sub-bin count per observation (from the narrowest pulse any plate can have):
         # a plate's histograms do not depend on which batch it is evaluated in
@@ -302,8 +302,8 @@ def _paths(points, normal, area, spots, laser, factor=None):
     away from O or the spot) for Lambertian upright plates, one normal per plate, without the
     twin's (D, F, 3) temporaries and in place (7x faster here). points (B, M, 3), each plate's
     in its plane; normal (B, 3), area (B,). factor: None, or the reflectance's direction
-    factor as a function of l.v = -(v1 . v2) / (r1 r2) (model.estimator passes
-    Retroreflective.factor_of_cosine)."""
+    factor as a function of n.l, n.v and l.v = -(v1 . v2) / (r1 r2) (model.estimator passes
+    GGX's or Retroreflective's factor_of_cosines)."""
     px, py, pz = points[..., 0], points[..., 1], points[..., 2]  # (np.moveaxis: 11 us more)
     nx, ny = normal[:, 0], normal[:, 1]  # upright: no z component
     # The points lie in their plate's plane, so n . (P - O) = -r1 cos_b1 and n . (S - P) =
@@ -330,7 +330,8 @@ def _paths(points, normal, area, spots, laser, factor=None):
     weight /= r2sq
     weight /= r2sq
     if factor is not None:
-        weight *= factor(-dot / np.sqrt(r1sq * r2sq))
+        r1, r2 = np.sqrt(r1sq), np.sqrt(r2sq)
+        weight *= factor(front_o[:, None] / r1, faces[:, :, None] / r2, -dot / (r1 * r2))
     path = np.sqrt(r2sq, out=r2sq)
     path += np.sqrt(r1sq)
     return path, weight

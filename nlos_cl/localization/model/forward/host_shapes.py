@@ -53,14 +53,15 @@ def shape_problem(problem, shape):
 
 
 def host_can(reflectance) -> bool:
-    """Whether the host's models know this reflectance (None: Lambertian; a factor of l.v)."""
-    return reflectance is None or hasattr(reflectance, "factor_of_cosine")
+    """Whether the host's models know this reflectance (None: Lambertian; a factor of n.l,
+    n.v and l.v: GGX, Retroreflective)."""
+    return reflectance is None or hasattr(reflectance, "factor_of_cosines")
 
 
 class HostShapeProblem(Problem):
     """A `Problem` for one closed shape (`shape`: model.box, .ellipsoid, .cylinder or .capsule:
     their `pieces`) evaluated on the host. reflectance: None (Lambertian) or one with
-    factor_of_cosine (Retroreflective), as model.batch.HostProblem; the laser one spot (3,)
+    factor_of_cosines (GGX, Retroreflective), as model.batch.HostProblem; the laser one spot (3,)
     or one per detector (D, 3)."""
 
     batched = True  # column_batch: one host call (or one launch) for all rows
@@ -69,9 +70,9 @@ class HostShapeProblem(Problem):
         super().__init__(obs, backend, lattice, shape=shape, reflectance=reflectance)
         keep_freed_memory()  # core.allocator
         if not host_can(reflectance):
-            raise ValueError("reflectance: the host model takes a factor of l.v alone "
-                             "(Retroreflective); use likelihood.Problem for this one")
-        self._factor = None if reflectance is None else reflectance.factor_of_cosine
+            raise ValueError("reflectance: the host model takes a factor of n.l, n.v and l.v "
+                             "(GGX, Retroreflective); use likelihood.Problem for this one")
+        self._factor = None if reflectance is None else reflectance.factor_of_cosines
         floor = math.sqrt(max(obs.sigma0_m ** 2 - obs.box_excess_m2, TINY))
         self.os = max(1, math.ceil(float(np.max(obs.dpath)) * SUB_BINS_PER_SIGMA / floor))
         self._stats = {}  # row bytes -> per piece (mask, keep, blur2, shift) (`_statistics`)
@@ -239,7 +240,7 @@ def point_paths(points, normals, areas, spots, laser, factor=None):
     away from the laser spot or the detector spot) with a normal per point, component by
     component and in place (no (D, G, M, 3) temporaries). points, normals (G, M, 3), areas
     (G, M); laser (3,) or (D, 3) (each detector its own); factor: the reflectance's factor of
-    l.v, or None. (batch._paths is its special case for upright plates, one normal and one
+    n.l, n.v and l.v, or None. (batch._paths is its special case for upright plates, one normal and one
     laser spot: the facing factors one number per plate and spot, 10-40 % faster on the
     plates' problems, within 1e-15 of this.)"""
     laser = np.asarray(laser, float)
@@ -264,8 +265,11 @@ def point_paths(points, normals, areas, spots, laser, factor=None):
     weight /= r2sq
     weight /= r2sq
     if factor is not None:
+        r1, r2 = np.sqrt(r1sq), np.sqrt(r2sq)
         dot = v1x * v2x + v1y * v2y + v1z * v2z
-        weight *= factor(-dot / np.sqrt(r1sq * r2sq))
+        cos_l = -(nx * v1x + ny * v1y + nz * v1z) / r1
+        cos_v = (nx * v2x + ny * v2y + nz * v2z) / r2
+        weight *= factor(cos_l, cos_v, -dot / (r1 * r2))
     path = np.sqrt(r2sq, out=r2sq)
     path += np.sqrt(r1sq)
     return path, weight
