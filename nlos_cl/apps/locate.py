@@ -91,6 +91,7 @@ def target_json(t, frame, truth, grid) -> dict:
            "unobservable": [a for a, v in zip(frame.axes, var) if not np.isfinite(v)],
            "extent_m": None if t.extent_m is None else rounded(t.extent_m),
            "shape": None if fit is None else fit.model,
+           "reflectance": _reflectance(fit),
            "truth": None if truth is None else vector_json(truth, frame),
            "error_m": None if truth is None else
            round(float(np.linalg.norm(np.asarray(t.position) - truth)), 5)}
@@ -100,6 +101,16 @@ def target_json(t, frame, truth, grid) -> dict:
         out["uncertainty"] = (", ".join(out["unobservable"]) + " held, not measured: the "
                               "wall spots (or the search region) give no information along it")
     return out
+
+
+def _reflectance(fit):
+    """The GGX lobe the fit chose by evidence (model.policy.lobe: roughness, diffuse share of
+    the albedo), or None: no fit, or the reflectance told (Lambertian unless --reflectance)."""
+    lobe = {} if fit is None else (fit.diagnostics or {}).get("reflectance") or {}
+    if lobe.get("model") != "ggx":
+        return None
+    return {"model": "ggx", "roughness": lobe["roughness"],
+            "diffuse_share": lobe["diffuse_share"], "chosen_by": "evidence"}
 
 
 def targets_json(point, truths) -> dict:
@@ -141,6 +152,10 @@ def text_lines(r, frame) -> str:
             line += "; extent " + " x ".join(f"{v:.3f}" for v in t["extent_m"]) + " m"
         if t["shape"]:
             line += f"; {t['shape']}"
+        if isinstance(t.get("reflectance"), dict):
+            lobe = t["reflectance"]
+            line += (f", glossy (GGX lobe of roughness {lobe['roughness']:.2f}, diffuse "
+                     f"{100 * lobe['diffuse_share']:.0f} %)")
         if t["truth"] is not None:
             line += f"; truth {t['truth']}, error {t['error_m']:.4f} m"
         lines.append(line)

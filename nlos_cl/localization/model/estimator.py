@@ -24,6 +24,7 @@ from .forward import data, late
 from .forward.likelihood import Problem
 from .options import GROUPS, FitBudget, Instrument, check_options, model_reflectance
 from .policy.depth import several_unseen_note, uncertain_note, unseen_note
+from .policy.lobe import with_lobe
 from .policy.rivals import rival_note
 from .policy.filtered_search import searched, smooth_observation
 from .policy.criteria import support
@@ -85,8 +86,9 @@ class ModelEstimator:
     final_nfev, and warm_nfev for a warm-started fit, `estimate(scored, start=...)`). sanity: check each fit's size, misfit and
     place against the paper's argmax and, for one target, report the argmax instead of a fit
     that fails (model.sanity; False: report every fit as is). reflectance: the targets'
-    reflectance model (nlos_cl.physics.reflectance: None or a Lambertian BRDF, GGX,
-    Retroreflective), known, not fitted; the amplitude absorbs its scale."""
+    reflectance model (nlos_cl.physics.reflectance: a Lambertian BRDF, GGX, Retroreflective),
+    known, not fitted; the amplitude absorbs its scale; None: Lambertian, or a GGX lobe where
+    the Lambertian fit misses the data and the lobe's evidence wins (policy.lobe)."""
 
     name = "model"
 
@@ -112,6 +114,7 @@ class ModelEstimator:
         self.max_targets, self.backend = int(max_targets), backend
         self.final_nfev, self.warm_nfev = budget.final_nfev, int(budget.warm_nfev)
         self.reflectance = model_reflectance(reflectance)
+        self.lobe_search = reflectance is None  # not told: a lobe where the data ask for one
         self.timings: dict = {}
 
     def window_s(self, scored) -> float:
@@ -153,9 +156,14 @@ class ModelEstimator:
             observable = held.axis != 2  # the height (ModelFit.height_observable)
             free = held.free_mask()
             fitted, warm_info = _warm_or_cold(self, scored, obs, paper, free, held, prior, clock)
+            if prior is None:  # a glossy target: the lobe the evidence prefers (policy.lobe)
+                fitted, lobe = with_lobe(self, fitted, lambda e: e._cold(
+                    scored, obs, paper, free, held, clock), (free, held, scored.backend))
             chosen, result, free, (cov_all, info) = fitted.chosen
             history = fitted.history
             info = _reported(chosen, result, free, cov_all, info, warm_info)
+            if prior is None and lobe is not None:
+                info["reflectance"] = lobe
             notes = _notes(held, chosen.shape, result, cov_all, info)
             if self.sanity and (left := leftover_note(chosen, result, self.targets)):
                 notes.append(left)
