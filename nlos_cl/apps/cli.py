@@ -190,7 +190,9 @@ def _reflectance_arg(p):
     p.add_argument("--reflectance", type=REFLECTANCE, default=None, metavar="MODEL[:K=V,...]",
                    help="the targets' reflectance in the model fit, e.g. retroreflective:retro="
                    "0.7,width_rad=0.005,diffuse=0.2 or ggx:specular=0.5,roughness=0.3 "
-                   "(default: Lambertian; docs/model-estimator.md). It asks for the model "
+                   "(default: Lambertian, or a GGX lobe fitted where the Lambertian fit of one "
+                   "target misses the data; lambertian holds it Lambertian; "
+                   "docs/model-estimator.md). It asks for the model "
                    "fit, also on paired and confocal captures (whose default is the argmax)")
 
 
