@@ -102,8 +102,8 @@ def _warm(est, obs, rows, shape, where):
 def refined(est, fitted, lobe, where):
     """(fitted, lobe, warnings, (fits, calls, model seconds)): the pattern search over (log
     roughness, diffuse share) from `lobe`, each point a warm fit of the best fit's shape from
-    its rows (`where`: the fit's free mask, held axis and backend); the best fit found, its lobe, and the warm
-    fits' count and work."""
+    its rows (`where`: the fit's free mask, held axis and backend); the best fit found, its
+    lobe, and the warm fits' count and work."""
     best, cost, said = fitted, fitted.chosen.result.cost, []
     step, fits, calls, model_s = np.array(STEPS), 0, 0, 0.0
     while fits < MAX_WARM and step[1] >= MIN_STEP * STEPS[1]:
