@@ -96,3 +96,21 @@ def test_the_command_line_says_the_lobe(glossy, tmp_path):
                          capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stderr
     assert "glossy (GGX lobe of roughness" in out.stdout
+
+
+
+def test_the_lobe_is_refined_on_spread_detectors_of_a_big_capture_and_fitted_on_one_target():
+    """Above LOBE_DETECTORS detectors the pattern search runs on that many spread ones (distinct,
+    spanning the wall); the fits are of one target even where the estimator looks for any
+    number (targets='auto': the locate's search for more targets)."""
+    rng = np.random.default_rng(3)
+    spots = np.column_stack([rng.uniform(-1, 1, (40, 2)), np.zeros(40)])
+    big = SimpleNamespace(spots=spots, laser=np.zeros(3), detectors=lambda rows: rows)
+    few = lobe._searched_on(big)
+    assert len(few) == lobe.LOBE_DETECTORS == len(set(few.tolist()))
+    span = np.ptp(spots[few, :2], axis=0) / np.ptp(spots[:, :2], axis=0)
+    assert np.all(span > 0.8), span
+    small = SimpleNamespace(spots=spots[:lobe.LOBE_DETECTORS], laser=np.zeros(3))
+    assert lobe._searched_on(small) is small
+    trial = lobe._with(ModelEstimator(targets="auto"), lobe.START)
+    assert trial.targets == 1 and trial.reflectance.roughness == lobe.START[0]
