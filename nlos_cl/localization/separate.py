@@ -118,7 +118,12 @@ def reaching(targets, reach_m):
     """The model fit of `targets`, on a window widened to `reach_m` past its own where the
     rows beyond held a return (`beyond`), else the plain one."""
     model, _, wide = _estimators()
-    return model(targets=targets) if not reach_m else wide(reach_m, targets=targets)
+    est = model(targets=targets) if not reach_m else wide(reach_m, targets=targets)
+    # its one-target answers are dropped (more_if_separate keeps separate objects only), so
+    # the glossy lobe's search (model.policy.lobe) on them was lost time: a 64-spot glossy
+    # patch's second pass spent as long on it as the first
+    est.lobe_search = False
+    return est
 
 
 def beyond(scored, obs, targets, false_alarm: float | None = None) -> float | None:

@@ -114,3 +114,13 @@ def test_the_lobe_is_refined_on_spread_detectors_of_a_big_capture_and_fitted_on_
     assert lobe._searched_on(small) is small
     trial = lobe._with(ModelEstimator(targets="auto"), lobe.START)
     assert trial.targets == 1 and trial.reflectance.roughness == lobe.START[0]
+
+
+def test_the_locates_second_pass_searches_no_lobe():
+    """locate_capture's second pass ('auto' where the first answer left signal unexplained:
+    localization.separate) keeps only answers of several targets, so it never pays the lobe
+    search of a one-target fit; the first pass does (the default estimator)."""
+    from nlos_cl.localization import separate
+    for reach in (None, 0.5):
+        assert separate.reaching("auto", reach).lobe_search is False
+    assert separate.probing(ModelEstimator()).lobe_search is True
