@@ -122,8 +122,9 @@ def refined(est, fitted, lobe, where, worse=False):
     its rows (`where`: the fit's free mask, held axis and backend); the best fit found, its
     lobe, and the warm fits' count and work. worse: `fitted` explains the data less than the
     Lambertian fit did; then a first round of steps that finds no better lobe ends the search
-    (the smaller steps around a lobe that bad cannot reach EXCESS_EXPLAINED: stop 73's
-    mismatch draws, 21 searches that moved no lobe, all below 0)."""
+    (stop 73, the glossy and background mismatch draws' 73 searches: 19 started below 0 and
+    moved no lobe, all rejected; the two kept that started below 0, 3 and 103, moved in the
+    first round)."""
     best, cost, said = fitted, fitted.chosen.result.cost, []
     step, fits, calls, model_s = np.array(STEPS), 0, 0, 0.0
     while fits < MAX_WARM and step[1] >= MIN_STEP * STEPS[1]:
