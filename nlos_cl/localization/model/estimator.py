@@ -156,13 +156,13 @@ class ModelEstimator:
             observable = held.axis != 2  # the height (ModelFit.height_observable)
             free = held.free_mask()
             fitted, warm_info = _warm_or_cold(self, scored, obs, paper, free, held, prior, clock)
-            if prior is None:  # a glossy target: the lobe the evidence prefers (policy.lobe)
-                fitted, lobe = with_lobe(self, fitted, lambda e: e._cold(
-                    scored, obs, paper, free, held, clock), (free, held, scored.backend))
+            fitted, lobe = (fitted, None) if prior is not None else with_lobe(
+                self, fitted, lambda e: e._cold(scored, obs, paper, free, held, clock),
+                (free, held, scored.backend))  # a glossy target: policy.lobe
             chosen, result, free, (cov_all, info) = fitted.chosen
             history = fitted.history
             info = _reported(chosen, result, free, cov_all, info, warm_info)
-            if prior is None and lobe is not None:
+            if lobe is not None:
                 info["reflectance"] = lobe
             notes = _notes(held, chosen.shape, result, cov_all, info)
             if self.sanity and (left := leftover_note(chosen, result, self.targets)):

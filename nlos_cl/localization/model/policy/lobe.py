@@ -135,11 +135,7 @@ def refined(est, fitted, lobe, where, worse=False):
             new = (float(np.clip(math.exp(at[0]), *ROUGHNESS)), float(np.clip(at[1], *DIFFUSE)))
             if new == tuple(lobe) or fits >= MAX_WARM:
                 continue
-            problem, result = best.chosen.problem, best.chosen.result
-            shape = name_of(problem.shape)
-            trial, caught = _quiet(lambda: _warm(_with(est, new), fitted.problem.obs,
-                                                 result.params,
-                                                 None if shape == "plate" else shape, where))
+            trial, caught = _moved(est, fitted.problem.obs, best, new, where, est.warm_nfev)
             fits, calls = fits + 1, calls + trial.problem.calls
             model_s += trial.problem.model_s
             if len(trial.chosen.result.params) == 1 and trial.chosen.result.cost < cost:
@@ -160,14 +156,15 @@ def _searched_on(obs):
     return obs.detectors(spread_rows(obs, LOBE_DETECTORS))
 
 
-def _moved(est, obs, fitted, lobe, where):
-    """(Fitted, warnings): `fitted`'s answer refitted warm with `lobe` on `obs` (other
-    detectors), with a cold fit's budget."""
+def _moved(est, obs, fitted, lobe, where, nfev):
+    """(Fitted, warnings): `fitted`'s answer refitted warm with `lobe` on `obs`, its shape
+    kept, in `nfev` evaluations (the pattern's steps: a warm fit's; onto other detectors: a
+    cold fit's final budget)."""
     problem, result = fitted.chosen.problem, fitted.chosen.result
     shape = name_of(problem.shape)
-    finish = _with(est, lobe)
-    finish.warm_nfev = est.final_nfev
-    return _quiet(lambda: _warm(finish, obs, result.params,
+    trial = _with(est, lobe)
+    trial.warm_nfev = nfev
+    return _quiet(lambda: _warm(trial, obs, result.params,
                                 None if shape == "plate" else shape, where))
 
 
@@ -180,12 +177,12 @@ def _search(est, start, said, where, worse):
     if few is obs:
         best, lobe, later, work = refined(est, start, START, where, worse)
         return best, lobe, later or said, work
-    on_few = _moved(est, few, start, START, where)[0]
+    on_few = _moved(est, few, start, START, where, est.final_nfev)[0]
     best, lobe, later, (fits, calls, model_s) = refined(est, on_few, START, where, worse)
     calls, model_s = calls + on_few.problem.calls, model_s + on_few.problem.model_s
     if lobe == START:
         return start, START, said, (fits, calls, model_s)
-    finished, later = _moved(est, obs, best, lobe, where)
+    finished, later = _moved(est, obs, best, lobe, where, est.final_nfev)
     calls, model_s = calls + finished.problem.calls, model_s + finished.problem.model_s
     if finished.chosen.result.cost >= start.chosen.result.cost:
         # the subset's lobe fits every detector worse than START did (mismatch draws 39, 44,
