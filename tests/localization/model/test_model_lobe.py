@@ -53,6 +53,7 @@ def test_a_glossy_target_is_found_with_a_fitted_lobe(glossy, monkeypatch):
     assert chosen["model"] == "ggx" and chosen["bic_gain"] > 0
     assert chosen["excess_explained"] >= lobe.EXCESS_EXPLAINED
     assert chosen["birge_ratios"][1] < chosen["birge_ratios"][0]
+    assert chosen["gain_over_lambertian_there"] > 0  # a lobe, not only a better basin
     assert min(abs(chosen["roughness"] - a) + abs(chosen["diffuse_share"] - kd)
                for a, kd in tried) < 1e-4  # the report's lobe is one tried (rounded)
     assert tried[0] == lobe.START and 1 < len(tried) <= 1 + lobe.MAX_WARM
@@ -60,6 +61,69 @@ def test_a_glossy_target_is_found_with_a_fitted_lobe(glossy, monkeypatch):
         assert lobe.ROUGHNESS[0] <= a <= lobe.ROUGHNESS[1]
         assert lobe.DIFFUSE[0] <= kd <= lobe.DIFFUSE[1]
         assert make(a, kd).specular + make(a, kd).diffuse == pytest.approx(1.0)
+
+
+def test_a_lobe_that_does_not_pay_against_the_lambertian_fit_at_its_answer_is_dropped(
+        monkeypatch):
+    """The START cold fit is a second search: where it finds a basin the Lambertian cold fit
+    missed, the lobe fit passes the gates against that fit whatever the reflectance
+    (scenario draw 66, a Lambertian box on a SPAD patch, was reported glossy at the broadest
+    lobe). Forced here on a Lambertian draw (the `one` family's 2, a cylinder on 3 spots):
+    the search runs and its lobe passes the first gate (forced), and the Lambertian fit
+    warm from the lobe's answer is reported, Lambertian, with the lobe's gain over it."""
+    frame, truth, _ = _draw("one", 2)
+    real, gates = lobe.depth_gain, []
+
+    def first_gate_passes(*args, **kwargs):
+        gain, unit = real(*args, **kwargs)
+        gates.append(gain)
+        return (abs(gain) + 1.0 if len(gates) == 1 else gain), unit
+    monkeypatch.setattr(lobe, "unexplained", lambda est, fitted: True)
+    monkeypatch.setattr(lobe, "EXCESS_EXPLAINED", -np.inf)
+    monkeypatch.setattr(lobe, "depth_gain", first_gate_passes)
+    position, fit = _located(frame)
+    chosen = fit.diagnostics["reflectance"]
+    assert len(gates) == 2 and gates[1] <= 0  # the lobe did not pay against the flat fit
+    assert chosen["model"] == "lambertian" and "roughness" not in chosen
+    assert chosen["gain_over_lambertian_there"] == pytest.approx(gates[1], abs=0.01)
+    assert np.linalg.norm(position - truth) < 0.05
+
+
+def _corner_on_box(tmp_path):
+    """Scenario draw 66 (seed 5501) as its scene file: a Lambertian box 0.22 m wide, 0.67 m
+    deep and 0.52 m tall, turned 27.6 degrees, 2.1 m out, seen by a 6 x 6 SPAD patch (8.7 cm
+    pitch), 19.6 dB. The Lambertian cold fit misses its basin (a cylinder 0.31 m off, Birge
+    ratio 12): the plate it starts from spans both visible faces 2.2 m wide."""
+    import json
+    from nlos_cl.apps.cli import main
+    xs, zs = 0.224549 + 0.086905 * np.arange(6), -0.321413 + 0.086905 * np.arange(6)
+    scene = {"setup": {"detector_spots": [[x, 0.0, z] for x in xs for z in zs]},
+             "targets": [{"shape": "box", "size_m": [0.2203, 0.6747, 0.5194],
+                          "rotation_deg": [0, 0, 27.55],
+                          "position": [-1.960232, 2.083964, 0.593979]}],
+             "facet_size_m": 0.02, "noise": {"seed": 1492284166, "snr_db": 19.553}}
+    (tmp_path / "scene.yaml").write_text(json.dumps(scene))
+    assert main(["simulate", str(tmp_path / "scene.yaml"), "--out", str(tmp_path / "f.h5")]) == 0
+    return nl.read_capture(tmp_path / "f.h5"), np.array(scene["targets"][0]["position"])
+
+
+def test_a_basin_the_lobes_start_finds_is_fitted_lambertian_without_refining_a_lobe(
+        tmp_path, monkeypatch):
+    """Where the lobe search's START cold fit finds the basin the Lambertian cold fit missed,
+    the Lambertian fit warm from its answer explains the data (the test that started the
+    search), so it is the answer, said Lambertian, and no lobe is refined (this box was
+    reported glossy at the search's broadest lobe, roughness 0.8 and 70 % diffuse, in 47 s)."""
+    frame, truth = _corner_on_box(tmp_path)
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("a lobe was refined where a Lambertian fit explains the data")
+    monkeypatch.setattr(lobe, "refined", refuse)
+    position, fit = _located(frame)
+    chosen = fit.diagnostics["reflectance"]
+    assert chosen == dict(chosen, model="lambertian", found_from="start")
+    assert chosen["birge_ratios"][1] < 2 < chosen["birge_ratios"][0]  # measured 0.94, 12.0
+    assert np.linalg.norm(position - truth) < 0.02  # measured 0.002 m
+    assert fit.shape == "box"
 
 
 def test_a_lambertian_reflectance_told_is_kept(glossy):
