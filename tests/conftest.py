@@ -15,6 +15,7 @@ TESTS = Path(__file__).resolve().parent
 SLOW = {
     "test_95_percent_region_covers_the_truth_90_to_98_percent_of_the_time",  # 35
     "test_notebook_runs",  # 26 (tracking.ipynb)
+    "test_a_basin_the_lobe_search_finds_is_fitted_lambertian",  # 24 (alone, 2026-12-07)
     "test_a_short_crossing_run_writes_its_section",  # 19
     "test_two_runs_give_bit_identical_positions",  # 18
     "test_two_targets_keep_their_identities_through_a_crossing",  # 15
