@@ -237,8 +237,7 @@ def with_lobe(est, fitted, cold, where):
     report.update(gain_over_lambertian_there=round(float(flat_gain), 2))
     calls = fitted.problem.calls + flat.problem.calls
     model_s = fitted.problem.model_s + flat.problem.model_s
-    if flat_gain <= 0 and len(flat.chosen.result.params) == 1:
-        # the search found a basin, not a lobe: the Lambertian fit there is the answer
+    if flat_gain <= 0:  # a basin, not a lobe: the Lambertian fit there is the answer
         best, lobe, said, report["model"] = flat, None, flat_said, "lambertian"
     best.problem.calls, best.problem.model_s = calls, model_s
     _say(said)
