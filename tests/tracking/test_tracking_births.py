@@ -78,9 +78,9 @@ def two_squares(tmp_path_factory):
 
 
 def test_auto_finds_both_targets_and_follows_each_with_one_id(two_squares):
-    """With targets='auto' (the default) both squares get a confirmed track by frame 3 and
+    """With the default (targets='auto') both squares get a confirmed track by frame 3 and
     keep their id; targets=1 follows one of them only."""
-    steps = list(nl.track_sequence(two_squares, targets="auto"))
+    steps = list(nl.track_sequence(two_squares))
     last = steps[-1]
     confirmed = [t for t in last.tracks if t.status == "confirmed"]
     assert len(confirmed) == 2
@@ -95,8 +95,6 @@ def test_auto_finds_both_targets_and_follows_each_with_one_id(two_squares):
     assert len(ids) == 2
     one = list(nl.track_sequence(two_squares, targets=1))[-1]
     assert len(one.tracks) == 1
-    default = list(nl.track_sequence(two_squares))[-1]  # the default is 'auto'
-    assert len([t for t in default.tracks if t.status == "confirmed"]) == 2
 
 
 def test_auto_keeps_one_id_on_one_walker(walk_file):
