@@ -80,16 +80,11 @@ DRAWS_SETTINGS = SimpleNamespace(facet_m=0.01, dt_s=1e-12)
 
 
 def test_counts_draw_165s_box_is_found_by_racing_the_filtered_frames_closed_fits(monkeypatch):
-    """Counts draw 165: a box seen by 3 spots. With the closed search's former centroid lattice
-    (three sizes facing the laser, one start kept, 6-evaluation short fits) the counts' own
-    closed fits miss it (a misfit, closed.worth_racing; 0.18 m off: a draws' failure); the
-    same families sought on the filtered frame and refitted on the counts reach the box. (The
-    richer lattice now finds it on the counts alone, 0.017 m: the race is the net under it.)"""
-    from nlos_cl.localization.model.policy import closed, closed_search
-    monkeypatch.setattr(closed_search, "CENTRE_SIZES", closed_search.CENTRE_SIZES[:3])
-    monkeypatch.setattr(closed_search, "CENTRE_YAWS", np.radians([0.0]))
-    monkeypatch.setattr(closed_search, "POOL_CENTRE_STARTS", 1)
-    monkeypatch.setattr(closed_search, "SHORT_NFEV", 6)
+    """Counts draw 165: a box seen by 3 spots. The counts' own closed fits miss it (a misfit,
+    closed.worth_racing; 0.39 m off before the pooled search, model.closed_search, 0.18 m
+    since: still a draws' failure, > 0.15 m); the same families sought on the filtered frame
+    and refitted on the counts reach the box, 0.018 m off."""
+    from nlos_cl.localization.model.policy import closed
     d, target = _counts_draw(165)
     assert target.fit.shape == "box" and target.details["closed_raced"] is True
     assert np.linalg.norm(target.position - d["targets"][0]["centre"]) < 0.03

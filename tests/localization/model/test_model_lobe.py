@@ -69,10 +69,8 @@ def test_a_lobe_that_does_not_pay_against_the_lambertian_fit_at_its_answer_is_dr
     missed, the lobe fit passes the gates against that fit whatever the reflectance
     (scenario draw 66, a Lambertian box on a SPAD patch, was reported glossy at the broadest
     lobe). Forced here on a Lambertian draw (the `one` family's 2, a cylinder on 3 spots):
-    the search runs and its lobe passes the first gate (forced), the lobe does not pay
-    against the Lambertian fit warm from its answer, and the better Lambertian fit is
-    reported, with the lobe's gain over the refit: here the cold fit (cost 310), as the
-    forced lobe had led the refit 0.055 m off (cost 8,242)."""
+    the search runs and its lobe passes the first gate (forced), and the Lambertian fit
+    warm from the lobe's answer is reported, Lambertian, with the lobe's gain over it."""
     frame, truth, _ = _draw("one", 2)
     real, gates = lobe.depth_gain, []
 
@@ -88,7 +86,7 @@ def test_a_lobe_that_does_not_pay_against_the_lambertian_fit_at_its_answer_is_dr
     assert len(gates) == 2 and gates[1] <= 0  # the lobe did not pay against the flat fit
     assert chosen["model"] == "lambertian" and "roughness" not in chosen
     assert chosen["gain_over_lambertian_there"] == pytest.approx(gates[1], abs=0.01)
-    assert np.linalg.norm(position - truth) < 0.01  # the cold fit's 0.003 m; the refit's 0.055
+    assert np.linalg.norm(position - truth) < 0.05
 
 
 def _corner_on_box(tmp_path):
@@ -109,23 +107,13 @@ def _corner_on_box(tmp_path):
     return nl.read_capture(tmp_path / "f.h5"), np.array(scene["targets"][0]["position"])
 
 
-def test_a_basin_the_lobe_search_finds_is_fitted_lambertian(tmp_path, monkeypatch):
-    """The closed search's centroid lattice (deep and shallow boxes, turned) finds this box
-    itself: no lobe is tried. Held to its former lattice (three sizes facing the laser), the
-    Lambertian cold fit misses the basin and the lobe search (its START cold fit and pattern
-    of warm fits) finds it; the Lambertian fit warm from its answer explains the data as well,
-    so the lobe does not pay its two parameters against it: the answer is that fit, said
-    Lambertian (this box was reported glossy at the search's broadest lobe, roughness 0.8 and
-    70 % diffuse)."""
-    from nlos_cl.localization.model.policy import closed_search
+def test_a_basin_the_lobe_search_finds_is_fitted_lambertian(tmp_path):
+    """Where the lobe search (its START cold fit and pattern of warm fits) finds the basin the
+    Lambertian cold fit missed, the Lambertian fit warm from its answer explains the data as
+    well, so the lobe does not pay its two parameters against it: the answer is that fit,
+    said Lambertian (this box was reported glossy at the search's broadest lobe, roughness
+    0.8 and 70 % diffuse)."""
     frame, truth = _corner_on_box(tmp_path)
-    position, fit = _located(frame)
-    assert "reflectance" not in fit.diagnostics and fit.shape == "box"
-    assert np.linalg.norm(position - truth) < 0.02  # measured 0.002 m
-    monkeypatch.setattr(closed_search, "CENTRE_SIZES", closed_search.CENTRE_SIZES[:3])
-    monkeypatch.setattr(closed_search, "CENTRE_YAWS", np.radians([0.0]))
-    monkeypatch.setattr(closed_search, "POOL_CENTRE_STARTS", 1)
-    monkeypatch.setattr(closed_search, "SHORT_NFEV", 6)
     position, fit = _located(frame)
     chosen = fit.diagnostics["reflectance"]
     assert chosen["model"] == "lambertian" and "roughness" not in chosen

@@ -22,11 +22,11 @@ from ..solve.fit import fit
 from ..solve.records import Chosen
 from . import starts
 from ..solve.lockstep import fit_together
-from .closed_search import CLOSED_NFEV, closed_free
+from .closed_search import CLOSED_NFEV, SHORT_NFEV, closed_free
 from .criteria import depth_gain, kappa, misfit, objects
 from .depth import DEPTH_SDS_KEY, depth_sds
 from .rivals import RIVALS_KEY, rivals
-from .select import FINAL_ATOL, SHORT_NFEV
+from .select import FINAL_ATOL
 
 # Depths (m) each target's closed starts are tried at behind its plate's face: a plate (the
 # family's least), a person's or a crate's depth, a cabinet's or a car's side

@@ -17,8 +17,6 @@ the basins apart (measured on the draws: docs/model-estimator.md, "The closed sh
 """
 from __future__ import annotations
 
-import itertools
-
 import numpy as np
 
 from ..shapes import box, plate
@@ -31,18 +29,13 @@ from . import starts
 BOX_DEPTHS = (0.1, 0.3, 0.6)  # m: starts behind the fitted plate's face
 BOX_YAWS = np.radians([-35.0, 0.0, 35.0])  # a box seen corner-on: the plate's yaw is between
 BOX_WIDTHS = (1.0, 0.6)  # times the plate's width (the plate spans both visible faces)
-# (w, h, d) m at the centroid starts: cubes, a person-sized column, and boxes deep and shallow
-# (a 0.22 x 0.52 m box 0.67 m deep, seen by 8 spots from 2.2 m, lay in none of the first three's
-# basins: the plate had gone 0.8 m in front of it), each turned CENTRE_YAWS from facing the laser
-CENTRE_SIZES = ((0.3, 0.3, 0.3), (0.6, 0.6, 0.6), (0.4, 1.7, 0.3), (0.25, 0.5, 0.7),
-                (0.7, 0.5, 0.25))
-CENTRE_YAWS = np.radians([-60.0, -30.0, 0.0, 30.0, 60.0])
+CENTRE_SIZES = ((0.3, 0.3, 0.3), (0.6, 0.6, 0.6), (0.4, 1.7, 0.3))  # (w, h, d) m, at centres
 # The closed fits get this many times final_nfev: from starts 0.3 m off, a cylinder on a
 # capsule still lowered its cost 40-fold between 30 and 90 evaluations.
 CLOSED_NFEV = 3
-SHORT_NFEV = 10  # 6 (as select.best_of's) left the richer centroid lattice's starts unsorted
+SHORT_NFEV = 6  # as select.best_of's short fits
 POOL_PLATE_STARTS = 2  # a family's starts from around the plate ...
-POOL_CENTRE_STARTS = 2  # ... and from the centroids (a sphere the plate missed by 0.5 m)
+POOL_CENTRE_STARTS = 1  # ... and from the centroid start (a sphere the plate missed by 0.5 m)
 STAGE2_KEEP = 2
 # A family whose best short fit costs more than this many times the best family's goes no
 # further (its short fit is its answer, never the chosen one): on high-SNR data a wrong family
@@ -66,8 +59,8 @@ def box_rows(q, centres=(), laser=None) -> np.ndarray:
                 p[plate.WIDTH], p[plate.YAW] = p[plate.WIDTH] * scale, p[plate.YAW] + dyaw
                 rows.append(box.from_plate(p, behind))
     for c in centres:
-        for (w, h, behind), dyaw in itertools.product(CENTRE_SIZES, CENTRE_YAWS):
-            rows.append(box.from_plate([*c[:3], w, h, plate.facing(c, laser) + dyaw], behind))
+        for w, h, behind in CENTRE_SIZES:
+            rows.append(box.from_plate([*c[:3], w, h, plate.facing(c, laser)], behind))
     return np.array(rows).reshape(-1, box.N_PARAMS)
 
 

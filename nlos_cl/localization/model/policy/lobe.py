@@ -29,7 +29,7 @@ locate, 0.9 -> 35.6 s; stop 72):
    narrow box 0.67 m deep seen corner-on, fitted as a cylinder 0.31 m off), the lobe fit
    found it and was reported glossy at the search's broadest lobe; the Lambertian fit from
    there explains the data as well (Birge ratio 0.94 against 0.96), and it is the answer,
-   Lambertian (the cold fit where the refit came back costlier than it). (Not from the START fit's answer, before the pattern search: a person on 3
+   Lambertian. (Not from the START fit's answer, before the pattern search: a person on 3
    spots, scenario draw 3, came back 0.23 m off and unwarned from there, 0.03 m from the
    refined lobe's answer.)
 Targets the Lambertian fit explains are not touched: their answer, and its time, are what they
@@ -237,12 +237,8 @@ def with_lobe(est, fitted, cold, where):
     report.update(gain_over_lambertian_there=round(float(flat_gain), 2))
     calls = fitted.problem.calls + flat.problem.calls
     model_s = fitted.problem.model_s + flat.problem.model_s
-    if flat_gain <= 0:  # a basin, not a lobe: the better Lambertian fit is the answer
-        report["model"] = "lambertian"
-        if flat.chosen.result.cost >= base:  # the refit came back worse than the cold fit
-            fitted.problem.calls, fitted.problem.model_s = calls, model_s
-            return fitted, report
-        best, lobe, said = flat, None, flat_said
+    if flat_gain <= 0:  # a basin, not a lobe: the Lambertian fit there is the answer
+        best, lobe, said, report["model"] = flat, None, flat_said, "lambertian"
     best.problem.calls, best.problem.model_s = calls, model_s
     _say(said)
     if lobe is not None:
